@@ -1,0 +1,44 @@
+# canonid — the two commands of the quick start (`make demo`, `make test`) and helpers.
+# Nothing is needed before them: the first call creates .venv and installs everything.
+
+PYTHON ?= python3
+VENV ?= .venv
+# On the project's machines this pin resolves to a local CPU wheel; elsewhere override it,
+# e.g. `make test TORCH_SPEC="torch"` to let pip choose a build for your platform.
+TORCH_SPEC ?= torch==2.13.0
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.canonid-installed
+DEMO_OUT ?= runs/demo
+
+.PHONY: demo test test-fast lint bench clean venv
+
+venv: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --upgrade --quiet pip
+	$(PY) -m pip install --quiet "$(TORCH_SPEC)"
+	$(PY) -m pip install --quiet -e ".[test]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(VENV)/bin/canonid demo --out $(DEMO_OUT)
+
+# pytest exits 5 when it collects no test; that is not a failure of the suite.
+test: $(STAMP)
+	$(PY) -m pytest -q; rc=$$?; if [ $$rc -eq 5 ]; then exit 0; else exit $$rc; fi
+
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -m "not slow"
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
+	$(VENV)/bin/mypy
+
+bench: $(STAMP)
+	$(PY) -m pip install --quiet -e ".[test,bench]"
+	$(PY) benchmarks/run_all.py $(if $(BENCH),--size $(BENCH),)
+
+clean:
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache

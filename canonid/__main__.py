@@ -1,0 +1,7 @@
+"""``python -m canonid`` is the ``canonid`` command."""
+
+import sys
+
+from canonid.cli import main
+
+sys.exit(main())

@@ -1,0 +1,17 @@
+"""One module per subcommand; each exposes ``register(subparsers)``."""
+
+from canonid.commands import (
+    analyze,
+    demo,
+    evaluate,
+    generate,
+    reduce,
+    reproduce,
+    systems,
+    train,
+)
+
+#: registration order is the order shown by ``canonid --help``
+COMMANDS = (systems, generate, train, reduce, evaluate, analyze, reproduce, demo)
+
+__all__ = ["COMMANDS"]

@@ -1,0 +1,17 @@
+"""`canonid generate` — dataset generation (not implemented yet)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from canonid.commands._pending import not_yet
+
+
+def register(sub: Any) -> None:
+    p: argparse.ArgumentParser = sub.add_parser(
+        "generate",
+        help="dataset generation (not implemented yet)",
+        description="dataset generation (not implemented yet)",
+    )
+    p.set_defaults(func=not_yet("dataset generation"))

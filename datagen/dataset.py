@@ -1,0 +1,301 @@
+"""The dataset type shared by generation, identification, analysis and the CLI.
+
+Time alignment (the convention of every layer)
+-----------------------------------------------
+Sample ``t`` of a trajectory holds the state ``x[t]``, the measured output
+``y[t] = h(x[t], u[t]) + w[t]`` (``y_clean[t]`` without the noise ``w[t]``), and the input ``u[t]``
+that moves ``x[t]`` to ``x[t+1] = f(x[t], u[t])``. User data is read with the same convention.
+A model with window ℓ predicting ``y[t]`` sees the samples ``t−ℓ … t−1`` (and ``u[t]`` when it has
+feedthrough).
+
+Storage
+-------
+``save(path)`` writes two files: ``path`` (an uncompressed ``.npz``, no pickle, deterministic bytes)
+and its sidecar ``path.with_suffix(".json")`` holding the metadata, the per-trajectory ``info`` and
+the SHA-256 checksum of the ``.npz``. Both are written atomically, the JSON last, so a dataset whose
+JSON exists is complete. ``load`` validates the checksum, every shape and finiteness, and names
+the file and field of any problem.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from models._validate import as_matrix
+from models.errors import DataError, ShapeError
+from models.io import atomic_write_json, read_json, read_npz, sha256_file, write_npz
+
+__all__ = ["FORMAT_VERSION", "Dataset", "Trajectory"]
+
+FORMAT_VERSION = 1
+_FIELDS = ("u", "y", "y_clean", "x", "reference")
+SPLITS = ("train", "val", "test")
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """One experiment (a flight, a run) of ``T`` samples; see the module docstring for alignment.
+
+    Attributes:
+        u: inputs, ``(T, n_u)``.
+        y: measured outputs, ``(T, n_y)``.
+        y_clean: noise-free outputs ``h(x, u)``, ``(T, n_y)``, when known.
+        x: true states, ``(T, n_x)``, when known.
+        reference: the reference the controller tracked, ``(T, n_r)``, when there is one.
+        info: JSON-ready facts about this trajectory (seed, controller statistics, ...).
+    """
+
+    u: np.ndarray
+    y: np.ndarray
+    y_clean: np.ndarray | None = None
+    x: np.ndarray | None = None
+    reference: np.ndarray | None = None
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        u = np.asarray(self.u, dtype=np.float64)
+        y = np.asarray(self.y, dtype=np.float64)
+        if u.ndim == 1:
+            u = u[:, None]
+        if y.ndim == 1:
+            y = y[:, None]
+        u = as_matrix(u, u.shape[1] if u.ndim == 2 else -1, "trajectory field 'u'")
+        y = as_matrix(y, y.shape[1] if y.ndim == 2 else -1, "trajectory field 'y'", rows=len(u))
+        if len(u) == 0:
+            raise ShapeError("trajectory has no samples (T = 0)")
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "y", y)
+        for name in ("y_clean", "x", "reference"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            arr = np.asarray(value, dtype=np.float64)
+            if arr.ndim == 1:
+                arr = arr[:, None]
+            cols = arr.shape[1] if arr.ndim == 2 else -1
+            if name == "y_clean" and cols != y.shape[1]:
+                raise ShapeError(
+                    f"trajectory field 'y_clean' must have shape ({len(u)}, {y.shape[1]}), "
+                    f"got {arr.shape}"
+                )
+            object.__setattr__(
+                self, name, as_matrix(arr, cols, f"trajectory field {name!r}", rows=len(u))
+            )
+        object.__setattr__(self, "info", dict(self.info))
+
+    @property
+    def T(self) -> int:
+        return int(self.u.shape[0])
+
+    @property
+    def n_u(self) -> int:
+        return int(self.u.shape[1])
+
+    @property
+    def n_y(self) -> int:
+        return int(self.y.shape[1])
+
+    def arrays(self) -> dict[str, np.ndarray]:
+        """The fields that are present, by name."""
+        return {k: getattr(self, k) for k in _FIELDS if getattr(self, k) is not None}
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Named splits of trajectories that share dimensions, names and sampling time.
+
+    Attributes:
+        splits: ``{"train": (...), "val": (...), "test": (...)}`` (other names are allowed).
+        dt: sampling time in seconds.
+        input_names, output_names: signal names (units in ``metadata["units"]`` when known).
+        state_names: names of ``x`` when the true state is stored.
+        metadata: JSON-ready facts (system, parameters, controller, noise, seeds, versions, ...).
+    """
+
+    splits: Mapping[str, Sequence[Trajectory]]
+    dt: float
+    input_names: tuple[str, ...]
+    output_names: tuple[str, ...]
+    state_names: tuple[str, ...] | None = None
+    metadata: Mapping[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.dt) and self.dt > 0):
+            raise ShapeError(f"dataset dt must be a positive number of seconds, got {self.dt}")
+        object.__setattr__(self, "input_names", tuple(self.input_names))
+        object.__setattr__(self, "output_names", tuple(self.output_names))
+        if self.state_names is not None:
+            object.__setattr__(self, "state_names", tuple(self.state_names))
+        splits = {str(k): tuple(v) for k, v in self.splits.items()}
+        n_u, n_y = len(self.input_names), len(self.output_names)
+        for split, trajs in splits.items():
+            for i, tr in enumerate(trajs):
+                where = f"split {split!r}, trajectory {i}"
+                if tr.n_u != n_u or tr.n_y != n_y:
+                    raise ShapeError(
+                        f"{where}: has n_u={tr.n_u}, n_y={tr.n_y}; the dataset declares "
+                        f"{n_u} input(s) {self.input_names} and {n_y} output(s) {self.output_names}"
+                    )
+                if tr.x is not None and self.state_names is not None:
+                    if tr.x.shape[1] != len(self.state_names):
+                        raise ShapeError(
+                            f"{where}: x has {tr.x.shape[1]} columns, expected "
+                            f"{len(self.state_names)} ({self.state_names})"
+                        )
+        object.__setattr__(self, "splits", splits)
+        object.__setattr__(self, "metadata", dict(self.metadata))
+
+    # ------------------------------------------------------------------ access
+    @property
+    def n_u(self) -> int:
+        return len(self.input_names)
+
+    @property
+    def n_y(self) -> int:
+        return len(self.output_names)
+
+    def split(self, name: str) -> tuple[Trajectory, ...]:
+        """The trajectories of split ``name``."""
+        try:
+            return tuple(self.splits[name])
+        except KeyError:
+            raise DataError(
+                f"dataset has no split {name!r}; it has {sorted(self.splits)}"
+            ) from None
+
+    def counts(self) -> dict[str, int]:
+        return {k: len(v) for k, v in self.splits.items()}
+
+    @classmethod
+    def from_arrays(
+        cls,
+        u: Any,
+        y: Any,
+        *,
+        dt: float,
+        split: str = "train",
+        input_names: Iterable[str] | None = None,
+        output_names: Iterable[str] | None = None,
+        metadata: Mapping[str, Any] | None = None,
+    ) -> Dataset:
+        """A one-split dataset from arrays: ``u`` ``(T, n_u)`` and ``y`` ``(T, n_y)`` for one
+        experiment, or lists of such arrays for several."""
+        us = list(u) if isinstance(u, (list, tuple)) else [u]
+        ys = list(y) if isinstance(y, (list, tuple)) else [y]
+        if len(us) != len(ys):
+            raise ShapeError(f"got {len(us)} input arrays but {len(ys)} output arrays")
+        trajs = []
+        for i, (ui, yi) in enumerate(zip(us, ys)):
+            ua, ya = np.asarray(ui, dtype=np.float64), np.asarray(yi, dtype=np.float64)
+            if ua.shape[0] != ya.shape[0]:
+                raise ShapeError(
+                    f"experiment {i}: u has {ua.shape[0]} samples but y has {ya.shape[0]}"
+                )
+            trajs.append(Trajectory(u=ua, y=ya))
+        n_u, n_y = trajs[0].n_u, trajs[0].n_y
+        return cls(
+            splits={split: tuple(trajs)},
+            dt=dt,
+            input_names=tuple(input_names or (f"u{i + 1}" for i in range(n_u))),
+            output_names=tuple(output_names or (f"y{i + 1}" for i in range(n_y))),
+            metadata=dict(metadata or {"source": "arrays"}),
+        )
+
+    # ------------------------------------------------------------------ storage
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write ``path`` (``.npz``) and its ``.json`` sidecar atomically; return ``path``."""
+        p = Path(path)
+        if p.suffix != ".npz":
+            raise DataError(f"dataset path must end in .npz, got {p}")
+        arrays: dict[str, np.ndarray] = {}
+        infos: dict[str, list[dict[str, Any]]] = {}
+        for split, trajs in self.splits.items():
+            if "/" in split:
+                raise DataError(f"split name must not contain '/': {split!r}")
+            infos[split] = []
+            for i, tr in enumerate(trajs):
+                for key, arr in tr.arrays().items():
+                    arrays[f"{split}/{i:05d}/{key}"] = arr
+                infos[split].append(dict(tr.info))
+        checksum = write_npz(p, arrays)
+        header = {
+            "format": "canonid-dataset",
+            "format_version": FORMAT_VERSION,
+            "arrays_file": p.name,
+            "checksum_sha256": checksum,
+            "dt": self.dt,
+            "input_names": list(self.input_names),
+            "output_names": list(self.output_names),
+            "state_names": None if self.state_names is None else list(self.state_names),
+            "counts": self.counts(),
+            "trajectory_info": infos,
+            "metadata": self.metadata,
+        }
+        atomic_write_json(p.with_suffix(".json"), header)
+        return p
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str]) -> Dataset:
+        """Read a dataset written by :meth:`save` (``path``: the ``.npz``, its ``.json``, or a
+        folder holding ``dataset.npz``), validating checksum, shapes and finiteness."""
+        p = Path(path)
+        if p.is_dir():
+            p = p / "dataset.npz"
+        if p.suffix == ".json":
+            p = p.with_suffix(".npz")
+        meta_path = p.with_suffix(".json")
+        if not p.exists():
+            raise DataError(f"dataset file not found: {p}")
+        if not meta_path.exists():
+            raise DataError(
+                f"dataset {p} has no metadata file {meta_path.name} (incomplete write or not a "
+                "canonid dataset)"
+            )
+        header = read_json(meta_path, what="dataset metadata")
+        if not isinstance(header, dict) or header.get("format") != "canonid-dataset":
+            raise DataError(f"{meta_path} is not canonid dataset metadata (field 'format')")
+        for key in ("checksum_sha256", "dt", "input_names", "output_names", "counts"):
+            if key not in header:
+                raise DataError(f"{meta_path}: missing field {key!r}")
+        actual = sha256_file(p)
+        if actual != header["checksum_sha256"]:
+            raise DataError(
+                f"dataset {p} does not match its checksum in {meta_path.name} "
+                f"(expected {header['checksum_sha256'][:12]}…, got {actual[:12]}…): the file is "
+                "corrupt, truncated or was modified"
+            )
+        arrays = read_npz(p, what="dataset")
+        infos = header.get("trajectory_info", {})
+        splits: dict[str, tuple[Trajectory, ...]] = {}
+        for split, count in header["counts"].items():
+            trajs = []
+            for i in range(int(count)):
+                prefix = f"{split}/{i:05d}/"
+                fields = {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix)}
+                if "u" not in fields or "y" not in fields:
+                    raise DataError(f"dataset {p}: trajectory {prefix[:-1]} lacks 'u' or 'y'")
+                info = infos.get(split, [{}] * int(count))[i] if infos else {}
+                try:
+                    trajs.append(Trajectory(**fields, info=info))
+                except ShapeError as exc:
+                    raise DataError(f"dataset {p}, {prefix[:-1]}: {exc}") from exc
+            splits[split] = tuple(trajs)
+        try:
+            return cls(
+                splits=splits,
+                dt=float(header["dt"]),
+                input_names=tuple(header["input_names"]),
+                output_names=tuple(header["output_names"]),
+                state_names=None
+                if header.get("state_names") is None
+                else tuple(header["state_names"]),
+                metadata=header.get("metadata", {}),
+            )
+        except ShapeError as exc:
+            raise DataError(f"dataset {p}: {exc}") from exc

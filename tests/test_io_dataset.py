@@ -1,0 +1,127 @@
+"""Dataset storage: round trip, deterministic bytes, corrupt/truncated files refused."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from datagen.dataset import Dataset, Trajectory
+from models.errors import DataError, ShapeError
+from models.io import npz_bytes
+
+
+def _dataset(rng, n=3, T=20):
+    trajs = []
+    for i in range(n):
+        x = rng.normal(size=(T, 2))
+        y_clean = x[:, 1:]
+        trajs.append(
+            Trajectory(
+                u=rng.normal(size=(T, 1)),
+                y=y_clean + 0.01,
+                y_clean=y_clean,
+                x=x,
+                reference=rng.normal(size=(T, 1)),
+                info={"seed": i},
+            )
+        )
+    return Dataset(
+        splits={"train": trajs[:2], "test": trajs[2:]},
+        dt=1.0,
+        input_names=("u",),
+        output_names=("y",),
+        state_names=("x1", "x2"),
+        metadata={"system": "tank"},
+    )
+
+
+def test_round_trip(tmp_path, rng):
+    ds = _dataset(rng)
+    path = ds.save(tmp_path / "d.npz")
+    back = Dataset.load(path)
+    assert back.counts() == {"train": 2, "test": 1}
+    for a, b in zip(ds.split("train"), back.split("train")):
+        for k, v in a.arrays().items():
+            np.testing.assert_array_equal(v, b.arrays()[k])
+        assert b.info == a.info
+    assert back.metadata == {"system": "tank"}
+
+
+def test_same_content_same_bytes(tmp_path, rng):
+    ds = _dataset(rng)
+    p1 = ds.save(tmp_path / "a" / "d.npz")
+    p2 = ds.save(tmp_path / "b" / "d.npz")
+    assert p1.read_bytes() == p2.read_bytes()
+    assert p1.with_suffix(".json").read_bytes() == p2.with_suffix(".json").read_bytes()
+    arrays = {"a": np.arange(3.0)}
+    assert npz_bytes(arrays) == npz_bytes(arrays)
+
+
+def test_truncated_file_is_refused_naming_it(tmp_path, rng):
+    path = _dataset(rng).save(tmp_path / "d.npz")
+    data = path.read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(DataError, match=r"d\.npz.*(checksum|corrupt)"):
+        Dataset.load(path)
+
+
+def test_flipped_byte_is_refused(tmp_path, rng):
+    path = _dataset(rng).save(tmp_path / "d.npz")
+    data = bytearray(path.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    path.write_bytes(bytes(data))
+    with pytest.raises(DataError, match="checksum"):
+        Dataset.load(path)
+
+
+def test_missing_or_corrupt_metadata(tmp_path, rng):
+    path = _dataset(rng).save(tmp_path / "d.npz")
+    meta = path.with_suffix(".json")
+    meta.write_text("{ not json")
+    with pytest.raises(DataError, match="not valid JSON"):
+        Dataset.load(path)
+    meta.unlink()
+    with pytest.raises(DataError, match="no metadata file"):
+        Dataset.load(path)
+    with pytest.raises(DataError, match="not found"):
+        Dataset.load(tmp_path / "nothing.npz")
+
+
+def test_nan_in_stored_arrays_is_refused(tmp_path, rng):
+    path = _dataset(rng).save(tmp_path / "d.npz")
+    meta = json.loads(path.with_suffix(".json").read_text())
+    from models.io import read_npz, write_npz
+
+    arrays = read_npz(path)
+    arrays["train/00000/y"][3, 0] = np.nan
+    meta["checksum_sha256"] = write_npz(path, arrays)
+    path.with_suffix(".json").write_text(json.dumps(meta))
+    with pytest.raises(DataError, match=r"train/00000.*'y'.*non-finite"):
+        Dataset.load(path)
+
+
+def test_trajectory_validation():
+    with pytest.raises(ShapeError, match="'y'"):
+        Trajectory(u=np.zeros((5, 1)), y=np.zeros((4, 1)))
+    with pytest.raises(ShapeError, match="'y_clean'"):
+        Trajectory(u=np.zeros((5, 1)), y=np.zeros((5, 1)), y_clean=np.zeros((5, 2)))
+    with pytest.raises(ShapeError, match="non-finite"):
+        Trajectory(u=np.full((5, 1), np.nan), y=np.zeros((5, 1)))
+
+
+def test_dataset_refuses_mixed_dimensions(rng):
+    a = Trajectory(u=np.zeros((5, 1)), y=np.zeros((5, 1)))
+    b = Trajectory(u=np.zeros((5, 2)), y=np.zeros((5, 1)))
+    with pytest.raises(ShapeError, match="trajectory 1"):
+        Dataset(splits={"train": [a, b]}, dt=1.0, input_names=("u",), output_names=("y",))
+
+
+def test_from_arrays_and_unknown_split():
+    ds = Dataset.from_arrays(np.zeros(10), np.ones(10), dt=0.5)
+    assert ds.counts() == {"train": 1} and ds.n_u == 1
+    with pytest.raises(DataError, match="no split 'val'"):
+        ds.split("val")
+    with pytest.raises(ShapeError, match="10 samples but y has 9"):
+        Dataset.from_arrays(np.zeros(10), np.ones(9), dt=0.5)
