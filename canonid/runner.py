@@ -151,7 +151,7 @@ def _executor(
                 threads_per_worker=1,
                 processes=processes,
                 dashboard_address=None,
-                silence_logs=logging.ERROR,
+                silence_logs=logging.CRITICAL,  # job errors come back through futures
             )
             client = Client(cluster, set_as_default=False)
         try:
