@@ -62,7 +62,10 @@ class NMPC(Controller):
         input_weights: diagonal of R, one per input.
         terminal: ``"lqr"`` or ``"none"``.
         solver: one of :data:`SOLVERS`.
-        tol: solver tolerance.
+        tol: solver tolerance. The default 1e-4 was chosen by measurement: on drone flights
+            the applied rotor speeds differed from those of IPOPT at tolerance 1e-10 by at most
+            1.4e-5 rad/s (the excitation is 1 rad/s), with one fewer fatrop iteration per step
+            than at 1e-6.
         mu_init: initial barrier parameter of fatrop / IPOPT (small suits warm starts).
         max_iter: iteration limit per solve (a solve that reaches it has failed).
         cache_dir: where ``"fatrop-c"`` keeps compiled solvers (default: the user's cache
@@ -82,7 +85,7 @@ class NMPC(Controller):
         input_weights: Sequence[float],
         terminal: str = "lqr",
         solver: str = "auto",
-        tol: float = 1e-6,
+        tol: float = 1e-4,
         mu_init: float = 1e-3,
         max_iter: int = 100,
         cache_dir: str | os.PathLike[str] | None = None,
@@ -161,7 +164,13 @@ class NMPC(Controller):
     def _build(
         self, nlp: dict[str, Any], solver: str, cache_dir: str | os.PathLike[str] | None
     ) -> tuple[str, ca.Function]:
-        common: dict[str, Any] = {"expand": True, "print_time": False}
+        """The step function ``(initial guess, parameters) -> plan`` for ``solver``.
+
+        The bounds are baked in, so a step passes two arrays (fewer conversions than the six
+        inputs of an ``nlpsol``), and ``error_on_fail`` makes a failed solve raise: the generated
+        C has no ``stats()`` to ask.
+        """
+        common: dict[str, Any] = {"expand": True, "print_time": False, "error_on_fail": True}
         if solver == "ipopt":
             opts: dict[str, Any] = {
                 **common,
@@ -171,10 +180,9 @@ class NMPC(Controller):
                     "tol": self.tol,
                     "mu_init": self.mu_init,
                     "max_iter": self.max_iter,
-                    "warm_start_init_point": "yes",
                 },
             }
-            return "ipopt", ca.nlpsol("nmpc", "ipopt", nlp, opts)
+            return "ipopt", self._step_function(ca.nlpsol("nmpc", "ipopt", nlp, opts))
         fatrop_opts: dict[str, Any] = {
             **common,
             "structure_detection": "auto",
@@ -186,11 +194,10 @@ class NMPC(Controller):
                 "max_iter": self.max_iter,
             },
         }
+        step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
         if solver in ("auto", "fatrop-c"):
-            # error_on_fail: the generated code has no stats; a failed solve must raise instead
-            plugin = ca.nlpsol("nmpc", "fatrop", nlp, {**fatrop_opts, "error_on_fail": True})
             compiled = compile_function(
-                plugin,
+                step,
                 name=f"nmpc_{self.system.name}_N{self.horizon}",
                 cache_dir=cache_dir,
                 libraries=("fatrop", "blasfeo"),
@@ -201,7 +208,15 @@ class NMPC(Controller):
                 raise ShapeError(
                     "solver 'fatrop-c' needs a working C compiler (gcc); use solver='fatrop'"
                 )
-        return "fatrop", ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts)
+        return "fatrop", step
+
+    def _step_function(self, nlpsol: ca.Function) -> ca.Function:
+        guess = ca.MX.sym("guess", self._nw)
+        params = ca.MX.sym("params", nlpsol.size1_in("p"))
+        plan = nlpsol(
+            x0=guess, p=params, lbx=self._lbx, ubx=self._ubx, lbg=self._zeros_g, ubg=self._zeros_g
+        )["x"]
+        return ca.Function("nmpc_step", [guess, params], [plan], ["guess", "params"], ["plan"])
 
     # ------------------------------------------------------------------ the controller
     def reset(self, reference: np.ndarray, x0: np.ndarray) -> None:
@@ -241,22 +256,11 @@ class NMPC(Controller):
 
     def _solve_once(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
         try:
-            sol = self._solve(
-                x0=self._guess,
-                p=params,
-                lbx=self._lbx,
-                ubx=self._ubx,
-                lbg=self._zeros_g,
-                ubg=self._zeros_g,
-            )
-        except RuntimeError as exc:  # the generated solver raises on failure
+            plan = self._solve(self._guess, params)
+        except RuntimeError as exc:  # error_on_fail: failed or non-converged
             log.debug("NMPC solve failed: %s", exc)
             return f"{self.solver_used} failed", None
-        if self.solver_used != "fatrop-c":
-            stats = self._solve.stats()
-            if not stats.get("success", False):
-                return f"{self.solver_used} failed ({stats.get('return_status', '?')})", None
-        w = np.asarray(sol["x"], dtype=np.float64).ravel()
+        w = np.asarray(plan, dtype=np.float64).ravel()
         if not np.all(np.isfinite(w)):
             return "non-finite plan", None
         return "ok", w
