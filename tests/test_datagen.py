@@ -204,6 +204,7 @@ def test_config_validation():
     with pytest.raises(ShapeError, match="nothing to generate"):
         GenerationConfig("tank", counts={"train": 0, "val": 0, "test": 0})
     assert GenerationConfig("tank").counts == {"train": 60, "val": 20, "test": 20}
+    assert GenerationConfig("tank", noise=0).to_json()["noise"] == 0.0
 
 
 def test_loose_flights_are_every_fifth_training_flight():
