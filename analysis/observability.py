@@ -1,0 +1,546 @@
+"""α_ℓ: the uniform observability constant of Definition 2 (2-norms).
+
+    α_ℓ = inf over ū ∈ U^ℓ and x ≠ x' in X of ‖O_ℓ(x, ū) − O_ℓ(x', ū)‖ / ‖x − x'‖,
+
+with ``O_ℓ(x, ū)`` stacking ``h(x, u_1), h(F_1(x, u_1), u_2), …, h(F_{ℓ−1}(x, ū), u_ℓ)`` (see
+:mod:`analysis.maps`). Estimators:
+
+* :func:`alpha_upper` — two **upper bounds** of the infimum: the smallest sampled and locally
+  minimised pair ratio, and the smallest ``σ_min(∂O_ℓ/∂x)`` (letting ``x' → x`` along the weakest
+  direction gives a ratio → ``σ_min``, so ``α_ℓ ≤ inf σ_min``).
+* :func:`alpha_lower` — a **certified lower bound**, the best of:
+
+  - *dimension*: ``ℓ·n_y < n_x`` (on an X with interior) — ``O_ℓ(·, ū)`` cannot be injective,
+    ``α_ℓ = 0`` exactly;
+  - *constant Jacobian*: when ``∂O_ℓ/∂x`` is a constant matrix ``M`` (checked symbolically —
+    linear systems, the planar drone's ``O_2``), ``O_ℓ`` is affine in ``x`` and ``α_ℓ = σ_min(M)``
+    exactly, certified by an interval Cholesky factorisation;
+  - *pairs branch-and-bound*: pairs of boxes ``(A, B) ⊆ X × X`` with a box of ``ū``; a pair is
+    bounded below by the mean-value bound ``σ_min([∂O/∂x] on hull(A ∪ B) × ū-box)`` and by the
+    gap bound ``dist(0, [O(x, ū) − O(x', ū)]) / max ‖x − x'‖``; the pair with the smallest bound
+    is refined first. Used where ``2·n_x + (#ū coordinates the Jacobian depends on)`` is small;
+  - *monotonicity*: ``O_{ℓ+1}`` contains ``O_ℓ`` as its first block, so ``α_{ℓ+1} ≥ α_ℓ``; a
+    certified bound for a shorter window carries over (``previous``).
+
+Inputs ``ū`` are the stacked ``(u_1, …, u_ℓ)`` (``u_1`` applied at time ``t−ℓ``).
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import time
+from collections.abc import Callable, Sequence
+
+import casadi as ca
+import numpy as np
+from scipy.optimize import minimize
+
+from analysis.enclosure import Enclosure, RangeEnclosure
+from analysis.estimate import Bracket, Budget, Estimate
+from analysis.interval import Interval, _sum_upper, norm_lower, norm_upper, quotient_lower
+from analysis.maps import Horizon, batched, check_window, varying_dims
+from analysis.matrix_bounds import smin_lower
+from models.base import System
+from models.errors import SetError
+from models.sets import Box
+
+__all__ = ["alpha_bracket", "alpha_lower", "alpha_upper", "input_box"]
+
+Progress = Callable[[str, float], None]
+
+
+def input_box(U: Box, window: int) -> Box:
+    """``U^ℓ`` as one box over the stacked ``ū = (u_1, …, u_ℓ)``."""
+    return Box(np.tile(U.lo, window), np.tile(U.hi, window))
+
+
+def _sets(X: Box, U: Box) -> dict[str, Box]:
+    return {"X": X, "U": U}
+
+
+def _smin(j: np.ndarray) -> np.ndarray:
+    """Smallest of the ``n`` singular values of each ``(m, n)`` matrix (0 when ``m < n``)."""
+    if j.shape[1] < j.shape[2]:
+        return np.zeros(j.shape[0])
+    return np.linalg.svd(j, compute_uv=False)[:, -1]
+
+
+def _interior_dim(X: Box) -> int:
+    return int(np.count_nonzero(X.width > 0))
+
+
+# ---------------------------------------------------------------------------------- upper bounds
+def alpha_upper(
+    system: System,
+    window: int,
+    *,
+    X: Box | None = None,
+    U: Box | None = None,
+    budget: Budget | None = None,
+    seed: int = 0,
+) -> list[Estimate]:
+    """Two upper bounds of α_ℓ: sampled/minimised pair ratios and inf ``σ_min(∂O_ℓ/∂x)``.
+
+    Both are values attained at points, so each is ≥ α_ℓ (up to float rounding).
+    """
+    ell = check_window(window)
+    budget = budget or Budget()
+    X, U = X or system.X, U or system.U
+    hz = Horizon(system, ell)
+    ubox = input_box(U, ell)
+    n = system.n_x
+    rng = np.random.default_rng(seed)
+    results = []
+
+    # --- σ_min of the Jacobian, sampled then minimised over (x, ū, d)
+    t0 = time.perf_counter()
+    xs = rng.uniform(X.lo, X.hi, size=(budget.samples, n))
+    us = rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim))
+    _, jac = batched(hz.O_jacobian, xs, us)
+    jac = jac.reshape(budget.samples, hz.n_obs, n)
+    smins = _smin(jac)
+    best_s = float(smins.min())
+    best_pt = np.concatenate([xs[int(np.argmin(smins))], us[int(np.argmin(smins))]])
+    if hz.n_obs >= n and best_s > 0:
+        x = ca.SX.sym("x", n)
+        ub = ca.SX.sym("u", ubox.dim)
+        d = ca.SX.sym("d", n)
+        jd = ca.jtimes(hz.O(x, ub), x, d)
+        obj = ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300)
+        v = ca.vertcat(x, ub, d)
+        fg_fun = ca.Function("fg", [v], [obj, ca.gradient(obj, v)])
+        bounds = list(zip(X.lo, X.hi)) + list(zip(ubox.lo, ubox.hi)) + [(None, None)] * n
+        for i in np.argsort(smins)[: budget.starts]:
+            _, _, vt = np.linalg.svd(jac[i])
+            start = np.concatenate([xs[i], us[i], vt[-1]])
+            res = _minimise(fg_fun, start, bounds)
+            cx = np.clip(res[:n], X.lo, X.hi)
+            cu = np.clip(res[n : n + ubox.dim], ubox.lo, ubox.hi)
+            _, j1 = batched(hz.O_jacobian, cx[None, :], cu[None, :])
+            s1 = float(_smin(j1.reshape(1, hz.n_obs, n))[0])
+            if s1 < best_s:
+                best_s, best_pt = s1, np.concatenate([cx, cu])
+    results.append(
+        Estimate(
+            quantity="alpha",
+            value=max(best_s, 0.0),
+            kind="upper",
+            sets=_sets(X, U),
+            method="inf σ_min(∂O_ℓ/∂x), sampled + local min (CasADi, L-BFGS-B)",
+            window=ell,
+            budget={"samples": budget.samples, "starts": budget.starts},
+            seconds=time.perf_counter() - t0,
+            details={"argmin": best_pt.tolist(), "seed": seed},
+        )
+    )
+
+    # --- pair ratios ‖O(x,ū) − O(x',ū)‖ / ‖x − x'‖
+    t0 = time.perf_counter()
+    xa = rng.uniform(X.lo, X.hi, size=(budget.samples, n))
+    xb = rng.uniform(X.lo, X.hi, size=(budget.samples, n))
+    us = rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim))
+    (oa,) = batched(hz.O, xa, us)
+    (ob,) = batched(hz.O, xb, us)
+    dist = np.linalg.norm(xa - xb, axis=1)
+    ratio = np.where(
+        dist > 0, np.linalg.norm(oa - ob, axis=1) / np.where(dist > 0, dist, 1.0), np.inf
+    )
+    best_r = float(ratio.min())
+    best_pair = np.concatenate(
+        [xa[int(np.argmin(ratio))], xb[int(np.argmin(ratio))], us[int(np.argmin(ratio))]]
+    )
+    x1 = ca.SX.sym("x1", n)
+    x2 = ca.SX.sym("x2", n)
+    ub = ca.SX.sym("u", ubox.dim)
+    obj = ca.sumsqr(hz.O(x1, ub) - hz.O(x2, ub)) / (ca.sumsqr(x1 - x2) + 1e-300)
+    v = ca.vertcat(x1, x2, ub)
+    fg_fun = ca.Function("fg", [v], [obj, ca.gradient(obj, v)])
+    bounds = list(zip(X.lo, X.hi)) * 2 + list(zip(ubox.lo, ubox.hi))
+    for i in np.argsort(ratio)[: budget.starts]:
+        res = _minimise(fg_fun, np.concatenate([xa[i], xb[i], us[i]]), bounds)
+        ca_, cb_ = np.clip(res[:n], X.lo, X.hi), np.clip(res[n : 2 * n], X.lo, X.hi)
+        cu = np.clip(res[2 * n :], ubox.lo, ubox.hi)
+        dd = float(np.linalg.norm(ca_ - cb_))
+        if dd <= 0:
+            continue
+        (o1,) = batched(hz.O, np.stack([ca_, cb_]), np.stack([cu, cu]))
+        r = float(np.linalg.norm(o1[0] - o1[1]) / dd)
+        if r < best_r:
+            best_r, best_pair = r, np.concatenate([ca_, cb_, cu])
+    results.append(
+        Estimate(
+            quantity="alpha",
+            value=best_r,
+            kind="upper",
+            sets=_sets(X, U),
+            method="inf pair ratio ‖O(x,ū)−O(x',ū)‖/‖x−x'‖, sampled + local min",
+            window=ell,
+            budget={"samples": budget.samples, "starts": budget.starts},
+            seconds=time.perf_counter() - t0,
+            details={"argmin_pair": best_pair.tolist(), "seed": seed},
+        )
+    )
+    return results
+
+
+def _minimise(fg_fun: ca.Function, start: np.ndarray, bounds: list) -> np.ndarray:
+    def fg(z: np.ndarray) -> tuple[float, np.ndarray]:
+        o, g = fg_fun(z)
+        return float(o), np.asarray(g).ravel()
+
+    with np.errstate(all="ignore"):
+        res = minimize(fg, start, jac=True, method="L-BFGS-B", bounds=bounds)
+    return np.asarray(res.x)
+
+
+# ---------------------------------------------------------------------------------- lower bounds
+def _dimension_zero(system: System, ell: int, X: Box, U: Box) -> Estimate | None:
+    if ell * system.n_y >= _interior_dim(X):
+        return None
+    return Estimate(
+        quantity="alpha",
+        value=0.0,
+        kind="lower",
+        sets=_sets(X, U),
+        method=f"exact: ℓ·n_y = {ell * system.n_y} < n_x = {_interior_dim(X)}, O_ℓ(·,ū) is not injective",
+        window=ell,
+        details={"exact": True},
+    )
+
+
+def _constant_jacobian(system: System, ell: int, X: Box, U: Box) -> Estimate | None:
+    hz = Horizon(system, ell)
+    x = ca.SX.sym("x", system.n_x)
+    ub = ca.SX.sym("u", hz.n_ubar)
+    jac = ca.jacobian(hz.O(x, ub), x)
+    if not jac.is_constant():
+        return None
+    t0 = time.perf_counter()
+    m = np.asarray(ca.DM(jac), dtype=np.float64)
+    value = float(smin_lower(Interval.point(m[None, :, :]))[0])
+    return Estimate(
+        quantity="alpha",
+        value=value,
+        kind="lower",
+        sets=_sets(X, U),
+        method="exact: ∂O_ℓ/∂x is a constant matrix M (CasADi), α_ℓ = σ_min(M) certified by interval Cholesky",
+        window=ell,
+        seconds=time.perf_counter() - t0,
+        details={"exact": True, "sigma_min_float": float(_smin(m[None])[0]), "matrix": m.tolist()},
+    )
+
+
+def _monotone(previous: Sequence[Estimate], ell: int, X: Box, U: Box) -> Estimate | None:
+    usable = [
+        e
+        for e in previous
+        if e.quantity == "alpha"
+        and e.kind == "lower"
+        and e.window is not None
+        and e.window < ell
+        and e.sets.get("X") == X
+        and e.sets.get("U") == U
+    ]
+    if not usable:
+        return None
+    best = max(usable, key=lambda e: e.value)
+    return Estimate(
+        quantity="alpha",
+        value=best.value,
+        kind="lower",
+        sets=_sets(X, U),
+        method=f"monotone: α_ℓ ≥ α_{best.window} ({best.method})",
+        window=ell,
+        details={"from_window": best.window},
+    )
+
+
+class _PairSearch:
+    """Branch-and-bound over pairs of boxes for the infimum of the pair ratio."""
+
+    def __init__(self, system: System, ell: int, X: Box, U: Box) -> None:
+        hz = Horizon(system, ell)
+        self.n = system.n_x
+        self.ubox = input_box(U, ell)
+        self.m = hz.n_obs
+        self.jac_enclosure = Enclosure(hz.O, wrt=0)
+        x1 = ca.SX.sym("x1", self.n)
+        x2 = ca.SX.sym("x2", self.n)
+        ub = ca.SX.sym("u", self.ubox.dim)
+        d = hz.O(x1, ub) - hz.O(x2, ub)
+        e = ca.SX.sym("e", self.m)
+        self.diff_enclosure = RangeEnclosure(ca.Function("D", [ca.vertcat(x1, x2), ub], [d]))
+        # eᵀ D for a unit vector e: ‖D‖ ≥ eᵀD keeps the correlation between the components
+        self.proj_enclosure = RangeEnclosure(
+            ca.Function("eD", [ca.vertcat(x1, x2), ca.vertcat(ub, e)], [ca.dot(e, d)])
+        )
+        self.O, self.O_jac = hz.O, hz.O_jacobian
+        _, du = varying_dims(hz.O)
+        self.xscale = np.where(X.width > 0, X.width, 1.0)
+        self.uscale = np.where(self.ubox.width > 0, self.ubox.width, 1.0)
+        self.xmask = X.width > 0
+        self.umask = du & (self.ubox.width > 0)
+
+    def bounds(self, a_lo, a_hi, b_lo, b_hi, u_lo, u_hi, diag):  # noqa: ANN001, ANN201
+        """Lower bound per node and the best ratio found at its centre."""
+        n = self.n
+        h_lo, h_hi = np.minimum(a_lo, b_lo), np.maximum(a_hi, b_hi)
+        res = self.jac_enclosure([Interval(h_lo, h_hi), Interval(u_lo, u_hi)])
+        assert res.jacobians is not None
+        mv = np.where(res.jac_flags == 0, smin_lower(res.jacobians[0]), 0.0)
+        gap_lb = np.zeros(a_lo.shape[0])
+        off = ~diag
+        if off.any():
+            lo = np.concatenate([a_lo[off], b_lo[off], u_lo[off]], axis=1)
+            hi = np.concatenate([a_hi[off], b_hi[off], u_hi[off]], axis=1)
+            enc, flags, _ = self.diff_enclosure(lo, hi)
+            gap = np.where(enc.lo > 0, enc.lo, np.where(enc.hi < 0, -enc.hi, 0.0))
+            gap = np.where((flags == 0)[:, None], gap, 0.0)
+            gap_norm = norm_lower(gap)
+            centre = enc.mid
+            length = np.linalg.norm(centre, axis=1)
+            unit = centre / np.where(length > 0, length, 1.0)[:, None]
+            proj, pflags, _ = self.proj_enclosure(
+                np.concatenate([lo, unit], axis=1), np.concatenate([hi, unit], axis=1)
+            )
+            proj_lb = np.where((pflags == 0) & (length > 0), proj.lo[:, 0], 0.0)
+            gap_norm = np.maximum(gap_norm, proj_lb)
+            far = np.maximum(_sum_upper(a_hi[off], -b_lo[off]), _sum_upper(b_hi[off], -a_lo[off]))
+            gap_lb[off] = quotient_lower(gap_norm, norm_upper(far))
+        lb = np.maximum(mv, gap_lb)
+        # point values (upper bounds of the infimum)
+        xa, xb = 0.5 * (a_lo + a_hi), 0.5 * (b_lo + b_hi)
+        uc = 0.5 * (u_lo + u_hi)
+        _, j = batched(self.O_jac, xa, uc)
+        pts = _smin(j.reshape(-1, self.m, n))
+        if off.any():
+            (oa,) = batched(self.O, xa[off], uc[off])
+            (ob,) = batched(self.O, xb[off], uc[off])
+            dd = np.linalg.norm(xa[off] - xb[off], axis=1)
+            pts[off] = np.minimum(
+                pts[off], np.linalg.norm(oa - ob, axis=1) / np.maximum(dd, 1e-300)
+            )
+        return lb, pts
+
+    def split(self, node):  # noqa: ANN001, ANN201
+        a_lo, a_hi, b_lo, b_hi, u_lo, u_hi, diag = node
+        wa = np.where(self.xmask, (a_hi - a_lo) / self.xscale, -1.0)
+        wb = np.where(self.xmask, (b_hi - b_lo) / self.xscale, -1.0)
+        wu = np.where(self.umask, (u_hi - u_lo) / self.uscale, -1.0)
+        best = [wa.max(), -1.0 if diag else wb.max(), wu.max() if wu.size else -1.0]
+        which = int(np.argmax(best))
+
+        def halves(lo, hi, w):  # noqa: ANN001, ANN202
+            k = int(np.argmax(w))
+            mid = 0.5 * lo[k] + 0.5 * hi[k]
+            h1, l2 = hi.copy(), lo.copy()
+            h1[k], l2[k] = mid, mid
+            return (lo, h1), (l2, hi)
+
+        if which == 2:
+            (u1l, u1h), (u2l, u2h) = halves(u_lo, u_hi, wu)
+            return [
+                (a_lo, a_hi, b_lo, b_hi, u1l, u1h, diag),
+                (a_lo, a_hi, b_lo, b_hi, u2l, u2h, diag),
+            ]
+        if which == 0:
+            (p1l, p1h), (p2l, p2h) = halves(a_lo, a_hi, wa)
+            if diag:
+                return [
+                    (p1l, p1h, p1l, p1h, u_lo, u_hi, True),
+                    (p2l, p2h, p2l, p2h, u_lo, u_hi, True),
+                    (p1l, p1h, p2l, p2h, u_lo, u_hi, False),
+                ]
+            return [
+                (p1l, p1h, b_lo, b_hi, u_lo, u_hi, False),
+                (p2l, p2h, b_lo, b_hi, u_lo, u_hi, False),
+            ]
+        (p1l, p1h), (p2l, p2h) = halves(b_lo, b_hi, wb)
+        return [
+            (a_lo, a_hi, p1l, p1h, u_lo, u_hi, False),
+            (a_lo, a_hi, p2l, p2h, u_lo, u_hi, False),
+        ]
+
+
+def _pairs_branch_and_bound(
+    system: System,
+    ell: int,
+    X: Box,
+    U: Box,
+    *,
+    tol: float,
+    budget: Budget,
+    upper: float,
+    batch: int,
+    progress: Progress | None,
+) -> Estimate:
+    t0 = time.perf_counter()
+    search = _PairSearch(system, ell, X, U)
+    ubox = search.ubox
+    counter = itertools.count()
+    best = upper
+
+    def evaluate(nodes: list) -> list[tuple[float, int, tuple]]:  # noqa: ANN001
+        nonlocal best
+        cols = list(zip(*nodes))
+        arrays = [np.array(c) for c in cols[:6]]
+        diag = np.array(cols[6], dtype=bool)
+        lb, pts = search.bounds(*arrays, diag)
+        best = min(best, float(pts.min()))
+        return [(float(lb[i]), next(counter), nodes[i]) for i in range(len(nodes))]
+
+    root = (X.lo, X.hi, X.lo, X.hi, ubox.lo, ubox.hi, True)
+    heap = evaluate([root])
+    evaluated = 1
+    stop = "tolerance reached"
+    while heap:
+        lower = min(heap[0][0], best)
+        if best - lower <= tol * best:
+            break
+        if evaluated >= budget.boxes:
+            stop = "box budget exhausted"
+            break
+        if budget.seconds is not None and time.perf_counter() - t0 > budget.seconds:
+            stop = "time budget exhausted"
+            break
+        popped = [heapq.heappop(heap) for _ in range(min(batch, len(heap)))]
+        children = [c for _, _, node in popped for c in search.split(node)]
+        evaluated += len(children)
+        for item in evaluate(children):
+            if item[0] < best:  # a pair bounded below by a ratio already attained is irrelevant
+                heapq.heappush(heap, item)
+        if progress is not None and heap:
+            progress(
+                f"α_{ell} bracket [{heap[0][0]:.4g}, {best:.4g}]",
+                min(1.0, evaluated / budget.boxes),
+            )
+    lower = min(heap[0][0], best) if heap else best
+    return Estimate(
+        quantity="alpha",
+        value=max(float(lower), 0.0),
+        kind="lower",
+        sets=_sets(X, U),
+        method="certified: pairs-of-boxes branch-and-bound (mean-value σ_min + gap bounds, interval)",
+        window=ell,
+        budget=budget.to_dict(),
+        seconds=time.perf_counter() - t0,
+        details={"boxes": evaluated, "stop": stop, "tol": tol, "upper_found": best},
+    )
+
+
+def alpha_lower(
+    system: System,
+    window: int,
+    *,
+    X: Box | None = None,
+    U: Box | None = None,
+    previous: Sequence[Estimate] = (),
+    upper: float | None = None,
+    tol: float = 0.1,
+    budget: Budget | None = None,
+    max_pair_dims: int = 7,
+    batch: int = 64,
+    progress: Progress | None = None,
+) -> Estimate:
+    """The best certified lower bound of α_ℓ available (see the module docstring).
+
+    Args:
+        system, window: the system and ``ℓ``.
+        X, U: the sets (default: the system's).
+        previous: certified lower bounds for shorter windows on the same sets (monotonicity).
+        upper: an upper bound of α_ℓ (stops the pair search within ``tol`` of it).
+        tol: relative tolerance of the pair search.
+        budget: ``boxes``/``seconds`` of the pair search.
+        max_pair_dims: the pair search runs when ``2·n_x + #ū coordinates it must split`` is
+            at most this; above, only the dimension, constant-Jacobian and monotone bounds apply.
+        batch: pairs refined per round.
+        progress: optional callback ``(message, fraction)``.
+    """
+    ell = check_window(window)
+    X, U = X or system.X, U or system.U
+    budget = budget or Budget()
+    zero = _dimension_zero(system, ell, X, U)
+    if zero is not None:
+        return zero
+    exact = _constant_jacobian(system, ell, X, U)
+    if exact is not None:
+        return exact
+    candidates = []
+    mono = _monotone(previous, ell, X, U)
+    if mono is not None:
+        candidates.append(mono)
+    hz = Horizon(system, ell)
+    _, du = varying_dims(hz.O)
+    dims = 2 * _interior_dim(X) + int(np.count_nonzero(du & (input_box(U, ell).width > 0)))
+    if dims <= max_pair_dims:
+        if upper is None:
+            upper = min(
+                e.value
+                for e in alpha_upper(system, ell, X=X, U=U, budget=Budget(samples=512, starts=2))
+            )
+        candidates.append(
+            _pairs_branch_and_bound(
+                system,
+                ell,
+                X,
+                U,
+                tol=tol,
+                budget=budget,
+                upper=upper,
+                batch=batch,
+                progress=progress,
+            )
+        )
+    if not candidates:
+        return Estimate(
+            quantity="alpha",
+            value=0.0,
+            kind="lower",
+            sets=_sets(X, U),
+            method=f"trivial (no certified bound: the pair search has {dims} > {max_pair_dims} dimensions)",
+            window=ell,
+        )
+    return max(candidates, key=lambda e: e.value)
+
+
+def alpha_bracket(
+    system: System,
+    window: int,
+    *,
+    X: Box | None = None,
+    U: Box | None = None,
+    previous: Sequence[Estimate] = (),
+    tol: float = 0.1,
+    budget: Budget | None = None,
+    max_pair_dims: int = 7,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> Bracket:
+    """The certified lower bound and the best sampled upper bound of α_ℓ."""
+    uppers = alpha_upper(system, window, X=X, U=U, budget=budget, seed=seed)
+    up = min(uppers, key=lambda e: e.value)
+    low = alpha_lower(
+        system,
+        window,
+        X=X,
+        U=U,
+        previous=previous,
+        upper=up.value,
+        tol=tol,
+        budget=budget,
+        max_pair_dims=max_pair_dims,
+        progress=progress,
+    )
+    found = low.details.get("upper_found")
+    if found is not None and found < up.value:
+        up = Estimate(
+            quantity="alpha",
+            value=float(found),
+            kind="upper",
+            sets=up.sets,
+            method="pair/σ_min value at a branch-and-bound box centre",
+            window=up.window,
+            seconds=up.seconds,
+        )
+    return Bracket(low, up)
