@@ -502,8 +502,8 @@ class RangeEnclosure:
         points ``(B, 2·n_out + 1, dim v)`` inside the boxes."""
         res = self._with_jac([Interval(lo, hi)])
         natural = res.values[0]
+        assert res.jacobians is not None
         jac = res.jacobians[0]
-        assert jac is not None
         batch, m, d = jac.shape
         centre = Interval.from_bounds(lo, hi).mid
         pos, neg = jac.lo >= 0, jac.hi <= 0  # (B, m, d)

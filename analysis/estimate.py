@@ -14,6 +14,7 @@ infimum).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -53,6 +54,15 @@ class Budget:
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
                 raise SetError(f"budget {name} must be an integer >= 1, got {value!r}")
+
+    def exhausted(self, evaluated: int, started: float) -> str | None:
+        """Why a search that has evaluated ``evaluated`` boxes since ``started``
+        (``time.perf_counter()``) must stop, or ``None``."""
+        if evaluated >= self.boxes:
+            return "box budget exhausted"
+        if self.seconds is not None and time.perf_counter() - started > self.seconds:
+            return "time budget exhausted"
+        return None
 
     def to_dict(self) -> dict[str, Any]:
         return {

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from flint import arb
@@ -117,8 +118,8 @@ class Interval:
     def contains_zero(self) -> np.ndarray:
         return (self.lo <= 0) & (self.hi >= 0)
 
-    def __getitem__(self, key: object) -> Interval:
-        return Interval(self.lo[key], self.hi[key])  # type: ignore[index]
+    def __getitem__(self, key: Any) -> Interval:
+        return Interval(self.lo[key], self.hi[key])
 
     # ------------------------------------------------------------------ arithmetic
     def __add__(self, other: Interval) -> Interval:

@@ -26,8 +26,8 @@ from collections.abc import Callable
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import minimize
 
+from analysis._local import local_minima
 from analysis.enclosure import Enclosure, describe_flags
 from analysis.estimate import Bracket, Budget, Estimate
 from analysis.interval import Interval
@@ -111,32 +111,25 @@ def lipschitz_lower(
         raise _unbounded_error(quantity, fun, where, pts[i], n_x, "it is not finite there")
     best = float(norms.max())
     best_pt = pts[int(np.argmax(norms))]
-    # local maximisation of ‖J d‖²/‖d‖² over (x, u, d)
+    # local maximisation of ‖J d‖²/‖d‖² over (x, u, d), from the best samples
     x = ca.SX.sym("x", n_x)
     u = ca.SX.sym("u", fun.nnz_in(1))
     d = ca.SX.sym("d", n_x)
     jd = ca.jtimes(fun(x, u), x, d)
-    obj = -ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300)
-    v = ca.vertcat(x, u, d)
-    objgrad = ca.Function("objgrad", [v], [obj, ca.gradient(obj, v)])
-    bounds = list(zip(lo, hi)) + [(None, None)] * n_x
-    order = np.argsort(-norms)[: budget.starts]
-    for i in order:
-        p = pts[i]
-        j = np.asarray(jac(p[:n_x], p[n_x:])[1]).reshape(-1, n_x)
-        _, _, vt = np.linalg.svd(j)
-        start = np.concatenate([p, vt[0]])
-
-        def fg(z: np.ndarray) -> tuple[float, np.ndarray]:
-            o, g = objgrad(z)
-            return float(o), np.asarray(g).ravel()
-
-        with np.errstate(all="ignore"):
-            res = minimize(fg, start, jac=True, method="L-BFGS-B", bounds=bounds)
-        cand = np.clip(res.x[: lo.size], lo, hi)
-        value = float(_norms(jac, cand[None, :], n_x)[0])
+    starts = []
+    for i in np.argsort(-norms)[: budget.starts]:
+        j = np.asarray(jac(pts[i, :n_x], pts[i, n_x:])[1]).reshape(-1, n_x)
+        starts.append(np.concatenate([pts[i], np.linalg.svd(j)[2][0]]))
+    ends = local_minima(
+        -ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
+        ca.vertcat(x, u, d),
+        starts,
+        list(zip(lo, hi)) + [(None, None)] * n_x,
+    )
+    for end in ends:
+        value = float(_norms(jac, end[None, : lo.size], n_x)[0])
         if np.isfinite(value) and value > best:
-            best, best_pt = value, cand
+            best, best_pt = value, end[: lo.size]
     return Estimate(
         quantity=quantity,
         value=best,
@@ -240,11 +233,9 @@ def lipschitz_upper(
         upper = -heap[0][0]
         if upper <= best * (1.0 + tol) or not mask.any():
             break
-        if evaluated >= budget.boxes:
-            stop_reason = "box budget exhausted"
-            break
-        if budget.seconds is not None and time.perf_counter() - t0 > budget.seconds:
-            stop_reason = "time budget exhausted"
+        exhausted = budget.exhausted(evaluated, t0)
+        if exhausted:
+            stop_reason = exhausted
             break
         popped = [heapq.heappop(heap) for _ in range(min(batch, len(heap)))]
         children = [c for _, _, lo, hi in popped for c in _split(lo, hi, scale, mask)]

@@ -57,19 +57,19 @@ class Horizon:
         return x, ubar, ca.vertcat(*outputs), state
 
     @cached_property
-    def O(self) -> ca.Function:  # noqa: N802 - the paper's name
+    def O(self) -> ca.Function:  # noqa: E743 - the paper's name
         """``O_ℓ(x, ubar)`` → ``(ℓ·n_y, 1)``."""
         x, ubar, obs, _ = self._symbols
         return ca.Function(f"O_{self.window}", [x, ubar], [obs], ["x", "ubar"], ["y_bar"])
 
     @cached_property
-    def F(self) -> ca.Function:  # noqa: N802
+    def F(self) -> ca.Function:
         """``F_ℓ(x, ubar)`` → ``(n_x, 1)``: the state ``ℓ`` steps later."""
         x, ubar, _, state = self._symbols
         return ca.Function(f"F_{self.window}", [x, ubar], [state], ["x", "ubar"], ["x_next"])
 
     @cached_property
-    def O_jacobian(self) -> ca.Function:  # noqa: N802
+    def O_jacobian(self) -> ca.Function:
         """``(x, ubar)`` → ``(O_ℓ, ∂O_ℓ/∂x)``."""
         return jacobian_function(self.O)
 
@@ -128,7 +128,7 @@ def batched(fun: ca.Function, *args: np.ndarray) -> list[np.ndarray]:
     outs = fun.map(n)(*arrays)
     if not isinstance(outs, (list, tuple)):
         outs = [outs]
-    result = []
+    result: list[np.ndarray] = []
     for out, (rows, cols) in zip(outs, shapes):
         arr = np.asarray(out, dtype=np.float64)
         if cols == 1:

@@ -31,7 +31,7 @@ import numpy as np
 
 from analysis.interval import Interval, _prod_bounds, _sum_lower, _sum_upper
 
-__all__ = ["spectral_upper", "smin_lower"]
+__all__ = ["smin_lower", "spectral_upper"]
 
 _POWER_ITERATIONS = 40
 

@@ -31,18 +31,18 @@ import heapq
 import itertools
 import time
 from collections.abc import Callable, Sequence
+from typing import NamedTuple
 
 import casadi as ca
 import numpy as np
-from scipy.optimize import minimize
 
+from analysis._local import local_minima
 from analysis.enclosure import Enclosure, RangeEnclosure
 from analysis.estimate import Bracket, Budget, Estimate
 from analysis.interval import Interval, _sum_upper, norm_lower, norm_upper, quotient_lower
 from analysis.maps import Horizon, batched, check_window, varying_dims
 from analysis.matrix_bounds import smin_lower
 from models.base import System
-from models.errors import SetError
 from models.sets import Box
 
 __all__ = ["alpha_bracket", "alpha_lower", "alpha_upper", "input_box"]
@@ -71,6 +71,101 @@ def _interior_dim(X: Box) -> int:
 
 
 # ---------------------------------------------------------------------------------- upper bounds
+def _upper(
+    ell: int,
+    X: Box,
+    U: Box,
+    value: float,
+    method: str,
+    budget: Budget,
+    t0: float,
+    details: dict[str, object],
+) -> Estimate:
+    return Estimate(
+        quantity="alpha",
+        value=max(value, 0.0),
+        kind="upper",
+        sets=_sets(X, U),
+        method=method,
+        window=ell,
+        budget={"samples": budget.samples, "starts": budget.starts},
+        seconds=time.perf_counter() - t0,
+        details=details,
+    )
+
+
+def _upper_smin(
+    hz: Horizon, X: Box, U: Box, budget: Budget, rng: np.random.Generator
+) -> tuple[float, np.ndarray]:
+    """Smallest ``σ_min(∂O/∂x)`` over samples and local minimisations of ``‖J d‖²/‖d‖²``."""
+    n, ubox = hz.system.n_x, input_box(U, hz.window)
+    pts = np.concatenate(
+        [
+            rng.uniform(X.lo, X.hi, size=(budget.samples, n)),
+            rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim)),
+        ],
+        axis=1,
+    )
+
+    def jacobians(points: np.ndarray) -> np.ndarray:
+        _, jac = batched(hz.O_jacobian, points[:, :n], points[:, n:])
+        return jac.reshape(points.shape[0], hz.n_obs, n)
+
+    values = _smin(jacobians(pts))
+    best = int(np.argmin(values))
+    if hz.n_obs < n or values[best] <= 0:
+        return float(values[best]), pts[best]
+    x, ub, d = ca.SX.sym("x", n), ca.SX.sym("u", ubox.dim), ca.SX.sym("d", n)
+    jd = ca.jtimes(hz.O(x, ub), x, d)
+    order = np.argsort(values)[: budget.starts]
+    weakest = np.linalg.svd(jacobians(pts[order]))[2][:, -1, :]  # right singular vectors
+    ends = local_minima(
+        ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
+        ca.vertcat(x, ub, d),
+        list(np.concatenate([pts[order], weakest], axis=1)),
+        list(zip(X.lo, X.hi)) + list(zip(ubox.lo, ubox.hi)) + [(None, None)] * n,
+    )
+    every = np.concatenate([pts, np.array(ends)[:, : n + ubox.dim]])
+    all_values = np.concatenate([values, _smin(jacobians(every[len(pts) :]))])
+    best = int(np.argmin(all_values))
+    return float(all_values[best]), every[best]
+
+
+def _upper_pairs(
+    hz: Horizon, X: Box, U: Box, budget: Budget, rng: np.random.Generator
+) -> tuple[float, np.ndarray]:
+    """Smallest pair ratio over samples and local minimisations of the squared ratio."""
+    n, ubox = hz.system.n_x, input_box(U, hz.window)
+    pairs = np.concatenate(
+        [
+            rng.uniform(X.lo, X.hi, size=(budget.samples, n)),
+            rng.uniform(X.lo, X.hi, size=(budget.samples, n)),
+            rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim)),
+        ],
+        axis=1,
+    )
+
+    def ratios(p: np.ndarray) -> np.ndarray:
+        (oa,) = batched(hz.O, p[:, :n], p[:, 2 * n :])
+        (ob,) = batched(hz.O, p[:, n : 2 * n], p[:, 2 * n :])
+        dist = np.linalg.norm(p[:, :n] - p[:, n : 2 * n], axis=1)
+        safe = np.where(dist > 0, dist, 1.0)
+        return np.where(dist > 0, np.linalg.norm(oa - ob, axis=1) / safe, np.inf)
+
+    values = ratios(pairs)
+    x1, x2, ub = ca.SX.sym("x1", n), ca.SX.sym("x2", n), ca.SX.sym("u", ubox.dim)
+    ends = local_minima(
+        ca.sumsqr(hz.O(x1, ub) - hz.O(x2, ub)) / (ca.sumsqr(x1 - x2) + 1e-300),
+        ca.vertcat(x1, x2, ub),
+        list(pairs[np.argsort(values)[: budget.starts]]),
+        list(zip(X.lo, X.hi)) * 2 + list(zip(ubox.lo, ubox.hi)),
+    )
+    every = np.concatenate([pairs, np.array(ends)])
+    all_values = np.concatenate([values, ratios(every[len(pairs) :])])
+    best = int(np.argmin(all_values))
+    return float(all_values[best]), every[best]
+
+
 def alpha_upper(
     system: System,
     window: int,
@@ -80,118 +175,42 @@ def alpha_upper(
     budget: Budget | None = None,
     seed: int = 0,
 ) -> list[Estimate]:
-    """Two upper bounds of α_ℓ: sampled/minimised pair ratios and inf ``σ_min(∂O_ℓ/∂x)``.
+    """Two upper bounds of α_ℓ: inf ``σ_min(∂O_ℓ/∂x)`` and the smallest pair ratio.
 
-    Both are values attained at points, so each is ≥ α_ℓ (up to float rounding).
+    Each is the best of ``budget.samples`` random points (pairs) and ``budget.starts`` local
+    minimisations (L-BFGS-B, CasADi gradients) started from the best ones. Both are values
+    attained at points, so each is ≥ α_ℓ (up to float rounding).
     """
     ell = check_window(window)
     budget = budget or Budget()
     X, U = X or system.X, U or system.U
     hz = Horizon(system, ell)
-    ubox = input_box(U, ell)
-    n = system.n_x
     rng = np.random.default_rng(seed)
-    results = []
-
-    # --- σ_min of the Jacobian, sampled then minimised over (x, ū, d)
     t0 = time.perf_counter()
-    xs = rng.uniform(X.lo, X.hi, size=(budget.samples, n))
-    us = rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim))
-    _, jac = batched(hz.O_jacobian, xs, us)
-    jac = jac.reshape(budget.samples, hz.n_obs, n)
-    smins = _smin(jac)
-    best_s = float(smins.min())
-    best_pt = np.concatenate([xs[int(np.argmin(smins))], us[int(np.argmin(smins))]])
-    if hz.n_obs >= n and best_s > 0:
-        x = ca.SX.sym("x", n)
-        ub = ca.SX.sym("u", ubox.dim)
-        d = ca.SX.sym("d", n)
-        jd = ca.jtimes(hz.O(x, ub), x, d)
-        obj = ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300)
-        v = ca.vertcat(x, ub, d)
-        fg_fun = ca.Function("fg", [v], [obj, ca.gradient(obj, v)])
-        bounds = list(zip(X.lo, X.hi)) + list(zip(ubox.lo, ubox.hi)) + [(None, None)] * n
-        for i in np.argsort(smins)[: budget.starts]:
-            _, _, vt = np.linalg.svd(jac[i])
-            start = np.concatenate([xs[i], us[i], vt[-1]])
-            res = _minimise(fg_fun, start, bounds)
-            cx = np.clip(res[:n], X.lo, X.hi)
-            cu = np.clip(res[n : n + ubox.dim], ubox.lo, ubox.hi)
-            _, j1 = batched(hz.O_jacobian, cx[None, :], cu[None, :])
-            s1 = float(_smin(j1.reshape(1, hz.n_obs, n))[0])
-            if s1 < best_s:
-                best_s, best_pt = s1, np.concatenate([cx, cu])
-    results.append(
-        Estimate(
-            quantity="alpha",
-            value=max(best_s, 0.0),
-            kind="upper",
-            sets=_sets(X, U),
-            method="inf σ_min(∂O_ℓ/∂x), sampled + local min (CasADi, L-BFGS-B)",
-            window=ell,
-            budget={"samples": budget.samples, "starts": budget.starts},
-            seconds=time.perf_counter() - t0,
-            details={"argmin": best_pt.tolist(), "seed": seed},
-        )
+    value, point = _upper_smin(hz, X, U, budget, rng)
+    smin = _upper(
+        ell,
+        X,
+        U,
+        value,
+        "inf σ_min(∂O_ℓ/∂x), sampled + local min (CasADi, L-BFGS-B)",
+        budget,
+        t0,
+        {"argmin": point.tolist(), "seed": seed},
     )
-
-    # --- pair ratios ‖O(x,ū) − O(x',ū)‖ / ‖x − x'‖
     t0 = time.perf_counter()
-    xa = rng.uniform(X.lo, X.hi, size=(budget.samples, n))
-    xb = rng.uniform(X.lo, X.hi, size=(budget.samples, n))
-    us = rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim))
-    (oa,) = batched(hz.O, xa, us)
-    (ob,) = batched(hz.O, xb, us)
-    dist = np.linalg.norm(xa - xb, axis=1)
-    ratio = np.where(
-        dist > 0, np.linalg.norm(oa - ob, axis=1) / np.where(dist > 0, dist, 1.0), np.inf
+    value, pair = _upper_pairs(hz, X, U, budget, rng)
+    ratio = _upper(
+        ell,
+        X,
+        U,
+        value,
+        "inf pair ratio ‖O(x,ū)−O(x',ū)‖/‖x−x'‖, sampled + local min",
+        budget,
+        t0,
+        {"argmin_pair": pair.tolist(), "seed": seed},
     )
-    best_r = float(ratio.min())
-    best_pair = np.concatenate(
-        [xa[int(np.argmin(ratio))], xb[int(np.argmin(ratio))], us[int(np.argmin(ratio))]]
-    )
-    x1 = ca.SX.sym("x1", n)
-    x2 = ca.SX.sym("x2", n)
-    ub = ca.SX.sym("u", ubox.dim)
-    obj = ca.sumsqr(hz.O(x1, ub) - hz.O(x2, ub)) / (ca.sumsqr(x1 - x2) + 1e-300)
-    v = ca.vertcat(x1, x2, ub)
-    fg_fun = ca.Function("fg", [v], [obj, ca.gradient(obj, v)])
-    bounds = list(zip(X.lo, X.hi)) * 2 + list(zip(ubox.lo, ubox.hi))
-    for i in np.argsort(ratio)[: budget.starts]:
-        res = _minimise(fg_fun, np.concatenate([xa[i], xb[i], us[i]]), bounds)
-        ca_, cb_ = np.clip(res[:n], X.lo, X.hi), np.clip(res[n : 2 * n], X.lo, X.hi)
-        cu = np.clip(res[2 * n :], ubox.lo, ubox.hi)
-        dd = float(np.linalg.norm(ca_ - cb_))
-        if dd <= 0:
-            continue
-        (o1,) = batched(hz.O, np.stack([ca_, cb_]), np.stack([cu, cu]))
-        r = float(np.linalg.norm(o1[0] - o1[1]) / dd)
-        if r < best_r:
-            best_r, best_pair = r, np.concatenate([ca_, cb_, cu])
-    results.append(
-        Estimate(
-            quantity="alpha",
-            value=best_r,
-            kind="upper",
-            sets=_sets(X, U),
-            method="inf pair ratio ‖O(x,ū)−O(x',ū)‖/‖x−x'‖, sampled + local min",
-            window=ell,
-            budget={"samples": budget.samples, "starts": budget.starts},
-            seconds=time.perf_counter() - t0,
-            details={"argmin_pair": best_pair.tolist(), "seed": seed},
-        )
-    )
-    return results
-
-
-def _minimise(fg_fun: ca.Function, start: np.ndarray, bounds: list) -> np.ndarray:
-    def fg(z: np.ndarray) -> tuple[float, np.ndarray]:
-        o, g = fg_fun(z)
-        return float(o), np.asarray(g).ravel()
-
-    with np.errstate(all="ignore"):
-        res = minimize(fg, start, jac=True, method="L-BFGS-B", bounds=bounds)
-    return np.asarray(res.x)
+    return [smin, ratio]
 
 
 # ---------------------------------------------------------------------------------- lower bounds
@@ -203,7 +222,10 @@ def _dimension_zero(system: System, ell: int, X: Box, U: Box) -> Estimate | None
         value=0.0,
         kind="lower",
         sets=_sets(X, U),
-        method=f"exact: ℓ·n_y = {ell * system.n_y} < n_x = {_interior_dim(X)}, O_ℓ(·,ū) is not injective",
+        method=(
+            f"exact: ℓ·n_y = {ell * system.n_y} < n_x = {_interior_dim(X)}, "
+            "O_ℓ(·,ū) is not injective"
+        ),
         window=ell,
         details={"exact": True},
     )
@@ -224,7 +246,10 @@ def _constant_jacobian(system: System, ell: int, X: Box, U: Box) -> Estimate | N
         value=value,
         kind="lower",
         sets=_sets(X, U),
-        method="exact: ∂O_ℓ/∂x is a constant matrix M (CasADi), α_ℓ = σ_min(M) certified by interval Cholesky",
+        method=(
+            "exact: ∂O_ℓ/∂x is a constant matrix M (CasADi), "
+            "α_ℓ = σ_min(M) certified by interval Cholesky"
+        ),
         window=ell,
         seconds=time.perf_counter() - t0,
         details={"exact": True, "sigma_min_float": float(_smin(m[None])[0]), "matrix": m.tolist()},
@@ -256,8 +281,29 @@ def _monotone(previous: Sequence[Estimate], ell: int, X: Box, U: Box) -> Estimat
     )
 
 
+class _Node(NamedTuple):
+    """A pair of boxes ``A ∋ x``, ``B ∋ x'`` with a box of ``ū``; ``diag`` when ``A = B``."""
+
+    a_lo: np.ndarray
+    a_hi: np.ndarray
+    b_lo: np.ndarray
+    b_hi: np.ndarray
+    u_lo: np.ndarray
+    u_hi: np.ndarray
+    diag: bool
+
+
+def _halves(lo: np.ndarray, hi: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cut ``[lo, hi]`` at the middle of coordinate ``k``: the first half's upper corner and the
+    second half's lower corner."""
+    mid = 0.5 * lo[k] + 0.5 * hi[k]
+    h1, l2 = hi.copy(), lo.copy()
+    h1[k], l2[k] = mid, mid
+    return h1, l2
+
+
 class _PairSearch:
-    """Branch-and-bound over pairs of boxes for the infimum of the pair ratio."""
+    """Bounds and splits of the pair nodes for the infimum of the pair ratio."""
 
     def __init__(self, system: System, ell: int, X: Box, U: Box) -> None:
         hz = Horizon(system, ell)
@@ -271,7 +317,7 @@ class _PairSearch:
         d = hz.O(x1, ub) - hz.O(x2, ub)
         e = ca.SX.sym("e", self.m)
         self.diff_enclosure = RangeEnclosure(ca.Function("D", [ca.vertcat(x1, x2), ub], [d]))
-        # eᵀ D for a unit vector e: ‖D‖ ≥ eᵀD keeps the correlation between the components
+        # eᵀD for a unit vector e: ‖D‖ ≥ eᵀD keeps the correlation between the components
         self.proj_enclosure = RangeEnclosure(
             ca.Function("eD", [ca.vertcat(x1, x2), ca.vertcat(ub, e)], [ca.dot(e, d)])
         )
@@ -282,85 +328,81 @@ class _PairSearch:
         self.xmask = X.width > 0
         self.umask = du & (self.ubox.width > 0)
 
-    def bounds(self, a_lo, a_hi, b_lo, b_hi, u_lo, u_hi, diag):  # noqa: ANN001, ANN201
-        """Lower bound per node and the best ratio found at its centre."""
-        n = self.n
-        h_lo, h_hi = np.minimum(a_lo, b_lo), np.maximum(a_hi, b_hi)
-        res = self.jac_enclosure([Interval(h_lo, h_hi), Interval(u_lo, u_hi)])
+    def _gap_bound(
+        self,
+        a_lo: np.ndarray,
+        a_hi: np.ndarray,
+        b_lo: np.ndarray,
+        b_hi: np.ndarray,
+        u_lo: np.ndarray,
+        u_hi: np.ndarray,
+    ) -> np.ndarray:
+        """``dist(0, [O(x,ū) − O(x',ū)]) / max ‖x − x'‖`` over the pair (rounded down)."""
+        lo = np.concatenate([a_lo, b_lo, u_lo], axis=1)
+        hi = np.concatenate([a_hi, b_hi, u_hi], axis=1)
+        enc, flags, _ = self.diff_enclosure(lo, hi)
+        gap = np.where(enc.lo > 0, enc.lo, np.where(enc.hi < 0, -enc.hi, 0.0))
+        gap_norm = norm_lower(np.where((flags == 0)[:, None], gap, 0.0))
+        centre = enc.mid
+        length = np.linalg.norm(centre, axis=1)
+        unit = centre / np.where(length > 0, length, 1.0)[:, None]
+        proj, pflags, _ = self.proj_enclosure(
+            np.concatenate([lo, unit], axis=1), np.concatenate([hi, unit], axis=1)
+        )
+        gap_norm = np.maximum(gap_norm, np.where((pflags == 0) & (length > 0), proj.lo[:, 0], 0.0))
+        far = np.maximum(_sum_upper(a_hi, -b_lo), _sum_upper(b_hi, -a_lo))
+        return quotient_lower(gap_norm, norm_upper(far))
+
+    def bounds(self, nodes: Sequence[_Node]) -> tuple[np.ndarray, np.ndarray]:
+        """Per node: a certified lower bound of the ratio and a ratio attained at its centre."""
+        a_lo, a_hi, b_lo, b_hi, u_lo, u_hi = (np.array(c) for c in list(zip(*nodes))[:6])
+        diag = np.array([node.diag for node in nodes], dtype=bool)
+        res = self.jac_enclosure(
+            [Interval(np.minimum(a_lo, b_lo), np.maximum(a_hi, b_hi)), Interval(u_lo, u_hi)]
+        )
         assert res.jacobians is not None
-        mv = np.where(res.jac_flags == 0, smin_lower(res.jacobians[0]), 0.0)
-        gap_lb = np.zeros(a_lo.shape[0])
+        lower = np.where(res.jac_flags == 0, smin_lower(res.jacobians[0]), 0.0)
         off = ~diag
         if off.any():
-            lo = np.concatenate([a_lo[off], b_lo[off], u_lo[off]], axis=1)
-            hi = np.concatenate([a_hi[off], b_hi[off], u_hi[off]], axis=1)
-            enc, flags, _ = self.diff_enclosure(lo, hi)
-            gap = np.where(enc.lo > 0, enc.lo, np.where(enc.hi < 0, -enc.hi, 0.0))
-            gap = np.where((flags == 0)[:, None], gap, 0.0)
-            gap_norm = norm_lower(gap)
-            centre = enc.mid
-            length = np.linalg.norm(centre, axis=1)
-            unit = centre / np.where(length > 0, length, 1.0)[:, None]
-            proj, pflags, _ = self.proj_enclosure(
-                np.concatenate([lo, unit], axis=1), np.concatenate([hi, unit], axis=1)
-            )
-            proj_lb = np.where((pflags == 0) & (length > 0), proj.lo[:, 0], 0.0)
-            gap_norm = np.maximum(gap_norm, proj_lb)
-            far = np.maximum(_sum_upper(a_hi[off], -b_lo[off]), _sum_upper(b_hi[off], -a_lo[off]))
-            gap_lb[off] = quotient_lower(gap_norm, norm_upper(far))
-        lb = np.maximum(mv, gap_lb)
-        # point values (upper bounds of the infimum)
-        xa, xb = 0.5 * (a_lo + a_hi), 0.5 * (b_lo + b_hi)
-        uc = 0.5 * (u_lo + u_hi)
+            gap = self._gap_bound(a_lo[off], a_hi[off], b_lo[off], b_hi[off], u_lo[off], u_hi[off])
+            lower[off] = np.maximum(lower[off], gap)
+        # values at points: σ_min at the centre, and the ratio between the two centres
+        xa, xb, uc = 0.5 * (a_lo + a_hi), 0.5 * (b_lo + b_hi), 0.5 * (u_lo + u_hi)
         _, j = batched(self.O_jac, xa, uc)
-        pts = _smin(j.reshape(-1, self.m, n))
+        attained = _smin(j.reshape(-1, self.m, self.n))
         if off.any():
             (oa,) = batched(self.O, xa[off], uc[off])
             (ob,) = batched(self.O, xb[off], uc[off])
-            dd = np.linalg.norm(xa[off] - xb[off], axis=1)
-            pts[off] = np.minimum(
-                pts[off], np.linalg.norm(oa - ob, axis=1) / np.maximum(dd, 1e-300)
-            )
-        return lb, pts
+            dist = np.linalg.norm(xa[off] - xb[off], axis=1)
+            ratio = np.linalg.norm(oa - ob, axis=1) / np.maximum(dist, 1e-300)
+            attained[off] = np.minimum(attained[off], ratio)
+        return lower, attained
 
-    def split(self, node):  # noqa: ANN001, ANN201
-        a_lo, a_hi, b_lo, b_hi, u_lo, u_hi, diag = node
-        wa = np.where(self.xmask, (a_hi - a_lo) / self.xscale, -1.0)
-        wb = np.where(self.xmask, (b_hi - b_lo) / self.xscale, -1.0)
-        wu = np.where(self.umask, (u_hi - u_lo) / self.uscale, -1.0)
-        best = [wa.max(), -1.0 if diag else wb.max(), wu.max() if wu.size else -1.0]
-        which = int(np.argmax(best))
+    def split(self, node: _Node) -> list[_Node]:
+        """Halve the widest coordinate (relative to X or U) of A, B or ū.
 
-        def halves(lo, hi, w):  # noqa: ANN001, ANN202
-            k = int(np.argmax(w))
-            mid = 0.5 * lo[k] + 0.5 * hi[k]
-            h1, l2 = hi.copy(), lo.copy()
-            h1[k], l2[k] = mid, mid
-            return (lo, h1), (l2, hi)
-
+        A diagonal node ``(A, A)`` cut into ``A1, A2`` gives ``(A1, A1)``, ``(A2, A2)`` and
+        ``(A1, A2)`` (the ratio is symmetric, so ``(A2, A1)`` is not needed).
+        """
+        wa = np.where(self.xmask, (node.a_hi - node.a_lo) / self.xscale, -1.0)
+        wb = np.where(self.xmask, (node.b_hi - node.b_lo) / self.xscale, -1.0)
+        wu = np.where(self.umask, (node.u_hi - node.u_lo) / self.uscale, -1.0)
+        widest = [wa.max(), -1.0 if node.diag else wb.max(), wu.max() if wu.size else -1.0]
+        which = int(np.argmax(widest))
         if which == 2:
-            (u1l, u1h), (u2l, u2h) = halves(u_lo, u_hi, wu)
-            return [
-                (a_lo, a_hi, b_lo, b_hi, u1l, u1h, diag),
-                (a_lo, a_hi, b_lo, b_hi, u2l, u2h, diag),
-            ]
+            h1, l2 = _halves(node.u_lo, node.u_hi, int(np.argmax(wu)))
+            return [node._replace(u_hi=h1), node._replace(u_lo=l2)]
         if which == 0:
-            (p1l, p1h), (p2l, p2h) = halves(a_lo, a_hi, wa)
-            if diag:
+            h1, l2 = _halves(node.a_lo, node.a_hi, int(np.argmax(wa)))
+            if node.diag:
                 return [
-                    (p1l, p1h, p1l, p1h, u_lo, u_hi, True),
-                    (p2l, p2h, p2l, p2h, u_lo, u_hi, True),
-                    (p1l, p1h, p2l, p2h, u_lo, u_hi, False),
+                    node._replace(a_hi=h1, b_hi=h1),
+                    node._replace(a_lo=l2, b_lo=l2),
+                    node._replace(a_hi=h1, b_lo=l2, diag=False),
                 ]
-            return [
-                (p1l, p1h, b_lo, b_hi, u_lo, u_hi, False),
-                (p2l, p2h, b_lo, b_hi, u_lo, u_hi, False),
-            ]
-        (p1l, p1h), (p2l, p2h) = halves(b_lo, b_hi, wb)
-        return [
-            (a_lo, a_hi, p1l, p1h, u_lo, u_hi, False),
-            (a_lo, a_hi, p2l, p2h, u_lo, u_hi, False),
-        ]
+            return [node._replace(a_hi=h1), node._replace(a_lo=l2)]
+        h1, l2 = _halves(node.b_lo, node.b_hi, int(np.argmax(wb)))
+        return [node._replace(b_hi=h1), node._replace(b_lo=l2)]
 
 
 def _pairs_branch_and_bound(
@@ -381,28 +423,22 @@ def _pairs_branch_and_bound(
     counter = itertools.count()
     best = upper
 
-    def evaluate(nodes: list) -> list[tuple[float, int, tuple]]:  # noqa: ANN001
+    def evaluate(nodes: list[_Node]) -> list[tuple[float, int, _Node]]:
         nonlocal best
-        cols = list(zip(*nodes))
-        arrays = [np.array(c) for c in cols[:6]]
-        diag = np.array(cols[6], dtype=bool)
-        lb, pts = search.bounds(*arrays, diag)
-        best = min(best, float(pts.min()))
-        return [(float(lb[i]), next(counter), nodes[i]) for i in range(len(nodes))]
+        lower, attained = search.bounds(nodes)
+        best = min(best, float(attained.min()))
+        return [(float(lower[i]), next(counter), nodes[i]) for i in range(len(nodes))]
 
-    root = (X.lo, X.hi, X.lo, X.hi, ubox.lo, ubox.hi, True)
-    heap = evaluate([root])
+    heap = evaluate([_Node(X.lo, X.hi, X.lo, X.hi, ubox.lo, ubox.hi, True)])
     evaluated = 1
     stop = "tolerance reached"
     while heap:
         lower = min(heap[0][0], best)
         if best - lower <= tol * best:
             break
-        if evaluated >= budget.boxes:
-            stop = "box budget exhausted"
-            break
-        if budget.seconds is not None and time.perf_counter() - t0 > budget.seconds:
-            stop = "time budget exhausted"
+        exhausted = budget.exhausted(evaluated, t0)
+        if exhausted:
+            stop = exhausted
             break
         popped = [heapq.heappop(heap) for _ in range(min(batch, len(heap)))]
         children = [c for _, _, node in popped for c in search.split(node)]
@@ -421,7 +457,9 @@ def _pairs_branch_and_bound(
         value=max(float(lower), 0.0),
         kind="lower",
         sets=_sets(X, U),
-        method="certified: pairs-of-boxes branch-and-bound (mean-value σ_min + gap bounds, interval)",
+        method=(
+            "certified: pairs-of-boxes branch-and-bound (mean-value σ_min + gap bounds, interval)"
+        ),
         window=ell,
         budget=budget.to_dict(),
         seconds=time.perf_counter() - t0,
@@ -498,7 +536,10 @@ def alpha_lower(
             value=0.0,
             kind="lower",
             sets=_sets(X, U),
-            method=f"trivial (no certified bound: the pair search has {dims} > {max_pair_dims} dimensions)",
+            method=(
+                f"trivial (no certified bound: the pair search has {dims} > "
+                f"{max_pair_dims} dimensions)"
+            ),
             window=ell,
         )
     return max(candidates, key=lambda e: e.value)
