@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 from models.errors import SetError
@@ -144,6 +144,27 @@ class Bracket:
                 f"exceeds upper bound {self.upper.value!r} ({self.upper.method}); "
                 "expected lower <= upper — one of the two is wrong"
             )
+
+    @classmethod
+    def reconcile(cls, lower: Estimate, upper: Estimate, *, rtol: float = 1e-9) -> Bracket:
+        """The bracket of ``lower`` and ``upper``, allowing for the rounding of sampled values.
+
+        A sampled value is a bound only up to float rounding (a ratio computed in float64 can
+        land a few ulps below the exact one). When the two bounds cross by at most ``rtol``
+        (relative), the sampled side is moved onto the other and the move is recorded in its
+        ``details``; a larger crossing is a real contradiction and raises ``SetError``.
+        """
+        gap = lower.value - upper.value
+        if gap <= 0 or gap > rtol * max(abs(lower.value), abs(upper.value)):
+            return cls(lower, upper)
+        sampled_upper = not upper.method.startswith(("certified", "exact"))
+        side, other = (upper, lower) if sampled_upper else (lower, upper)
+        moved = replace(
+            side,
+            value=other.value,
+            details={**side.details, "rounding_adjusted_from": side.value},
+        )
+        return cls(lower, moved) if sampled_upper else cls(moved, upper)
 
     @property
     def width(self) -> float:

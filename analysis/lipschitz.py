@@ -51,8 +51,19 @@ def _corners(lo: np.ndarray, hi: np.ndarray, limit: int = 256) -> np.ndarray:
 
 
 def _unbounded_error(
-    quantity: str, fun: ca.Function, where: str, point: np.ndarray, n_x: int, why: str
+    quantity: str, fun: ca.Function, where: str, point: np.ndarray, n_x: int, why: str | None
 ) -> SetError:
+    """The error for a Jacobian without a finite bound near ``point``.
+
+    Without a known reason (a sampled point where the float Jacobian is not finite) the
+    interval evaluator is run on the point itself to name the operation responsible.
+    """
+    if why is None:
+        res = Enclosure(fun, wrt=0)(
+            [Interval.point(point[None, :n_x]), Interval.point(point[None, n_x:])]
+        )
+        flags = int(res.jac_flags[0])
+        why = describe_flags(flags) if flags else "it is not finite there"
     return SetError(
         f"{quantity} is unbounded on {where}: near x = {np.round(point[:n_x], 6).tolist()}, "
         f"u = {np.round(point[n_x:], 6).tolist()} the Jacobian of {fun.name()} has no finite bound "
@@ -108,7 +119,7 @@ def lipschitz_lower(
     norms = _norms(jac, pts, n_x)
     if not np.all(np.isfinite(norms)):
         i = int(np.flatnonzero(~np.isfinite(norms))[0])
-        raise _unbounded_error(quantity, fun, where, pts[i], n_x, "it is not finite there")
+        raise _unbounded_error(quantity, fun, where, pts[i], n_x, None)
     best = float(norms.max())
     best_pt = pts[int(np.argmax(norms))]
     # local maximisation of ‖J d‖²/‖d‖² over (x, u, d), from the best samples
@@ -200,6 +211,18 @@ def lipschitz_upper(
     mask = np.concatenate([dx, du]) & (hi0 > lo0)
     best = lower.value if lower is not None else 0.0
 
+    def singular_corner(
+        lo: np.ndarray, hi: np.ndarray, dims: np.ndarray
+    ) -> tuple[np.ndarray, int] | None:
+        """A corner of the box (over the split coordinates) where the Jacobian enclosure of
+        the single point is already unbounded: γ is infinite there, not just hard to bound."""
+        corners = _corners(lo[dims], hi[dims], limit=16)
+        points = np.tile(lo, (corners.shape[0], 1))
+        points[:, dims] = corners
+        res = enclosure([Interval.point(points[:, :n_x]), Interval.point(points[:, n_x:])])
+        bad = np.flatnonzero(res.jac_flags != 0)
+        return (points[bad[0]], int(res.jac_flags[bad[0]])) if bad.size else None
+
     def evaluate(boxes: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         nonlocal best
         blo = np.array([b[0] for b in boxes])
@@ -217,8 +240,13 @@ def lipschitz_upper(
         stuck = flagged & (tiny | (not mask.any()))
         if stuck.any() or not np.all(np.isfinite(norms)):
             i = int(np.flatnonzero(stuck | ~np.isfinite(norms))[0])
-            why = describe_flags(int(res.jac_flags[i])) if flagged[i] else "it is not finite there"
+            why = describe_flags(int(res.jac_flags[i])) if flagged[i] else None
             raise _unbounded_error(quantity, fun, where, centre[i], n_x, why)
+        for k in np.flatnonzero(flagged):
+            singular = singular_corner(blo[k], bhi[k], mask)
+            if singular is not None:
+                point, flags = singular
+                raise _unbounded_error(quantity, fun, where, point, n_x, describe_flags(flags))
         best = max(best, float(norms.max()))
         return ub
 
@@ -252,8 +280,14 @@ def lipschitz_upper(
             )
     upper = max(-heap[0][0], best) if heap else best
     if not np.isfinite(upper):
+        _, _, wlo, whi = heap[0]
+        res = enclosure(
+            [Interval(wlo[None, :n_x], whi[None, :n_x]), Interval(wlo[None, n_x:], whi[None, n_x:])]
+        )
         raise SetError(
-            f"{quantity}: no finite upper bound on {where} within the budget ({stop_reason})"
+            f"{quantity}: no finite upper bound on {where} within the budget ({stop_reason}): "
+            f"on x ∈ {Box(wlo[:n_x], whi[:n_x])}, u ∈ {Box(wlo[n_x:], whi[n_x:])} the Jacobian "
+            f"enclosure meets {describe_flags(int(res.jac_flags[0]))}"
         )
     return Estimate(
         quantity=quantity,
@@ -322,4 +356,4 @@ def lipschitz_bracket(
             seconds=low.seconds,
             details=low.details,
         )
-    return Bracket(low, up)
+    return Bracket.reconcile(low, up)

@@ -94,18 +94,17 @@ def _upper(
     )
 
 
+def _uniform_rows(rng: np.random.Generator, boxes: Sequence[Box], count: int) -> np.ndarray:
+    """``count`` rows, each the concatenation of one uniform point per box."""
+    return np.concatenate([rng.uniform(b.lo, b.hi, size=(count, b.dim)) for b in boxes], axis=1)
+
+
 def _upper_smin(
     hz: Horizon, X: Box, U: Box, budget: Budget, rng: np.random.Generator
 ) -> tuple[float, np.ndarray]:
     """Smallest ``σ_min(∂O/∂x)`` over samples and local minimisations of ``‖J d‖²/‖d‖²``."""
     n, ubox = hz.system.n_x, input_box(U, hz.window)
-    pts = np.concatenate(
-        [
-            rng.uniform(X.lo, X.hi, size=(budget.samples, n)),
-            rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim)),
-        ],
-        axis=1,
-    )
+    pts = _uniform_rows(rng, (X, ubox), budget.samples)
 
     def jacobians(points: np.ndarray) -> np.ndarray:
         _, jac = batched(hz.O_jacobian, points[:, :n], points[:, n:])
@@ -136,14 +135,7 @@ def _upper_pairs(
 ) -> tuple[float, np.ndarray]:
     """Smallest pair ratio over samples and local minimisations of the squared ratio."""
     n, ubox = hz.system.n_x, input_box(U, hz.window)
-    pairs = np.concatenate(
-        [
-            rng.uniform(X.lo, X.hi, size=(budget.samples, n)),
-            rng.uniform(X.lo, X.hi, size=(budget.samples, n)),
-            rng.uniform(ubox.lo, ubox.hi, size=(budget.samples, ubox.dim)),
-        ],
-        axis=1,
-    )
+    pairs = _uniform_rows(rng, (X, X, ubox), budget.samples)
 
     def ratios(p: np.ndarray) -> np.ndarray:
         (oa,) = batched(hz.O, p[:, :n], p[:, 2 * n :])
@@ -186,31 +178,21 @@ def alpha_upper(
     X, U = X or system.X, U or system.U
     hz = Horizon(system, ell)
     rng = np.random.default_rng(seed)
-    t0 = time.perf_counter()
-    value, point = _upper_smin(hz, X, U, budget, rng)
-    smin = _upper(
-        ell,
-        X,
-        U,
-        value,
-        "inf σ_min(∂O_ℓ/∂x), sampled + local min (CasADi, L-BFGS-B)",
-        budget,
-        t0,
-        {"argmin": point.tolist(), "seed": seed},
+    searches = (
+        (_upper_smin, "inf σ_min(∂O_ℓ/∂x), sampled + local min (CasADi, L-BFGS-B)", "argmin"),
+        (
+            _upper_pairs,
+            "inf pair ratio ‖O(x,ū)−O(x',ū)‖/‖x−x'‖, sampled + local min",
+            "argmin_pair",
+        ),
     )
-    t0 = time.perf_counter()
-    value, pair = _upper_pairs(hz, X, U, budget, rng)
-    ratio = _upper(
-        ell,
-        X,
-        U,
-        value,
-        "inf pair ratio ‖O(x,ū)−O(x',ū)‖/‖x−x'‖, sampled + local min",
-        budget,
-        t0,
-        {"argmin_pair": pair.tolist(), "seed": seed},
-    )
-    return [smin, ratio]
+    results = []
+    for search, method, key in searches:
+        t0 = time.perf_counter()
+        value, point = search(hz, X, U, budget, rng)
+        details = {key: point.tolist(), "seed": seed}
+        results.append(_upper(ell, X, U, value, method, budget, t0, details))
+    return results
 
 
 # ---------------------------------------------------------------------------------- lower bounds
@@ -584,4 +566,4 @@ def alpha_bracket(
             window=up.window,
             seconds=up.seconds,
         )
-    return Bracket(low, up)
+    return Bracket.reconcile(low, up)

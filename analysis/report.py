@@ -294,31 +294,25 @@ def analyze(
         )
         if ell not in ells:
             continue
-        where = "X" if ell == 1 else f"the hull of the states reachable from X in {ell - 1} step(s)"
-        sub("γ_f", 0.3)
-        gamma_f = lipschitz_bracket(
-            system.f,
-            hulls[ell - 1],
-            U,
-            quantity="gamma_f",
-            window=ell,
-            tol=gamma_tol,
-            budget=budget,
-            seed=seed,
-            where=f"{where} × U",
-        )
-        sub("γ_h", 0.5)
-        gamma_h = lipschitz_bracket(
-            system.h,
-            hulls[ell],
-            U,
-            quantity="gamma_h",
-            window=ell,
-            tol=gamma_tol,
-            budget=budget,
-            seed=seed,
-            where=f"the hull reachable in {ell} step(s) × U",
-        )
+        reach = "X" if ell == 1 else f"the hull reachable from X in {ell - 1} step(s)"
+        brackets = {}
+        for quantity, fun, hull, where in (
+            ("gamma_f", system.f, hulls[ell - 1], f"{reach} × U"),
+            ("gamma_h", system.h, hulls[ell], f"the hull reachable from X in {ell} step(s) × U"),
+        ):
+            sub(quantity, 0.3)
+            brackets[quantity] = lipschitz_bracket(
+                fun,
+                hull,
+                U,
+                quantity=quantity,
+                window=ell,
+                tol=gamma_tol,
+                budget=budget,
+                seed=seed,
+                where=where,
+            )
+        gamma_f, gamma_h = brackets["gamma_f"], brackets["gamma_h"]
         check = None
         if trials:
             sub(f"{trials} Monte-Carlo trials", 0.6)
