@@ -277,10 +277,153 @@ def _draw_windows(
     return np.stack([traj, starts], axis=1)[order]
 
 
-def _state_bytes(obj: Any) -> bytes:
-    buf = io.BytesIO()
-    torch.save(obj, buf)
-    return buf.getvalue()
+class _Run:
+    """The mutable state of one training run and its steps (used by :func:`fit` only)."""
+
+    def __init__(
+        self,
+        net: SequenceModel,
+        opts: TrainOptions,
+        train_bank: WindowBank,
+        val_bank: WindowBank,
+        identity: dict[str, Any],
+    ) -> None:
+        self.net, self.opts, self.identity = net, opts, identity
+        self.train_bank, self.val_bank = train_bank, val_bank
+        self.val_horizon = opts.rollout_horizon
+        self.val_starts = val_bank.starts(net.window + self.val_horizon, stride=opts.val_stride)
+        self.optimiser = torch.optim.Adam(
+            net.parameters(), lr=opts.lr, weight_decay=opts.weight_decay
+        )
+        self.rng = np.random.default_rng(opts.seed)
+        self.history: list[dict[str, Any]] = []
+        self.best: dict[str, torch.Tensor] = {}
+        self.best_val, self.best_epoch, self.epoch = math.inf, 0, 0
+
+    # ---------------------------------------------------------------- state
+    def start(self) -> None:
+        """Epoch 0: the untrained network is the first candidate."""
+        v0 = self.validate()
+        self.history = [
+            {
+                "epoch": 0,
+                "horizon": 0,
+                "lr": 0.0,
+                "train_loss": None,
+                "val_loss": v0,
+                "seconds": 0.0,
+            }
+        ]
+        self.best = copy.deepcopy(self.net.state_dict())
+        self.best_val, self.best_epoch, self.epoch = v0, 0, 0
+
+    def save(self, path: Path) -> None:
+        payload = {
+            "version": CHECKPOINT_VERSION,
+            "identity": self.identity,
+            "epoch": self.epoch,
+            "net": _to_cpu(self.net.state_dict()),
+            "optimiser": _to_cpu(self.optimiser.state_dict()),
+            "best_state": _to_cpu(self.best),
+            "best_val": self.best_val,
+            "best_epoch": self.best_epoch,
+            "history": self.history,
+            "numpy_rng": _rng_state(self.rng.bit_generator.state, encode=True),
+            "torch_rng": torch.get_rng_state(),
+        }
+        buf = io.BytesIO()
+        torch.save(payload, buf)
+        atomic_write_bytes(path, buf.getvalue())
+
+    def restore(self, path: Path) -> None:
+        state = _load_checkpoint(path, self.identity)
+        device = next(self.net.parameters()).device
+        load_state(self.net, state["net"], where=str(path))
+        self.optimiser.load_state_dict(state["optimiser"])
+        self.rng.bit_generator.state = _rng_state(state["numpy_rng"], encode=False)
+        torch.set_rng_state(state["torch_rng"])
+        self.history = list(state["history"])
+        self.best = {k: v.to(device) for k, v in state["best_state"].items()}
+        self.best_val, self.best_epoch = state["best_val"], state["best_epoch"]
+        self.epoch = state["epoch"]
+
+    # ---------------------------------------------------------------- steps
+    def validate(self) -> float:
+        return validation_loss(self.net, self.val_bank, self.val_starts, self.val_horizon)
+
+    def train_epoch(self, epoch: int) -> dict[str, Any] | None:
+        """One epoch; its history row, or ``None`` if a loss was not finite (nothing stepped
+        on that batch)."""
+        opts, net, ell = self.opts, self.net, self.net.window
+        t0 = time.perf_counter()
+        horizon, lr = opts.horizon_at(epoch), opts.lr_at(epoch)
+        for group in self.optimiser.param_groups:
+            group["lr"] = lr
+        draws = _draw_windows(
+            self.rng, self.train_bank.lengths, ell + horizon, opts.windows_per_trajectory
+        )
+        losses: list[float] = []
+        parts_sum: dict[str, float] = {}
+        net.train()
+        for lo in range(0, len(draws), opts.batch_size):
+            u, y = self.train_bank.gather(draws[lo : lo + opts.batch_size], ell + horizon)
+            loss, parts = net.training_loss(u, y, alpha_first=opts.alpha_first)
+            if not torch.isfinite(loss):
+                return None
+            self.optimiser.zero_grad(set_to_none=True)
+            loss.backward()
+            if opts.grad_clip is not None:
+                torch.nn.utils.clip_grad_norm_(net.parameters(), opts.grad_clip)
+            self.optimiser.step()
+            losses.append(float(loss.detach()))
+            for key, value in parts.items():
+                parts_sum[key] = parts_sum.get(key, 0.0) + value
+        val_loss = None
+        if epoch % opts.val_every == 0 or epoch == opts.epochs:
+            val_loss = self.validate()
+            if not math.isfinite(val_loss):
+                val_loss = None
+            elif val_loss < self.best_val:
+                self.best_val, self.best_epoch = val_loss, epoch
+                self.best = copy.deepcopy(net.state_dict())
+        self.epoch = epoch
+        row = {
+            "epoch": epoch,
+            "horizon": horizon,
+            "lr": lr,
+            "train_loss": float(np.mean(losses)),
+            "val_loss": val_loss,
+            "seconds": time.perf_counter() - t0,
+            **{f"train_{k}": v / len(losses) for k, v in parts_sum.items() if k != "output_error"},
+        }
+        self.history.append(row)
+        return row
+
+    def report(self, row: Mapping[str, Any]) -> EpochReport:
+        return EpochReport(
+            epoch=row["epoch"],
+            epochs=self.opts.epochs,
+            horizon=row["horizon"],
+            lr=row["lr"],
+            train_loss=row["train_loss"],
+            val_loss=row["val_loss"],
+            best_val_loss=self.best_val,
+            best_epoch=self.best_epoch,
+            seconds=row["seconds"],
+            parts={
+                k[len("train_") :]: v
+                for k, v in row.items()
+                if k.startswith("train_") and k != "train_loss"
+            },
+        )
+
+    def should_stop_early(self) -> bool:
+        opts, epoch = self.opts, self.epoch
+        return (
+            opts.patience is not None
+            and epoch >= max(opts.curriculum_epochs, 1)
+            and epoch - max(self.best_epoch, opts.curriculum_epochs) >= opts.patience
+        )
 
 
 def fit(
@@ -313,6 +456,9 @@ def fit(
             ``device``) must match, or :class:`CheckpointError` names what differs.
         callback: called with an :class:`EpochReport` after every epoch.
         info: extra JSON facts saved in the model's ``config.json``.
+
+    If training is interrupted (an exception, Ctrl-C), the best model so far is still written
+    to ``run_dir`` before the exception propagates.
     """
     opts = options or TrainOptions()
     train_s = as_series(train, what="training data")
@@ -325,204 +471,97 @@ def fit(
         )
     _check_lengths(train_s, window, "training data")
     _check_lengths(val_s, window, "validation data")
-    span = window + opts.horizon
-    if max(s.T for s in train_s) < span:
-        raise ShapeError(
-            f"window ℓ = {window} plus rollout horizon H = {opts.horizon} needs trajectories of "
-            f"at least {span} samples; the longest training trajectory has "
-            f"{max(s.T for s in train_s)} (lower the horizon)"
-        )
-    device = resolve_device(opts.device)
-    norm = Normalisation.fit(train_s)
-    config = {
-        "window": window,
-        "n_u": n_u,
-        "n_y": n_y,
-        **dict(net_options or {}),
-    }
-    fingerprint = data_fingerprint(train_s, val_s)
+    for what, series, span in (
+        ("training", train_s, window + opts.horizon),
+        ("validation", val_s, window + opts.rollout_horizon),
+    ):
+        longest = max(s.T for s in series)
+        if longest < span:
+            raise ShapeError(
+                f"window ℓ = {window} plus {what} rollout horizon {span - window} needs "
+                f"trajectories of at least {span} samples; the longest {what} trajectory has "
+                f"{longest} (lower the horizon)"
+            )
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:
         raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")
+    device = resolve_device(opts.device)
+    norm = Normalisation.fit(train_s)
+    fingerprint = data_fingerprint(train_s, val_s)
 
-    cuda_devices = [device.index or 0] if device.type == "cuda" else []
-    with torch.random.fork_rng(devices=cuda_devices):
+    with torch.random.fork_rng(devices=[device.index or 0] if device.type == "cuda" else []):
         torch.manual_seed(opts.seed)
-        net = build_net(model, **config)
+        net = build_net(model, window=window, n_u=n_u, n_y=n_y, **dict(net_options or {}))
         net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
         net.to(device)
-        optimiser = torch.optim.Adam(net.parameters(), lr=opts.lr, weight_decay=opts.weight_decay)
-        rng = np.random.default_rng(opts.seed)
-        train_bank = WindowBank(train_s, norm, device=device)
-        val_bank = WindowBank(val_s, norm, device=device)
-        val_h = opts.rollout_horizon
-        val_starts = val_bank.starts(window + val_h, stride=opts.val_stride)
-        if len(val_starts) == 0:
-            raise ShapeError(
-                f"no validation trajectory holds window ℓ = {window} plus validation horizon "
-                f"{val_h} = {window + val_h} samples (longest has {max(s.T for s in val_s)}); "
-                "lower the horizon"
-            )
         identity = {
             "model": model,
             "net": net.config(),
             "data": fingerprint,
             "options": {k: v for k, v in opts.to_dict().items() if k not in RESUMABLE_CHANGES},
         }
-        state: dict[str, Any]
+        state = _Run(
+            net,
+            opts,
+            WindowBank(train_s, norm, device=device),
+            WindowBank(val_s, norm, device=device),
+            identity,
+        )
         if resume:
             assert run_path is not None
-            state = _load_checkpoint(run_path / CHECKPOINT_FILE, identity)
-            load_state(net, state["net"], where=str(run_path / CHECKPOINT_FILE))
-            optimiser.load_state_dict(state["optimiser"])
-            rng.bit_generator.state = _rng_state(state["numpy_rng"], encode=False)
-            torch.set_rng_state(state["torch_rng"])
-            history = list(state["history"])
-            best = {k: v.to(device) for k, v in state["best_state"].items()}
-            best_val, best_epoch, start = state["best_val"], state["best_epoch"], state["epoch"]
+            state.restore(run_path / CHECKPOINT_FILE)
         else:
-            v0 = validation_loss(net, val_bank, val_starts, val_h)
-            history = [
-                {
-                    "epoch": 0,
-                    "horizon": 0,
-                    "lr": 0.0,
-                    "train_loss": None,
-                    "val_loss": v0,
-                    "seconds": 0.0,
-                }
-            ]
-            best = copy.deepcopy(net.state_dict())
-            best_val, best_epoch, start = v0, 0, 0
-
-        def checkpoint(epoch: int) -> None:
-            if run_path is None:
-                return
-            payload = {
-                "version": CHECKPOINT_VERSION,
-                "identity": identity,
-                "epoch": epoch,
-                "net": {k: v.detach().cpu() for k, v in net.state_dict().items()},
-                "optimiser": _to_cpu(optimiser.state_dict()),
-                "best_state": {k: v.detach().cpu() for k, v in best.items()},
-                "best_val": best_val,
-                "best_epoch": best_epoch,
-                "history": history,
-                "numpy_rng": _rng_state(rng.bit_generator.state, encode=True),
-                "torch_rng": torch.get_rng_state(),
-            }
-            atomic_write_bytes(run_path / CHECKPOINT_FILE, _state_bytes(payload))
-
+            state.start()
         stopped = "completed"
-        epoch = start
         try:
-            for epoch in range(start + 1, opts.epochs + 1):
-                t0 = time.perf_counter()
-                h = opts.horizon_at(epoch)
-                lr = opts.lr_at(epoch)
-                for group in optimiser.param_groups:
-                    group["lr"] = lr
-                draws = _draw_windows(
-                    rng, train_bank.lengths, window + h, opts.windows_per_trajectory
-                )
-                losses: list[float] = []
-                parts_sum: dict[str, float] = {}
-                net.train()
-                for lo in range(0, len(draws), opts.batch_size):
-                    u, y = train_bank.gather(draws[lo : lo + opts.batch_size], window + h)
-                    loss, parts = net.training_loss(u, y, alpha_first=opts.alpha_first)
-                    if not torch.isfinite(loss):
-                        stopped = "diverged"
-                        break
-                    optimiser.zero_grad(set_to_none=True)
-                    loss.backward()
-                    if opts.grad_clip is not None:
-                        torch.nn.utils.clip_grad_norm_(net.parameters(), opts.grad_clip)
-                    optimiser.step()
-                    losses.append(float(loss.detach()))
-                    for key, value in parts.items():
-                        parts_sum[key] = parts_sum.get(key, 0.0) + value
-                if stopped == "diverged":
+            for epoch in range(state.epoch + 1, opts.epochs + 1):
+                row = state.train_epoch(epoch)
+                if row is None:
+                    stopped = "diverged"
                     log.warning(
                         "epoch %d: the training loss is not finite; stopping and keeping the "
                         "best model (epoch %d)",
                         epoch,
-                        best_epoch,
+                        state.best_epoch,
                     )
-                    epoch -= 1
                     break
-                val_loss = None
-                if epoch % opts.val_every == 0 or epoch == opts.epochs:
-                    val_loss = validation_loss(net, val_bank, val_starts, val_h)
-                    if not math.isfinite(val_loss):
-                        val_loss = None
-                    elif val_loss < best_val:
-                        best_val, best_epoch = val_loss, epoch
-                        best = copy.deepcopy(net.state_dict())
-                seconds = time.perf_counter() - t0
-                parts_mean = {k: v / max(len(losses), 1) for k, v in parts_sum.items()}
-                train_loss = float(np.mean(losses))
-                row = {
-                    "epoch": epoch,
-                    "horizon": h,
-                    "lr": lr,
-                    "train_loss": train_loss,
-                    "val_loss": val_loss,
-                    "seconds": seconds,
-                    **{f"train_{k}": v for k, v in parts_mean.items() if k != "output_error"},
-                }
-                history.append(row)
                 if callback is not None:
-                    callback(
-                        EpochReport(
-                            epoch=epoch,
-                            epochs=opts.epochs,
-                            horizon=h,
-                            lr=lr,
-                            train_loss=train_loss,
-                            val_loss=val_loss,
-                            best_val_loss=best_val,
-                            best_epoch=best_epoch,
-                            seconds=seconds,
-                            parts=parts_mean,
-                        )
-                    )
-                done_curriculum = epoch >= max(opts.curriculum_epochs, 1)
-                if (
-                    opts.patience is not None
-                    and done_curriculum
-                    and epoch - max(best_epoch, opts.curriculum_epochs) >= opts.patience
-                ):
+                    callback(state.report(row))
+                if state.should_stop_early():
                     stopped = "early_stopping"
-                    checkpoint(epoch)
+                if run_path is not None and (
+                    stopped != "completed"
+                    or epoch % opts.checkpoint_every == 0
+                    or epoch == opts.epochs
+                ):
+                    state.save(run_path / CHECKPOINT_FILE)
+                if stopped != "completed":
                     break
-                if epoch % opts.checkpoint_every == 0 or epoch == opts.epochs:
-                    checkpoint(epoch)
         finally:
-            # interrupted or not: the model kept is the best one seen
-            load_state(net, best, where="best weights")
+            # interrupted or not, the model kept is the best one seen
+            load_state(net, state.best, where="best weights")
             net.to("cpu").eval()
-            result_model = Model(
+            result = Model(
                 net,
                 norm,
                 info={
                     **dict(info or {}),
                     "training": {
                         "options": opts.to_dict(),
-                        "best_epoch": best_epoch,
-                        "best_val_loss": best_val,
+                        "best_epoch": state.best_epoch,
+                        "best_val_loss": state.best_val,
                         "data_sha256": fingerprint,
                     },
                 },
             )
             if run_path is not None:
-                result_model.save(run_path)
+                result.save(run_path)
     return FitResult(
-        model=result_model,
-        history=history,
-        best_epoch=best_epoch,
-        best_val_loss=best_val,
-        epochs_run=epoch,
+        model=result,
+        history=state.history,
+        best_epoch=state.best_epoch,
+        best_val_loss=state.best_val,
+        epochs_run=state.epoch,
         stopped=stopped,
     )
 
