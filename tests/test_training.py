@@ -252,7 +252,9 @@ def test_bad_input_is_refused_with_a_clear_error(data):
         fit(nan, val, window=3, options=opts, net_options=TINY)
     with pytest.raises(ShapeError, match="needs trajectories of at least 103"):
         fit(train, val, window=3, options=tiny_options(horizon=100), net_options=TINY)
-    with pytest.raises(ShapeError, match="validation rollout horizon 39 needs trajectories of at least 42"):
+    with pytest.raises(
+        ShapeError, match="validation rollout horizon 39 needs trajectories of at least 42"
+    ):
         fit(train, val, window=3, options=tiny_options(val_horizon=39), net_options=TINY)
     with pytest.raises(DataError, match="no trajectories"):
         fit([], val, window=3, options=opts)
@@ -264,7 +266,9 @@ def test_bad_input_is_refused_with_a_clear_error(data):
 
 @pytest.mark.slow
 def test_mlp_on_a_linear_system_reaches_the_noise_level():
-    """Ours (MLP), quick profile: 100-step rollout MSE within 2× the noise variance."""
+    """Ours (MLP), quick profile shortened to 100 epochs of 30-step rollouts, on a damped
+    linear system: the 100-step rollout MSE is within 2× the noise variance of the measured
+    outputs, and below it against the noise-free outputs."""
     from canonid.profiles import train_options
 
     system = damped_siso()
@@ -272,8 +276,8 @@ def test_mlp_on_a_linear_system_reaches_the_noise_level():
     train = trajectories(system, 20, 200, noise=noise, seed=1)
     val = trajectories(system, 5, 200, noise=noise, seed=2)
     test = trajectories(system, 5, 200, noise=noise, seed=3)
-    opts = train_options("quick", epochs=150, horizon=30, val_horizon=100)
-    res = fit(train, val, model="mlp", window=4, options=opts)
+    opts = train_options("quick", epochs=100, horizon=30, val_horizon=100, device="cpu")
+    res = fit(train, val, model="mlp", window=4, options=opts, net_options={"residual": True})
     scores = evaluate(res.model, test, horizon=100)
     noise_var = noise**2 / 3
     assert scores.measured.rollout_mse < 2 * noise_var
