@@ -98,6 +98,8 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
     assert main(["train", "--resume", str(run), "--model", "gru", "--no-progress"]) == 1
     err = capsys.readouterr().err
     assert "model: 'mlp' there, 'gru' here" in err and "Traceback" not in err
+    assert main(["train", "--resume", str(run), "--lr", "0.1", "--no-progress"]) == 1
+    assert "--lr cannot change when resuming" in capsys.readouterr().err
 
 
 def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys):

@@ -206,6 +206,7 @@ def test_simulate_refuses_bad_shapes(siso_data):
     tr = siso_data[0]
     with pytest.raises(ShapeError, match="y_burn_in must hold the ℓ = 3"):
         model.simulate(tr.u, tr.y[:2])
+    assert model.simulate(tr.u[:3], tr.y[:3]).shape == (0, 1)  # nothing left to predict
     with pytest.raises(ShapeError, match="fewer than the window"):
         model.simulate(tr.u[:2], tr.y[:3])
     bad = tr.u.copy()
