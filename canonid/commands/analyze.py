@@ -1,17 +1,169 @@
-"""`canonid analyze` — the analysis (α_ℓ, γ_f, Proposition 2) (not implemented yet)."""
+"""``canonid analyze`` — the theory, numerically: γ_f, γ_h, α_ℓ brackets and Proposition 2.
+
+Writes ``analysis.json`` (schema: :data:`analysis.report.SCHEMA`, copied into the file), the
+figure ``bound_vs_window.png`` ("bound and observed error versus ℓ", log scale) and prints a
+table. Sets are given as ``lo:hi`` per component separated by commas (``--X 0.05:5,0.05:5``);
+one ``lo:hi`` applies to every component.
+"""
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
+import sys
+from pathlib import Path
 from typing import Any
 
-from canonid.commands._pending import not_yet
+from analysis.estimate import Budget
+from analysis.report import analyze
+from models.errors import NotImplementedYetError, SetError
+from models.registry import get_system
+from models.sets import Box
 
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "analyze",
-        help="the analysis (α_ℓ, γ_f, Proposition 2) (not implemented yet)",
-        description="the analysis (α_ℓ, γ_f, Proposition 2) (not implemented yet)",
+        help="γ_f, α_ℓ brackets (certified and sampled) and the Proposition 2 bound check",
+        description=(
+            "Estimate the Lipschitz constant γ_f and the observability constant α_ℓ of a "
+            "registered system (certified bounds by interval branch-and-bound, sampled bounds "
+            "by optimisation), evaluate Proposition 2's bound 2 γ_f^ℓ α_ℓ^-1 ‖w̄‖ and check it "
+            "by Monte-Carlo trials of the output-error estimator. Writes analysis.json and the "
+            "figure bound_vs_window.png to --out."
+        ),
     )
-    p.set_defaults(func=not_yet("the analysis (α_ℓ, γ_f, Proposition 2)"))
+    p.add_argument("system", help="registered system name (see `canonid systems`)")
+    win = p.add_mutually_exclusive_group(required=True)
+    win.add_argument("--window", type=int, metavar="L", help="one window ℓ >= 1")
+    win.add_argument(
+        "--windows", metavar="A-B", help="a range of windows, e.g. 1-10, or a list 2,5,10"
+    )
+    p.add_argument("--trials", type=int, default=1000, help="Monte-Carlo trials per window")
+    p.add_argument(
+        "--budget",
+        type=float,
+        default=20.0,
+        metavar="SECONDS",
+        help="wall-clock limit of each certified branch-and-bound search (default 20)",
+    )
+    p.add_argument("--X", dest="X", metavar="BOX", help="state set, e.g. 0.05:5,0.05:5")
+    p.add_argument("--U", dest="U", metavar="BOX", help="input set, e.g. 1:3")
+    p.add_argument("--W", dest="W", metavar="BOX", help="noise set, e.g. -0.02:0.02")
+    p.add_argument("--tol", type=float, default=0.05, help="relative tolerance of γ searches")
+    p.add_argument("--seed", type=int, default=0, help="random seed")
+    p.add_argument("--run", type=Path, metavar="RUN", help="a trained model's run folder")
+    p.add_argument("--out", type=Path, help="output folder (default runs/analyze-SYSTEM)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def parse_windows(text: str) -> list[int]:
+    """``"1-10"`` → 1…10, ``"2,5,10"`` → [2, 5, 10]."""
+    try:
+        if "-" in text:
+            lo, hi = (int(v) for v in text.split("-", 1))
+            values = list(range(lo, hi + 1))
+        else:
+            values = [int(v) for v in text.split(",")]
+    except ValueError:
+        raise SetError(
+            f"--windows: expected A-B or a comma list of integers, got {text!r}"
+        ) from None
+    if not values or min(values) < 1:
+        raise SetError(f"--windows: windows must be integers >= 1 (A <= B), got {text!r}")
+    return values
+
+
+def parse_box(text: str, dim: int, name: str) -> Box:
+    """``"lo:hi,lo:hi"`` (one pair per component, or one pair for all) → :class:`Box`."""
+    try:
+        pairs = [tuple(float(v) for v in part.split(":")) for part in text.split(",")]
+    except ValueError:
+        raise SetError(f"--{name}: expected lo:hi[,lo:hi...], got {text!r}") from None
+    if any(len(p) != 2 for p in pairs):
+        raise SetError(f"--{name}: each component needs lo:hi, got {text!r}")
+    if len(pairs) == 1:
+        pairs = pairs * dim
+    if len(pairs) != dim:
+        raise SetError(f"--{name}: {len(pairs)} components given, the system needs {dim}")
+    try:
+        return Box([p[0] for p in pairs], [p[1] for p in pairs])
+    except SetError as exc:
+        raise SetError(f"--{name}: {exc}") from None
+
+
+def _learning_loader_available() -> bool:
+    return importlib.util.find_spec("learning.export") is not None
+
+
+def run(args: argparse.Namespace) -> int:
+    system = get_system(args.system)
+    windows = [args.window] if args.window is not None else parse_windows(args.windows)
+    if args.window is not None and args.window < 1:
+        raise SetError(f"--window must be an integer >= 1, got {args.window}")
+    if args.trials < 0:
+        raise SetError(f"--trials must be >= 0, got {args.trials}")
+    if not args.budget > 0:
+        raise SetError(f"--budget must be a positive number of seconds, got {args.budget}")
+    if args.run is not None and not _learning_loader_available():
+        raise NotImplementedYetError(
+            "--run needs the identification feature (a trained-model loader in learning/), "
+            "which this version of canonid does not have yet"
+        )
+    X = parse_box(args.X, system.n_x, "X") if args.X else system.X
+    U = parse_box(args.U, system.n_u, "U") if args.U else system.U
+    W = parse_box(args.W, system.n_y, "W") if args.W else system.W
+    out: Path = args.out or Path("runs") / f"analyze-{system.name}"
+    budget = Budget(seconds=args.budget)
+
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(
+            total=100,
+            desc="analyze",
+            file=sys.stderr,
+            leave=False,
+            bar_format="{l_bar}{bar}| {elapsed}",
+        )
+
+    def progress(message: str, fraction: float) -> None:
+        if bar is not None:
+            bar.set_description_str(message[:60])
+            bar.n = int(100 * min(max(fraction, 0.0), 1.0))
+            bar.refresh()
+
+    try:
+        report = analyze(
+            system,
+            windows,
+            X=X,
+            U=U,
+            W=W,
+            trials=args.trials,
+            budget=budget,
+            gamma_tol=args.tol,
+            seed=args.seed,
+            progress=progress,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+    json_path = report.write_json(out / "analysis.json")
+    print(report.table())
+    lines = [f"analysis written to {json_path.resolve()}"]
+    if report.checks:
+        figure = report.figure(out / "bound_vs_window.png")
+        lines.append(f"  figure: {figure.resolve()}")
+    print("\n".join(lines))
+    violations = sum(c.violations for c in report.checks)
+    if violations:
+        print(
+            f"warning: {violations} violation(s) of Proposition 2 with certified constants — "
+            "this is a bug, please report it with analysis.json",
+            file=sys.stderr,
+        )
+        return 1
+    return 0

@@ -1,0 +1,270 @@
+"""Proposition 2 and its Monte-Carlo check.
+
+Proposition 2 (paper §III-A). With ``x̂_{t−ℓ} ∈ argmin_{x∈X} ‖ȳ_{t−ℓ|t−1} − O_ℓ(x, ū)‖`` and
+``x̂_t = F_ℓ(x̂_{t−ℓ}, ū_{t−ℓ|t−1})``,
+
+    ‖x̂_t − x_t‖ ≤ 2 γ_f^ℓ α_ℓ^{−1} ‖w̄_{t−ℓ|t−1}‖,
+
+where ``w̄_{t−ℓ|t−1} = (w_{t−ℓ}, …, w_{t−1}) ∈ R^{ℓ·n_y}`` is the stacked measurement noise of
+the window and every norm is Euclidean. The proof: optimality gives ``‖ȳ − O(x̂)‖ ≤ ‖w̄‖``, so
+``‖O(x̂) − O(x_{t−ℓ})‖ ≤ 2‖w̄‖`` and ``‖x̂_{t−ℓ} − x_{t−ℓ}‖ ≤ 2 α_ℓ^{−1}‖w̄‖``; ``F_ℓ`` is
+``γ_f^ℓ``-Lipschitz (Lemma 1). Here γ_f must hold on a convex set containing every state reached
+in ``ℓ − 1`` steps (:mod:`analysis.reach`), which is how the constants are computed.
+
+Consequence used for learned models (paper §III-B): ``y_t = h(x̂_t, u_t) + ξ_t`` with
+``‖ξ_t‖ ≤ ‖w_t‖ + γ_h ‖x̂_t − x_t‖ ≤ ‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{−1}‖w̄‖``. The paper writes this
+level without the factor 2 of Proposition 2; the factor is kept here (it is what the proof gives
+for a general argmin; for a linear system's least-squares estimate the factor 1 already holds).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from analysis.argmin import output_error_argmin
+from analysis.estimate import Estimate
+from analysis.maps import Horizon, batched, check_window
+from analysis.observability import input_box
+from models.base import System
+from models.errors import SetError, ShapeError
+from models.sets import Box
+
+__all__ = ["BoundCheck", "BoundConstants", "check_bound"]
+
+_QUANTILES = (0.5, 0.9, 0.99, 1.0)
+
+
+@dataclass(frozen=True)
+class BoundConstants:
+    """The constants of Proposition 2 for one window.
+
+    Attributes:
+        window: ``ℓ``.
+        gamma_f: γ_f — an upper bound makes the bound valid.
+        alpha: α_ℓ — a lower bound makes the bound valid.
+        gamma_h: γ_h (for the residual level of learned models), optional.
+    """
+
+    window: int
+    gamma_f: Estimate
+    alpha: Estimate
+    gamma_h: Estimate | None = None
+
+    def __post_init__(self) -> None:
+        check_window(self.window)
+        if self.gamma_f.quantity != "gamma_f" or self.alpha.quantity != "alpha":
+            raise SetError(
+                f"constants must be gamma_f and alpha estimates, got {self.gamma_f.quantity} "
+                f"and {self.alpha.quantity}"
+            )
+        if self.gamma_h is not None and self.gamma_h.quantity != "gamma_h":
+            raise SetError(f"gamma_h must be a gamma_h estimate, got {self.gamma_h.quantity}")
+
+    @property
+    def certified(self) -> bool:
+        """True when γ_f (and γ_h) are upper bounds and α_ℓ a lower bound: the bound holds."""
+        ok = self.gamma_f.kind == "upper" and self.alpha.kind == "lower"
+        return ok and (self.gamma_h is None or self.gamma_h.kind == "upper")
+
+    @property
+    def factor(self) -> float:
+        """``γ_f^ℓ / α_ℓ`` (``inf`` when ``α_ℓ = 0``: the proposition then says nothing)."""
+        if self.alpha.value <= 0:
+            return math.inf
+        return float(self.gamma_f.value**self.window / self.alpha.value)
+
+    def bound(self, noise_norm: np.ndarray | float) -> np.ndarray:
+        """``2 γ_f^ℓ α_ℓ^{−1} ‖w̄‖`` for the given norms of the stacked window noise."""
+        w = np.asarray(noise_norm, dtype=np.float64)
+        if math.isinf(self.factor):
+            return np.where(w > 0, np.inf, 0.0)
+        return 2.0 * self.factor * w
+
+    def residual_level(self, w_now: np.ndarray, w_window: np.ndarray) -> np.ndarray:
+        """``‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{−1}‖w̄_{t−ℓ|t−1}‖`` (needs ``gamma_h``)."""
+        if self.gamma_h is None:
+            raise SetError("the residual level needs gamma_h in the constants")
+        return np.asarray(w_now) + self.gamma_h.value * self.bound(w_window)
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {
+            "window": self.window,
+            "gamma_f": self.gamma_f.to_dict(),
+            "alpha": self.alpha.to_dict(),
+            "factor": self.factor if math.isfinite(self.factor) else None,
+            "certified": self.certified,
+        }
+        if self.gamma_h is not None:
+            out["gamma_h"] = self.gamma_h.to_dict()
+        return out
+
+
+def _quantiles(values: np.ndarray) -> dict[str, float | None]:
+    finite = values[np.isfinite(values)]
+    if finite.size == 0:
+        return {f"q{int(q * 100)}": None for q in _QUANTILES}
+    return {f"q{int(q * 100)}": float(np.quantile(finite, q)) for q in _QUANTILES}
+
+
+@dataclass(frozen=True)
+class BoundCheck:
+    """Result of the Monte-Carlo check of Proposition 2 for one window.
+
+    Attributes:
+        window: ``ℓ``.
+        trials: number of trials.
+        violations: trials (solver failures excluded) whose error exceeds the bound.
+        solver_failures: trials whose found objective exceeds the objective at the true state.
+        max_ratio: largest error / bound over the trials that are not solver failures
+            (``None`` when the bound is infinite).
+        ratio_quantiles: quantiles of error / bound (``q50``, ``q90``, ``q99``, ``q100``).
+        max_error, median_error: of ``‖x̂_t − x_t‖``.
+        worst_case_bound: the bound at the largest ``‖w̄‖`` over ``W^ℓ``
+            (``2 γ_f^ℓ α_ℓ^{−1} √ℓ · max_{w∈W}‖w‖``), ``None`` when infinite.
+        constants: the constants used (:meth:`BoundConstants.to_dict`).
+        max_ratio_estimated: the largest error / bound with the *estimated* constants (sampled
+            γ_f, sampled α_ℓ) when given — a bound that is not proved, shown for comparison.
+        seconds: wall time.
+        errors, bounds, failed: per-trial arrays (not written to JSON).
+    """
+
+    window: int
+    trials: int
+    violations: int
+    solver_failures: int
+    max_ratio: float | None
+    ratio_quantiles: Mapping[str, float | None]
+    max_error: float
+    median_error: float
+    worst_case_bound: float | None
+    constants: Mapping[str, Any]
+    max_ratio_estimated: float | None = None
+    seconds: float = 0.0
+    settings: Mapping[str, Any] = field(default_factory=dict)
+    errors: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    bounds: np.ndarray = field(default_factory=lambda: np.zeros(0), repr=False)
+    failed: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool), repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "window": self.window,
+            "trials": self.trials,
+            "violations": self.violations,
+            "solver_failures": self.solver_failures,
+            "max_ratio": self.max_ratio,
+            "ratio_quantiles": dict(self.ratio_quantiles),
+            "max_error": self.max_error,
+            "median_error": self.median_error,
+            "worst_case_bound": self.worst_case_bound,
+            "max_ratio_estimated": self.max_ratio_estimated,
+            "constants": dict(self.constants),
+            "seconds": round(self.seconds, 6),
+            "settings": dict(self.settings),
+        }
+
+
+def check_bound(
+    system: System,
+    constants: BoundConstants,
+    *,
+    trials: int,
+    X: Box | None = None,
+    U: Box | None = None,
+    W: Box | None = None,
+    states: np.ndarray | None = None,
+    noise: str = "uniform",
+    starts: int = 8,
+    seed: int = 0,
+    estimated: BoundConstants | None = None,
+) -> BoundCheck:
+    """Monte-Carlo check of Proposition 2 for window ``constants.window``.
+
+    Each trial draws ``x_{t−ℓ}`` uniformly in X (or from ``states``, rows of an ``(M, n_x)``
+    array, e.g. states of recorded trajectories; rows outside X are refused), inputs
+    ``u_{t−ℓ}, …, u_{t−1}`` uniformly in U and noise ``w_{t−ℓ}, …, w_{t−1}`` in W
+    (``noise="uniform"``, or ``"vertices"``: each component at ±its bound, the largest norms);
+    measures ``ȳ = O_ℓ(x_{t−ℓ}, ū) + w̄``; solves the argmin over X
+    (:func:`analysis.argmin.output_error_argmin`, ``starts`` random starts); and compares
+    ``‖F_ℓ(x̂_{t−ℓ}, ū) − F_ℓ(x_{t−ℓ}, ū)‖`` with ``2 γ_f^ℓ α_ℓ^{−1} ‖w̄‖``.
+
+    A trial whose objective at ``x̂`` exceeds the objective at ``x_{t−ℓ}`` is a solver failure,
+    counted apart (the proposition speaks of a true minimiser). With certified constants a
+    violation is a bug, never a statistic.
+    """
+    ell = constants.window
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 1:
+        raise ShapeError(f"trials must be an integer >= 1, got {trials!r}")
+    if noise not in ("uniform", "vertices"):
+        raise ShapeError(f"noise must be 'uniform' or 'vertices', got {noise!r}")
+    X, U, W = X or system.X, U or system.U, W or system.W
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    hz = Horizon(system, ell)
+    ubox = input_box(U, ell)
+    if states is None:
+        x0 = rng.uniform(X.lo, X.hi, size=(trials, system.n_x))
+    else:
+        pool = np.asarray(states, dtype=np.float64)
+        if pool.ndim != 2 or pool.shape[1] != system.n_x or pool.shape[0] == 0:
+            raise ShapeError(f"states must have shape (M, {system.n_x}), got {pool.shape}")
+        outside = ~np.all((pool >= X.lo) & (pool <= X.hi), axis=1)
+        if outside.any():
+            raise SetError(
+                f"{int(outside.sum())} of {pool.shape[0]} given states lie outside X = {X}; "
+                "the bound holds for x in X only (filter them first)"
+            )
+        x0 = pool[rng.integers(0, pool.shape[0], size=trials)]
+    ubar = rng.uniform(ubox.lo, ubox.hi, size=(trials, ubox.dim))
+    wbox = Box(np.tile(W.lo, ell), np.tile(W.hi, ell))
+    if noise == "uniform":
+        wbar = rng.uniform(wbox.lo, wbox.hi, size=(trials, wbox.dim))
+    else:
+        wbar = np.where(rng.random((trials, wbox.dim)) < 0.5, wbox.lo, wbox.hi)
+    (clean,) = batched(hz.O, x0, ubar)
+    ybar = clean + wbar
+    sol = output_error_argmin(hz, ybar, ubar, X, starts=starts, rng=rng)
+    obj_true = 0.5 * np.sum((ybar - clean) ** 2, axis=1)
+    failed = sol.objective > obj_true
+    (xt_true,) = batched(hz.F, x0, ubar)
+    (xt_hat,) = batched(hz.F, sol.x, ubar)
+    errors = np.linalg.norm(xt_hat - xt_true, axis=1)
+    wnorm = np.linalg.norm(wbar, axis=1)
+    bounds = constants.bound(wnorm)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(bounds > 0, errors / bounds, np.where(errors > 0, np.inf, 0.0))
+    ok = ~failed
+    finite_bound = bool(np.all(np.isfinite(bounds)))
+    violations = int(np.count_nonzero(ok & (errors > bounds)))
+    max_ratio = float(ratio[ok].max()) if finite_bound and ok.any() else None
+    est_ratio = None
+    if estimated is not None and math.isfinite(estimated.factor):
+        est_bounds = estimated.bound(wnorm)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            est = np.where(est_bounds > 0, errors / est_bounds, 0.0)
+        est_ratio = float(est[ok].max()) if ok.any() else None
+    worst_noise = math.sqrt(ell) * W.radius
+    worst = float(constants.bound(worst_noise)) if math.isfinite(constants.factor) else None
+    return BoundCheck(
+        window=ell,
+        trials=trials,
+        violations=violations,
+        solver_failures=int(np.count_nonzero(failed)),
+        max_ratio=max_ratio,
+        ratio_quantiles=_quantiles(ratio[ok]) if finite_bound else _quantiles(np.zeros(0)),
+        max_error=float(errors.max()),
+        median_error=float(np.median(errors)),
+        worst_case_bound=worst,
+        constants=constants.to_dict(),
+        max_ratio_estimated=est_ratio,
+        seconds=time.perf_counter() - t0,
+        settings={"noise": noise, "starts": starts, "seed": seed, "iterations": sol.iterations},
+        errors=errors,
+        bounds=bounds,
+        failed=failed,
+    )

@@ -1,0 +1,359 @@
+"""γ: the uniform Lipschitz constant in ``x`` of a map ``g(x, u)`` over ``X × U`` (2-norm).
+
+Used for ``γ_f`` (``g = f``) and ``γ_h`` (``g = h``). On a convex ``X`` the constant is
+``sup_{X×U} ‖∂g/∂x‖₂`` (for the clipped tank, the supremum of the norms of Clarke's generalised
+Jacobian, which the interval enclosure contains).
+
+* :func:`lipschitz_lower` — a **lower bound**: the largest ‖∂g/∂x(x, u)‖₂ found by sampling
+  (box corners included) and local maximisation of ``‖J d‖² / ‖d‖²`` over ``(x, u, d)``
+  (L-BFGS-B, CasADi gradients).
+* :func:`lipschitz_upper` — a **certified upper bound**: branch-and-bound over sub-boxes of
+  ``X × U`` (split only along the coordinates the Jacobian depends on), each box bounded by the
+  verified spectral norm (:func:`analysis.matrix_bounds.spectral_upper`) of its interval Jacobian
+  (:class:`analysis.enclosure.Enclosure`); the boxes with the largest bound are refined first
+  (a batch at a time) until ``upper − lower ≤ tol · lower`` or the budget ends.
+
+A Jacobian that cannot be bounded near a point — the tank's ``√`` at 0 — raises
+:class:`~models.errors.SetError` saying why: there γ is infinite, not a number to report.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import time
+from collections.abc import Callable
+
+import casadi as ca
+import numpy as np
+
+from analysis._local import local_minima
+from analysis.enclosure import Enclosure, describe_flags
+from analysis.estimate import Bracket, Budget, Estimate
+from analysis.interval import Interval
+from analysis.maps import batched, jacobian_function, varying_dims
+from analysis.matrix_bounds import spectral_upper
+from models.errors import SetError
+from models.sets import Box
+
+__all__ = ["lipschitz_bracket", "lipschitz_lower", "lipschitz_upper"]
+
+Progress = Callable[[str, float], None]
+
+
+def _corners(lo: np.ndarray, hi: np.ndarray, limit: int = 256) -> np.ndarray:
+    d = lo.size
+    if 2**d <= limit:
+        bits = np.array(list(itertools.product((0, 1), repeat=d)), dtype=bool)
+    else:
+        bits = np.random.default_rng(0).integers(0, 2, size=(limit, d)).astype(bool)
+    return np.where(bits, hi, lo)
+
+
+def _unbounded_error(
+    quantity: str, fun: ca.Function, where: str, point: np.ndarray, n_x: int, why: str | None
+) -> SetError:
+    """The error for a Jacobian without a finite bound near ``point``.
+
+    Without a known reason (a sampled point where the float Jacobian is not finite) the
+    interval evaluator is run on the point itself to name the operation responsible.
+    """
+    if why is None:
+        res = Enclosure(fun, wrt=0)(
+            [Interval.point(point[None, :n_x]), Interval.point(point[None, n_x:])]
+        )
+        flags = int(res.jac_flags[0])
+        why = describe_flags(flags) if flags else "it is not finite there"
+    return SetError(
+        f"{quantity} is unbounded on {where}: near x = {np.round(point[:n_x], 6).tolist()}, "
+        f"u = {np.round(point[n_x:], 6).tolist()} the Jacobian of {fun.name()} has no finite bound "
+        f"({why}). Move the set away from the singularity (e.g. the tank's eps > 0, and inputs "
+        "that keep the levels away from 0)."
+    )
+
+
+def _norms(jac: ca.Function, pts: np.ndarray, n_x: int) -> np.ndarray:
+    _, j = batched(jac, pts[:, :n_x], pts[:, n_x:])
+    if j.ndim == 2:
+        j = j[:, :, None] if n_x == 1 else j[:, None, :]
+    with np.errstate(invalid="ignore"):
+        finite = np.all(np.isfinite(j), axis=(1, 2))
+        out = np.full(pts.shape[0], np.inf)
+        if finite.any():
+            out[finite] = np.linalg.norm(j[finite], ord=2, axis=(1, 2))
+    return out
+
+
+def lipschitz_lower(
+    fun: ca.Function,
+    X: Box,
+    U: Box,
+    *,
+    quantity: str = "gamma_f",
+    window: int | None = None,
+    budget: Budget | None = None,
+    seed: int = 0,
+    where: str = "X × U",
+) -> Estimate:
+    """Sampled and locally maximised ``sup ‖∂fun/∂x‖₂`` over ``X × U``: a **lower bound**.
+
+    Args:
+        fun: CasADi function of ``(x, u)``.
+        X, U: boxes for ``x`` and ``u``.
+        quantity, window: labels of the result (``"gamma_f"``/``"gamma_h"``).
+        budget: ``samples`` random points (plus the corners), ``starts`` local maximisations.
+        seed: random seed (same seed, same result).
+        where: words naming the set, for error messages.
+
+    Raises:
+        SetError: the Jacobian is not finite at a sampled point (γ unbounded).
+    """
+    budget = budget or Budget()
+    t0 = time.perf_counter()
+    n_x = fun.nnz_in(0)
+    jac = jacobian_function(fun)
+    lo = np.concatenate([X.lo, U.lo])
+    hi = np.concatenate([X.hi, U.hi])
+    rng = np.random.default_rng(seed)
+    pts = np.concatenate([_corners(lo, hi), rng.uniform(lo, hi, size=(budget.samples, lo.size))])
+    norms = _norms(jac, pts, n_x)
+    if not np.all(np.isfinite(norms)):
+        i = int(np.flatnonzero(~np.isfinite(norms))[0])
+        raise _unbounded_error(quantity, fun, where, pts[i], n_x, None)
+    best = float(norms.max())
+    best_pt = pts[int(np.argmax(norms))]
+    # local maximisation of ‖J d‖²/‖d‖² over (x, u, d), from the best samples
+    x = ca.SX.sym("x", n_x)
+    u = ca.SX.sym("u", fun.nnz_in(1))
+    d = ca.SX.sym("d", n_x)
+    jd = ca.jtimes(fun(x, u), x, d)
+    starts = []
+    for i in np.argsort(-norms)[: budget.starts]:
+        j = np.asarray(jac(pts[i, :n_x], pts[i, n_x:])[1]).reshape(-1, n_x)
+        starts.append(np.concatenate([pts[i], np.linalg.svd(j)[2][0]]))
+    ends = local_minima(
+        -ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
+        ca.vertcat(x, u, d),
+        starts,
+        list(zip(lo, hi)) + [(None, None)] * n_x,
+    )
+    for end in ends:
+        value = float(_norms(jac, end[None, : lo.size], n_x)[0])
+        if np.isfinite(value) and value > best:
+            best, best_pt = value, end[: lo.size]
+    return Estimate(
+        quantity=quantity,
+        value=best,
+        kind="lower",
+        sets={"X": X, "U": U},
+        method="sampled + local max of ‖∂g/∂x‖₂ (CasADi, L-BFGS-B)",
+        window=window,
+        budget={"samples": budget.samples, "starts": budget.starts},
+        seconds=time.perf_counter() - t0,
+        details={"argmax": best_pt.tolist(), "seed": seed},
+    )
+
+
+def _split(
+    lo: np.ndarray, hi: np.ndarray, scale: np.ndarray, mask: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    rel = np.where(mask, (hi - lo) / scale, -1.0)
+    k = int(np.argmax(rel))
+    mid = 0.5 * lo[k] + 0.5 * hi[k]
+    hi1, lo2 = hi.copy(), lo.copy()
+    hi1[k] = mid
+    lo2[k] = mid
+    return [(lo, hi1), (lo2, hi)]
+
+
+def lipschitz_upper(
+    fun: ca.Function,
+    X: Box,
+    U: Box,
+    *,
+    quantity: str = "gamma_f",
+    window: int | None = None,
+    lower: Estimate | None = None,
+    tol: float = 0.05,
+    budget: Budget | None = None,
+    batch: int = 32,
+    where: str = "X × U",
+    progress: Progress | None = None,
+) -> Estimate:
+    """Certified upper bound of ``sup ‖∂fun/∂x‖₂`` over ``X × U`` by interval branch-and-bound.
+
+    Args:
+        fun: CasADi SX function of ``(x, u)``.
+        X, U: boxes for ``x`` and ``u``.
+        lower: a lower bound (from :func:`lipschitz_lower`) to stop early and prune with; box
+            centres raise it further during the search.
+        tol: stop when ``upper − lower ≤ tol · lower``.
+        budget: ``boxes`` and ``seconds`` limit the search; the bound is valid whenever it stops.
+        batch: boxes refined per round (the worst first).
+        where: words naming the set, for error messages.
+        progress: optional callback ``(message, fraction_done)``.
+
+    Raises:
+        SetError: a box around a point keeps an unbounded Jacobian enclosure down to width
+            ~1e-9 (γ is infinite there: the message names the reason, e.g. √ at 0).
+    """
+    budget = budget or Budget()
+    if not (tol >= 0):
+        raise SetError(f"tol must be >= 0, got {tol}")
+    t0 = time.perf_counter()
+    n_x = fun.nnz_in(0)
+    enclosure = Enclosure(fun, wrt=0)
+    jac = jacobian_function(fun)
+    dx, du = varying_dims(fun)
+    lo0 = np.concatenate([X.lo, U.lo])
+    hi0 = np.concatenate([X.hi, U.hi])
+    scale = np.where(hi0 > lo0, hi0 - lo0, 1.0)
+    mask = np.concatenate([dx, du]) & (hi0 > lo0)
+    best = lower.value if lower is not None else 0.0
+
+    def singular_corner(
+        lo: np.ndarray, hi: np.ndarray, dims: np.ndarray
+    ) -> tuple[np.ndarray, int] | None:
+        """A corner of the box (over the split coordinates) where the Jacobian enclosure of
+        the single point is already unbounded: γ is infinite there, not just hard to bound."""
+        corners = _corners(lo[dims], hi[dims], limit=16)
+        points = np.tile(lo, (corners.shape[0], 1))
+        points[:, dims] = corners
+        res = enclosure([Interval.point(points[:, :n_x]), Interval.point(points[:, n_x:])])
+        bad = np.flatnonzero(res.jac_flags != 0)
+        return (points[bad[0]], int(res.jac_flags[bad[0]])) if bad.size else None
+
+    def evaluate(boxes: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+        nonlocal best
+        blo = np.array([b[0] for b in boxes])
+        bhi = np.array([b[1] for b in boxes])
+        res = enclosure(
+            [Interval(blo[:, :n_x], bhi[:, :n_x]), Interval(blo[:, n_x:], bhi[:, n_x:])]
+        )
+        assert res.jacobians is not None
+        ub = spectral_upper(res.jacobians[0])
+        flagged = res.jac_flags != 0
+        ub = np.where(flagged, np.inf, ub)
+        centre = 0.5 * blo + 0.5 * bhi
+        norms = _norms(jac, centre, n_x)
+        tiny = np.all(np.where(mask, (bhi - blo) / scale, 0.0) < 1e-9, axis=1)
+        stuck = flagged & (tiny | (not mask.any()))
+        if stuck.any() or not np.all(np.isfinite(norms)):
+            i = int(np.flatnonzero(stuck | ~np.isfinite(norms))[0])
+            why = describe_flags(int(res.jac_flags[i])) if flagged[i] else None
+            raise _unbounded_error(quantity, fun, where, centre[i], n_x, why)
+        for k in np.flatnonzero(flagged):
+            singular = singular_corner(blo[k], bhi[k], mask)
+            if singular is not None:
+                point, flags = singular
+                raise _unbounded_error(quantity, fun, where, point, n_x, describe_flags(flags))
+        best = max(best, float(norms.max()))
+        return ub
+
+    counter = itertools.count()
+    root = (lo0, hi0)
+    heap: list[tuple[float, int, np.ndarray, np.ndarray]] = []
+    ub0 = evaluate([root])[0]
+    heapq.heappush(heap, (-ub0, next(counter), lo0, hi0))
+    evaluated = 1
+    stop_reason = "tolerance reached"
+    while heap:
+        upper = -heap[0][0]
+        if upper <= best * (1.0 + tol) or not mask.any():
+            break
+        exhausted = budget.exhausted(evaluated, t0)
+        if exhausted:
+            stop_reason = exhausted
+            break
+        popped = [heapq.heappop(heap) for _ in range(min(batch, len(heap)))]
+        children = [c for _, _, lo, hi in popped for c in _split(lo, hi, scale, mask)]
+        ubs = evaluate(children)
+        evaluated += len(children)
+        for (clo, chi), ub in zip(children, ubs):
+            if ub > best:  # a box whose bound is below a value attained cannot hold the sup
+                heapq.heappush(heap, (-float(ub), next(counter), clo, chi))
+        if progress is not None and heap:
+            gap = (-heap[0][0] - best) / max(best, 1e-300)
+            progress(
+                f"{quantity} bracket [{best:.4g}, {-heap[0][0]:.4g}]",
+                min(1.0, tol / max(gap, 1e-300)),
+            )
+    upper = max(-heap[0][0], best) if heap else best
+    if not np.isfinite(upper):
+        _, _, wlo, whi = heap[0]
+        res = enclosure(
+            [Interval(wlo[None, :n_x], whi[None, :n_x]), Interval(wlo[None, n_x:], whi[None, n_x:])]
+        )
+        raise SetError(
+            f"{quantity}: no finite upper bound on {where} within the budget ({stop_reason}): "
+            f"on x ∈ {Box(wlo[:n_x], whi[:n_x])}, u ∈ {Box(wlo[n_x:], whi[n_x:])} the Jacobian "
+            f"enclosure meets {describe_flags(int(res.jac_flags[0]))}"
+        )
+    return Estimate(
+        quantity=quantity,
+        value=float(upper),
+        kind="upper",
+        sets={"X": X, "U": U},
+        method="certified: interval Jacobian branch-and-bound (outward rounding, arb)",
+        window=window,
+        budget=budget.to_dict(),
+        seconds=time.perf_counter() - t0,
+        details={
+            "boxes": evaluated,
+            "stop": stop_reason,
+            "tol": tol,
+            "lower_found": best,
+            "relative_gap": (upper - best) / best if best > 0 else None,
+            "split_dims": np.flatnonzero(mask).tolist(),
+        },
+    )
+
+
+def lipschitz_bracket(
+    fun: ca.Function,
+    X: Box,
+    U: Box,
+    *,
+    quantity: str = "gamma_f",
+    window: int | None = None,
+    tol: float = 0.05,
+    budget: Budget | None = None,
+    seed: int = 0,
+    where: str = "X × U",
+    progress: Progress | None = None,
+) -> Bracket:
+    """The sampled lower bound and the certified upper bound together.
+
+    The returned lower bound includes the values attained at box centres during the
+    branch-and-bound (``details["lower_found"]`` of the upper bound), so it is the best point
+    value found by either method.
+    """
+    low = lipschitz_lower(
+        fun, X, U, quantity=quantity, window=window, budget=budget, seed=seed, where=where
+    )
+    up = lipschitz_upper(
+        fun,
+        X,
+        U,
+        quantity=quantity,
+        window=window,
+        lower=low,
+        tol=tol,
+        budget=budget,
+        where=where,
+        progress=progress,
+    )
+    found = float(up.details["lower_found"])
+    if found > low.value:
+        low = Estimate(
+            quantity=low.quantity,
+            value=found,
+            kind="lower",
+            sets=low.sets,
+            method=low.method + " + branch-and-bound box centres",
+            window=window,
+            budget=low.budget,
+            seconds=low.seconds,
+            details=low.details,
+        )
+    return Bracket.reconcile(low, up)

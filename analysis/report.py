@@ -1,0 +1,350 @@
+"""One analysis of a system over a range of windows: constants, bound checks, JSON, table, figure.
+
+:func:`analyze` computes, for each window ``ℓ``:
+
+* the certified hull ``H_{ℓ−1}`` of the states reachable from X (:mod:`analysis.reach`);
+* γ_f on ``H_{ℓ−1} × U`` and γ_h on ``H_ℓ × U`` (sampled lower bound, certified upper bound);
+* α_ℓ on ``X × U^ℓ`` (sampled upper bounds, the best certified lower bound, using
+  ``α_ℓ ≥ α_k`` for ``k < ℓ``);
+* the Monte-Carlo check of Proposition 2 with the certified constants (γ_f upper, α_ℓ lower);
+
+and :class:`AnalysisReport` writes ``analysis.json`` (schema in :data:`SCHEMA`), a text table and
+the figure "bound and observed error versus ℓ".
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import platform
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from analysis.bound import BoundCheck, BoundConstants, check_bound
+from analysis.estimate import Bracket, Budget, Estimate
+from analysis.lipschitz import lipschitz_bracket
+from analysis.maps import check_window
+from analysis.observability import alpha_bracket
+from analysis.reach import reachable_hulls
+from models.base import System
+from models.errors import SetError
+from models.io import atomic_write_bytes, atomic_write_json
+from models.sets import Box
+
+__all__ = ["SCHEMA", "AnalysisReport", "analyze"]
+
+Progress = Callable[[str, float], None]
+
+#: the documented layout of ``analysis.json`` (written into the file itself)
+SCHEMA: dict[str, Any] = {
+    "name": "canonid.analysis",
+    "version": 1,
+    "fields": {
+        "system": "the system description (models.System.describe())",
+        "sets": "boxes X, U, W used (lower/upper per component)",
+        "windows": "the windows ℓ analysed",
+        "hulls": "per ℓ: the certified box H_{ℓ-1} ⊇ states reachable from X in ℓ-1 steps",
+        "estimates": (
+            "list of records {quantity: gamma_f|gamma_h|alpha, window, value (null = +inf), "
+            "kind: lower|upper|estimate, method, seconds, sets, budget, details}; gamma_f for "
+            "window ℓ holds on H_{ℓ-1}×U, gamma_h on H_ℓ×U, alpha on X×U^ℓ"
+        ),
+        "bound_checks": (
+            "list of records {window, trials, violations, solver_failures, max_ratio "
+            "(error/bound, solver failures excluded; null when the bound is infinite), "
+            "ratio_quantiles, max_error, median_error, worst_case_bound, max_ratio_estimated, "
+            "constants: the gamma_f/alpha records used and factor = gamma_f^ℓ/alpha}"
+        ),
+        "learned": "optional: residual and probe checks of a trained model",
+        "settings": "trials, budget, tolerances, seed",
+        "software": "versions",
+    },
+}
+
+
+@dataclass(frozen=True)
+class WindowResult:
+    """Everything computed for one window."""
+
+    window: int
+    hull: Box
+    gamma_f: Bracket
+    gamma_h: Bracket
+    alpha: Bracket
+    check: BoundCheck | None
+
+
+@dataclass
+class AnalysisReport:
+    """The result of :func:`analyze`, with its JSON, table and figure."""
+
+    system: System
+    X: Box
+    U: Box
+    W: Box
+    results: list[WindowResult]
+    settings: Mapping[str, Any]
+    seconds: float
+    learned: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def estimates(self) -> list[Estimate]:
+        out: list[Estimate] = []
+        for r in self.results:
+            for b in (r.gamma_f, r.gamma_h, r.alpha):
+                out.extend([b.lower, b.upper])
+        return out
+
+    @property
+    def checks(self) -> list[BoundCheck]:
+        return [r.check for r in self.results if r.check is not None]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The content of ``analysis.json`` (see :data:`SCHEMA`)."""
+        return {
+            "schema": SCHEMA,
+            "system": self.system.describe(),
+            "sets": {"X": self.X.to_dict(), "U": self.U.to_dict(), "W": self.W.to_dict()},
+            "windows": [r.window for r in self.results],
+            "hulls": {str(r.window): r.hull.to_dict() for r in self.results},
+            "estimates": [e.to_dict() for e in self.estimates],
+            "bound_checks": [c.to_dict() for c in self.checks],
+            "learned": self.learned,
+            "settings": dict(self.settings),
+            "seconds": round(self.seconds, 3),
+            "software": _versions(),
+        }
+
+    def write_json(self, path: str | Path) -> Path:
+        return atomic_write_json(path, _jsonable(self.to_dict()))
+
+    def table(self) -> str:
+        """A plain-text table: one line per window."""
+        head = (
+            f"{'ℓ':>3}  {'γ_f lower':>10} {'γ_f upper':>10}  {'α_ℓ lower':>10} {'α_ℓ upper':>10}  "
+            f"{'bound(max w̄)':>13} {'max error':>10} {'max err/bound':>13} {'viol.':>5} "
+            f"{'fail':>5}"
+        )
+        lines = [head, "-" * len(head)]
+        for r in self.results:
+            c = r.check
+            lines.append(
+                f"{r.window:>3}  {r.gamma_f.lower.value:>10.4g} {r.gamma_f.upper.value:>10.4g}  "
+                f"{r.alpha.lower.value:>10.4g} {r.alpha.upper.value:>10.4g}  "
+                f"{_fmt(c.worst_case_bound if c else None):>13} "
+                f"{_fmt(c.max_error if c else None):>10} "
+                f"{_fmt(c.max_ratio if c else None):>13} "
+                f"{(c.violations if c else '-')!s:>5} {(c.solver_failures if c else '-')!s:>5}"
+            )
+        lines.append(
+            "γ_f on the reachable hull H_{ℓ−1}×U; α_ℓ lower certified, upper sampled; bound = "
+            "2 γ_f^ℓ α_ℓ^{−1} ‖w̄‖ with the certified constants (∞ when α_ℓ = 0)."
+        )
+        return "\n".join(lines)
+
+    def figure(self, path: str | Path) -> Path:
+        """Write the figure "bound and observed error versus ℓ" (PNG, log scale)."""
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        fig = Figure(figsize=(6.4, 4.2), dpi=110)
+        FigureCanvasAgg(fig)
+        ax = fig.add_subplot(1, 1, 1)
+        ells, bound, est, worst_err, med_err = [], [], [], [], []
+        for r in self.results:
+            if r.check is None:
+                continue
+            ells.append(r.window)
+            bound.append(r.check.worst_case_bound or np.nan)
+            est_factor = _factor(r.gamma_f.lower.value, r.alpha.upper.value, r.window)
+            est.append(2 * est_factor * math.sqrt(r.window) * self.W.radius)
+            worst_err.append(r.check.max_error)
+            med_err.append(r.check.median_error)
+        ax.semilogy(ells, bound, "o-", label="bound, certified constants (max ‖w̄‖)")
+        ax.semilogy(ells, est, "s--", label="bound, estimated constants (max ‖w̄‖)")
+        ax.semilogy(ells, np.maximum(worst_err, 1e-300), "v-", label="observed error, max")
+        ax.semilogy(ells, np.maximum(med_err, 1e-300), "^:", label="observed error, median")
+        for ell, b in zip(ells, bound):
+            if not np.isfinite(b):
+                ax.annotate("α=0", (ell, min(v for v in worst_err if v > 0)), ha="center")
+        ax.set_xlabel("window ℓ")
+        ax.set_ylabel("‖x̂_t − x_t‖")
+        trials = self.settings.get("trials")
+        ax.set_title(
+            f"{self.system.name}: Proposition 2 bound and observed error ({trials} trials/ℓ)"
+        )
+        ax.set_xticks(ells)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", metadata={"Software": None})
+        return atomic_write_bytes(path, buf.getvalue())
+
+
+def _factor(gamma: float, alpha: float, ell: int) -> float:
+    return math.inf if alpha <= 0 else gamma**ell / alpha
+
+
+def _fmt(v: float | None) -> str:
+    if v is None:
+        return "∞"
+    return f"{v:.4g}"
+
+
+def _versions() -> dict[str, str]:
+    import flint
+    import scipy
+
+    return {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "casadi": str(getattr(ca, "__version__", "unknown")),
+        "python-flint": str(getattr(flint, "__version__", "unknown")),
+    }
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    return value
+
+
+def analyze(
+    system: System,
+    windows: Sequence[int],
+    *,
+    X: Box | None = None,
+    U: Box | None = None,
+    W: Box | None = None,
+    trials: int = 1000,
+    budget: Budget | None = None,
+    gamma_tol: float = 0.05,
+    alpha_tol: float = 0.1,
+    max_pair_dims: int = 5,
+    starts: int = 8,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> AnalysisReport:
+    """Constants and Proposition 2 checks of ``system`` for each window (module docstring).
+
+    Args:
+        system: the true system.
+        windows: the windows ``ℓ`` (each ``>= 1``); α is also computed for the shorter windows
+            that the monotonicity ``α_ℓ ≥ α_k`` uses.
+        X, U, W: the sets (default: the system's).
+        trials: Monte-Carlo trials per window (0: no check).
+        budget: budget of each certified search and sampled bound.
+        gamma_tol, alpha_tol: relative tolerances of the γ and α branch-and-bound searches.
+        max_pair_dims: largest dimension of the α pairs search.
+        starts: argmin starts per trial.
+        seed: random seed (same seed, same numbers).
+        progress: optional callback ``(message, fraction)`` (fraction of the windows done).
+    """
+    t0 = time.perf_counter()
+    ells = sorted({check_window(w) for w in windows})
+    if not ells:
+        raise SetError("no window given")
+    if isinstance(trials, bool) or not isinstance(trials, int) or trials < 0:
+        raise SetError(f"trials must be an integer >= 0, got {trials!r}")
+    X, U, W = X or system.X, U or system.U, W or system.W
+    for name, box, dim in (("X", X, system.n_x), ("U", U, system.n_u), ("W", W, system.n_y)):
+        if box.dim != dim:
+            raise SetError(f"{system.name}: set {name} has dimension {box.dim}, expected {dim}")
+    budget = budget or Budget()
+    note = progress or (lambda message, fraction: None)
+    note("reachable hulls", 0.0)
+    hulls = reachable_hulls(system, max(ells), X=X, U=U)
+    alphas: dict[int, Bracket] = {}
+    results = []
+    for done, ell in enumerate(range(1, max(ells) + 1)):
+        frac = done / max(ells)
+
+        def sub(message: str, fraction: float, ell: int = ell, frac: float = frac) -> None:
+            note(f"ℓ={ell}: {message}", frac + fraction / max(ells))
+
+        sub("α_ℓ", 0.0)
+        alphas[ell] = alpha_bracket(
+            system,
+            ell,
+            X=X,
+            U=U,
+            previous=[b.lower for b in alphas.values()],
+            tol=alpha_tol,
+            budget=budget,
+            max_pair_dims=max_pair_dims,
+            seed=seed,
+            progress=sub,
+        )
+        if ell not in ells:
+            continue
+        reach = "X" if ell == 1 else f"the hull reachable from X in {ell - 1} step(s)"
+        brackets = {}
+        for quantity, fun, hull, where in (
+            ("gamma_f", system.f, hulls[ell - 1], f"{reach} × U"),
+            ("gamma_h", system.h, hulls[ell], f"the hull reachable from X in {ell} step(s) × U"),
+        ):
+            sub(quantity, 0.3)
+            brackets[quantity] = lipschitz_bracket(
+                fun,
+                hull,
+                U,
+                quantity=quantity,
+                window=ell,
+                tol=gamma_tol,
+                budget=budget,
+                seed=seed,
+                where=where,
+            )
+        gamma_f, gamma_h = brackets["gamma_f"], brackets["gamma_h"]
+        check = None
+        if trials:
+            sub(f"{trials} Monte-Carlo trials", 0.6)
+            certified = BoundConstants(ell, gamma_f.upper, alphas[ell].lower, gamma_h.upper)
+            estimated = BoundConstants(ell, gamma_f.lower, alphas[ell].upper, gamma_h.lower)
+            check = check_bound(
+                system,
+                certified,
+                trials=trials,
+                X=X,
+                U=U,
+                W=W,
+                starts=starts,
+                seed=seed + ell,
+                estimated=estimated,
+            )
+        results.append(WindowResult(ell, hulls[ell - 1], gamma_f, gamma_h, alphas[ell], check))
+    note("done", 1.0)
+    return AnalysisReport(
+        system=system,
+        X=X,
+        U=U,
+        W=W,
+        results=results,
+        settings={
+            "trials": trials,
+            "budget": budget.to_dict(),
+            "gamma_tol": gamma_tol,
+            "alpha_tol": alpha_tol,
+            "max_pair_dims": max_pair_dims,
+            "argmin_starts": starts,
+            "seed": seed,
+        },
+        seconds=time.perf_counter() - t0,
+    )

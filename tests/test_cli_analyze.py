@@ -1,0 +1,92 @@
+"""``canonid analyze``: the files it writes, their schema, and readable errors."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from canonid.cli import main
+from canonid.commands.analyze import parse_box, parse_windows
+from models.errors import SetError
+
+TANK_SETS = ["--X", "0.05:5,0.05:5", "--U", "1:3"]
+
+
+def test_analyze_tank_writes_json_table_and_figure(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(
+        [
+            "analyze",
+            "tank",
+            "--windows",
+            "1-3",
+            "--trials",
+            "40",
+            "--budget",
+            "2",
+            *TANK_SETS,
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "γ_f lower" in printed and "analysis written to" in printed
+    data = json.loads((out / "analysis.json").read_text())
+    assert data["schema"]["name"] == "canonid.analysis" and data["windows"] == [1, 2, 3]
+    quantities = {(e["quantity"], e["kind"]) for e in data["estimates"]}
+    assert quantities == {
+        (q, k) for q in ("gamma_f", "gamma_h", "alpha") for k in ("lower", "upper")
+    }
+    for record in data["estimates"]:
+        assert set(record) >= {"quantity", "window", "value", "kind", "method", "seconds"}
+    checks = {c["window"]: c for c in data["bound_checks"]}
+    assert set(checks) == {1, 2, 3}
+    for c in checks.values():
+        assert set(c) >= {
+            "window",
+            "trials",
+            "violations",
+            "solver_failures",
+            "max_ratio",
+            "constants",
+        }
+        assert c["violations"] == 0 and c["trials"] == 40
+    assert checks[1]["max_ratio"] is None  # α_1 = 0: the bound is infinite
+    assert checks[2]["max_ratio"] <= 1.0
+    assert (out / "bound_vs_window.png").stat().st_size > 1000
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["--window", "0"], "--window must be an integer >= 1"),
+        (["--windows", "3-1"], "windows must be integers >= 1"),
+        (["--window", "2", "--X", "5:0.05,0.05:5"], "lower > upper"),
+        (["--window", "2", "--X", "0.05:5"], None),  # one pair broadcasts: accepted
+        (["--window", "1", "--X", "0:5,0.05:5", "--trials", "0"], "unbounded"),
+        (["--window", "2", "--U", "1:3,1:3"], "needs 1"),
+    ],
+)
+def test_bad_arguments_are_one_line_errors(argv, message, tmp_path, capsys):
+    if message is None:
+        assert parse_box("0.05:5", 2, "X").lo.tolist() == [0.05, 0.05]
+        return
+    code = main(["analyze", "tank", *argv, "--budget", "1", "--out", str(tmp_path), "--quiet"])
+    err = capsys.readouterr().err
+    assert code == 1 and message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_run_without_identification_exits_2(tmp_path, capsys):
+    code = main(["analyze", "tank", "--window", "2", "--run", str(tmp_path), "--quiet"])
+    assert code == 2 and "identification" in capsys.readouterr().err
+
+
+def test_window_parsing():
+    assert parse_windows("1-4") == [1, 2, 3, 4]
+    assert parse_windows("2,5,10") == [2, 5, 10]
+    with pytest.raises(SetError):
+        parse_windows("a-b")
