@@ -21,8 +21,10 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[test]"
 	touch $(STAMP)
 
+# The tank pipeline of the quick profile (data, analysis, Table 1, compression, report); it
+# prints the report's path. --resume: a second `make demo` reuses every finished job.
 demo: $(STAMP)
-	$(VENV)/bin/canonid demo --out $(DEMO_OUT)
+	$(VENV)/bin/canonid reproduce --profile quick --systems tank --out $(DEMO_OUT) --resume
 
 # pytest exits 5 when it collects no test; that is not a failure of the suite.
 test: $(STAMP)

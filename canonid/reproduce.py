@@ -1,0 +1,1017 @@
+"""The paper's reproduction as one pipeline: datasets → Table 1 → analysis → compression → report.
+
+:func:`reproduce` runs, for the systems, windows, models and seeds of a profile's
+``reproduce`` stage (:mod:`canonid.profiles`, overridable per call):
+
+1. **Datasets** — one per system, generated with :func:`datagen.generate.generate_dataset`
+   into ``OUT/data/SYSTEM`` or reused when the dataset there was made from the same
+   :class:`~datagen.generate.GenerationConfig` (its checksum is validated on loading).
+2. **Jobs** — one :class:`TrainJob` per (system, model, window, seed) for Table 1 and one
+   :class:`AnalysisJob` per analysed system, all independent, run through
+   :func:`canonid.runner.run_jobs` serially, on ``workers`` local Dask processes or on a Dask
+   cluster (``scheduler``): the same job list and the same results whichever way. Each job writes
+   its folder and, last and atomically, ``result.json`` holding its recipe (what it was asked to
+   do) and its result. A job whose ``result.json`` holds the same recipe is finished and is never
+   run again; a training job interrupted mid-way continues from its checkpoint. A job that fails
+   is retried once; one that still fails is named in the report and the error, never dropped.
+3. **Learned-model checks** — the one-step residual and a state probe of the trained canonical
+   models (Ours MLP/GRU, seed 0) against the analysis's certified constants
+   (:mod:`analysis.learned`), for the windows both stages cover.
+4. **Compression study** — :func:`canonid.reduction.compression_sweep` on the profile's trained
+   canonical runs (heat-map and reduced-model figure), when the model-reduction feature is
+   present in this version of canonid.
+5. **Figures and report** — Table 1 against the paper's printed values (:mod:`canonid.paper`)
+   as a figure and tables, one rollout figure per system, and ``report.md`` + ``report.html``
+   (:mod:`canonid.report`) linking every artefact; ``reproduction.json`` holds every number.
+
+Table 1's metric is :func:`learning.evaluate.evaluate`'s ``rollout_mse``: from every
+``stride``-th start of every test trajectory, ℓ measured samples burn in and the model predicts
+the next ``H`` (paper: 100) outputs in open loop; the mean squared error over rollouts, steps and
+outputs, in physical units. The tables give it against the measured outputs ``y`` (noisy, as the
+paper's data) and, separately, against the noise-free ``y_clean``.
+
+Layout of ``OUT``::
+
+    data/SYSTEM/dataset.npz|.json        the datasets
+    runs/SYSTEM/MODEL-lL-sS/             one Table-1 job: canonid-train run folder + result.json
+    analysis/SYSTEM/                     analysis.json, bound_vs_window.png, result.json
+    compression/SYSTEM/                  the compression study (sweep.json, figures)
+    figures/                             table1_SYSTEM.png, rollouts_SYSTEM.png
+    reproduction.json, report.md, report.html
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import importlib.util
+import logging
+import math
+import os
+import platform
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from canonid.paper import table1_value
+from canonid.profiles import profile as load_profile
+from canonid.reproduce_report import write_report
+from canonid.runner import JobsFailedError, run_jobs
+from datagen.dataset import Dataset
+from datagen.generate import GenerationConfig, generate_dataset
+from datagen.scenarios import scenario_names
+from learning import model_names
+from learning.training import OptionError
+from models.errors import CheckpointError, DataError
+from models.io import atomic_write_json, read_json
+
+__all__ = [
+    "RESULT_FILE",
+    "AnalysisJob",
+    "DatasetInfo",
+    "JobOutcome",
+    "ReproduceSettings",
+    "Reproduction",
+    "TrainJob",
+    "plan_jobs",
+    "prepare_datasets",
+    "reproduce",
+    "run_job",
+    "settings_from_profile",
+    "table1_rows",
+]
+
+log = logging.getLogger(__name__)
+
+RESULT_FILE = "result.json"
+RESULT_FORMAT = "canonid-reproduce-job"
+SUMMARY_FILE = "reproduction.json"
+#: the models whose regressor is a function of the canonical state (checked, reduced)
+CANONICAL_MODELS = ("mlp", "gru")
+
+
+# ------------------------------------------------------------------------------ settings
+@dataclass(frozen=True)
+class ReproduceSettings:
+    """What one reproduction runs (a profile's ``reproduce`` stage with the caller's overrides).
+
+    Attributes:
+        profile: the profile name (budgets of every stage).
+        systems: registered systems with a data scenario.
+        windows: the windows ℓ of Table 1.
+        models: model names (:func:`learning.model_names`).
+        seeds: training seeds ``0 … seeds−1`` per (system, model, window).
+        out: the output folder.
+        stage: the profile's ``reproduce`` stage (data, train overrides, evaluation, analysis,
+            compression, rollouts), as data.
+        workers: local Dask worker processes (0: serial, in this process).
+        scheduler: address of a Dask scheduler (instead of ``workers``).
+        resume: continue the reproduction already in ``out``.
+        progress: progress bars on stderr.
+        device: torch device of the training jobs.
+        command: the command line that asked for it (shown in the report).
+    """
+
+    profile: str
+    systems: tuple[str, ...]
+    windows: tuple[int, ...]
+    models: tuple[str, ...]
+    seeds: int
+    out: Path
+    stage: Mapping[str, Any]
+    workers: int = 0
+    scheduler: str | None = None
+    resume: bool = False
+    progress: bool = True
+    device: str = "cpu"
+    command: str | None = None
+
+    def __post_init__(self) -> None:
+        known = scenario_names()
+        for system in self.systems:
+            if system not in known:
+                raise DataError(
+                    f"system {system!r} has no data scenario; expected some of {sorted(known)}"
+                )
+        bad_models = [m for m in self.models if m not in model_names()]
+        if bad_models:
+            raise OptionError(f"unknown model(s) {bad_models}; expected some of {model_names()}")
+        if any(isinstance(w, bool) or not isinstance(w, int) or w < 1 for w in self.windows):
+            raise OptionError(f"windows must be integers >= 1, got {list(self.windows)}")
+        if isinstance(self.seeds, bool) or not isinstance(self.seeds, int) or self.seeds < 1:
+            raise OptionError(f"seeds must be an integer >= 1, got {self.seeds!r}")
+        for name, values in (
+            ("systems", self.systems),
+            ("windows", self.windows),
+            ("models", self.models),
+        ):
+            if not values or len(set(values)) != len(values):
+                raise OptionError(f"{name} must be a non-empty list without repeats: {values}")
+        if self.workers < 0:
+            raise OptionError(f"workers must be an integer >= 0, got {self.workers}")
+
+
+def settings_from_profile(
+    profile: str,
+    *,
+    out: str | os.PathLike[str],
+    systems: Sequence[str] | None = None,
+    windows: Sequence[int] | None = None,
+    models: Sequence[str] | None = None,
+    seeds: int | None = None,
+    workers: int = 0,
+    scheduler: str | None = None,
+    resume: bool = False,
+    progress: bool = True,
+    device: str = "cpu",
+    command: str | None = None,
+) -> ReproduceSettings:
+    """:class:`ReproduceSettings` from profile ``profile``; ``None`` keeps the profile's value."""
+    stages = load_profile(profile)
+    if "reproduce" not in stages:
+        raise OptionError(f"profile {profile!r} has no 'reproduce' stage")
+    stage = stages["reproduce"]
+    return ReproduceSettings(
+        profile=profile,
+        systems=tuple(systems or stage["systems"]),
+        windows=tuple(windows or stage["windows"]),
+        models=tuple(models or stage["models"]),
+        seeds=int(seeds if seeds is not None else stage["seeds"]),
+        out=Path(out),
+        stage=stage,
+        workers=workers,
+        scheduler=scheduler,
+        resume=resume,
+        progress=progress,
+        device=device,
+        command=command,
+    )
+
+
+# ------------------------------------------------------------------------------ datasets
+@dataclass(frozen=True)
+class DatasetInfo:
+    """A dataset of the reproduction: where, from which configuration, made or reused."""
+
+    system: str
+    path: Path
+    config: dict[str, Any]
+    checksum: str
+    counts: dict[str, int]
+    reused: bool
+    seconds: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**dataclasses.asdict(self), "path": str(self.path)}
+
+
+def _generation_config(system: str, stage: Mapping[str, Any]) -> GenerationConfig:
+    data = dict(stage.get("data", {}).get(system, {}))
+    unknown = sorted(set(data) - {"seed", "counts", "noise", "T", "controller_options"})
+    if unknown:
+        raise OptionError(f"reproduce stage, data.{system}: unknown key(s) {unknown}")
+    return GenerationConfig(
+        system=system,
+        seed=int(data.get("seed", 0)),
+        counts=dict(data.get("counts", {})),
+        noise=data.get("noise"),
+        controller_options=dict(data.get("controller_options", {})),
+        T=data.get("T"),
+    )
+
+
+def _existing_dataset(folder: Path, config: GenerationConfig) -> Dataset | None:
+    """The dataset in ``folder`` if it was generated from ``config`` (checksum validated on
+    loading), ``None`` if there is none; another configuration is an error."""
+    if not (folder / "dataset.json").is_file():
+        return None
+    dataset = Dataset.load(folder)
+    found = dataset.metadata.get("generation")
+    if found != config.to_json():
+        raise DataError(
+            f"{folder} holds a dataset generated with {found}, not {config.to_json()}; "
+            "reproduce into another --out, or move that dataset away"
+        )
+    return dataset
+
+
+def prepare_datasets(
+    systems: Sequence[str],
+    stage: Mapping[str, Any],
+    folder: Path,
+    *,
+    runner: Callable[..., list[Any]],
+) -> dict[str, DatasetInfo]:
+    """Generate (or reuse) one dataset per system in ``folder/SYSTEM`` (module docstring)."""
+    out: dict[str, DatasetInfo] = {}
+    for system in systems:
+        config = _generation_config(system, stage)
+        target = folder / system
+        t0 = time.perf_counter()
+        dataset = _existing_dataset(target, config)
+        reused = dataset is not None
+        if dataset is None:
+            run = functools.partial(runner, description=f"{system} flights")
+            generate_dataset(config, target, run_jobs=run, resume=True)
+            dataset = Dataset.load(target)
+        header = read_json(target / "dataset.json", what="dataset metadata")
+        out[system] = DatasetInfo(
+            system=system,
+            path=(target / "dataset.npz").resolve(),
+            config=config.to_json(),
+            checksum=str(header["checksum_sha256"]),
+            counts=dataset.counts(),
+            reused=reused,
+            seconds=round(time.perf_counter() - t0, 3),
+        )
+    return out
+
+
+# ------------------------------------------------------------------------------ jobs
+@dataclass(frozen=True)
+class JobOutcome:
+    """What a job returns: its kind, its recipe, its result (JSON-ready) and whether it ran
+    now (``False``: read back from a finished ``result.json``)."""
+
+    kind: str
+    name: str
+    folder: str
+    recipe: dict[str, Any]
+    result: dict[str, Any]
+    ran: bool
+
+
+def _finished(folder: Path, recipe: Mapping[str, Any]) -> JobOutcome | None:
+    """The outcome stored in ``folder/result.json`` if it holds ``recipe``; ``None`` if there
+    is none; a result of another recipe is an error (the folder belongs to another run)."""
+    path = folder / RESULT_FILE
+    if not path.is_file():
+        return None
+    stored = read_json(path, what="job result")
+    if not isinstance(stored, dict) or stored.get("format") != RESULT_FORMAT:
+        raise CheckpointError(f"{path} is not a canonid reproduction job result")
+    if stored.get("recipe") != _jsonable(dict(recipe)):
+        differs = sorted(
+            k
+            for k in {*recipe, *stored.get("recipe", {})}
+            if stored.get("recipe", {}).get(k) != _jsonable(recipe.get(k))
+        )
+        raise CheckpointError(
+            f"{path} was made with another recipe (differs in {differs}); reproduce into "
+            "another --out, or remove that folder"
+        )
+    return JobOutcome(
+        kind=stored["kind"],
+        name=stored["name"],
+        folder=str(folder),
+        recipe=stored["recipe"],
+        result=stored["result"],
+        ran=False,
+    )
+
+
+def _store(
+    kind: str, name: str, folder: Path, recipe: Mapping[str, Any], result: Any
+) -> JobOutcome:
+    body = {
+        "format": RESULT_FORMAT,
+        "kind": kind,
+        "name": name,
+        "recipe": _jsonable(dict(recipe)),
+        "result": _jsonable(result),
+    }
+    atomic_write_json(folder / RESULT_FILE, body)
+    return JobOutcome(kind, name, str(folder), body["recipe"], body["result"], ran=True)
+
+
+@dataclass(frozen=True)
+class TrainJob:
+    """One cell of Table 1 for one seed: train ``model`` with window ``window`` on the dataset,
+    then score it on its test split. Picklable (sent to Dask workers, which must see ``folder``
+    and ``data``: a shared file system on a cluster).
+
+    The folder is a ``canonid train`` run folder (``run.json``, the model, ``checkpoint.pt``,
+    ``history.csv``, ``training_curve.png``, ``metrics.json``, ``rollouts.png``), so ``canonid
+    evaluate``, ``canonid analyze --run`` and ``canonid reduce`` read it unchanged.
+    """
+
+    system: str
+    model: str
+    window: int
+    seed: int
+    data: str
+    data_sha256: str
+    folder: str
+    profile: str
+    train_options: Mapping[str, Any]
+    evaluation: Mapping[str, Any]
+    threads: int | None = 1
+
+    @property
+    def name(self) -> str:
+        return f"{self.system} {self.model} ℓ={self.window} seed {self.seed}"
+
+    def recipe(self) -> dict[str, Any]:
+        """What a finished job must match to be reused (the data by checksum, not by path)."""
+        return {
+            "system": self.system,
+            "model": self.model,
+            "window": self.window,
+            "seed": self.seed,
+            "data_sha256": self.data_sha256,
+            "profile": self.profile,
+            "train_options": dict(self.train_options),
+            "evaluation": dict(self.evaluation),
+        }
+
+    def run(self) -> JobOutcome:
+        folder = Path(self.folder)
+        done = _finished(folder, self.recipe())
+        if done is not None:
+            return done
+        with _torch_threads(self.threads):
+            result = _train_and_score(self, folder)
+        return _store("train", self.name, folder, self.recipe(), result)
+
+
+def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
+    """Train (or continue from the checkpoint) and evaluate; the ``canonid train`` run
+    folder plus the fields of Table 1."""
+    from canonid.commands.evaluate import RUN_FILE, evaluate_run
+    from canonid.commands.train import _splits, _write_history
+    from learning import TrainOptions, fit
+    from learning.training import CHECKPOINT_FILE
+
+    t0 = time.perf_counter()
+    recipe: dict[str, Any] = {
+        "format": "canonid-run",
+        "data": job.data,
+        "data_options": {},
+        "val": None,
+        "val_fraction": 0.2,
+        "model": job.model,
+        "window": job.window,
+        "net_options": {},
+        "profile": job.profile,
+        "train_options": dict(job.train_options),
+        "command": ["canonid", "reproduce", "(job)", job.name],
+    }
+    dataset, train, val, test_name, data_path = _splits(recipe)
+    folder.mkdir(parents=True, exist_ok=True)
+    resume = (folder / CHECKPOINT_FILE).is_file()
+    atomic_write_json(folder / RUN_FILE, recipe)
+    fitted = fit(
+        train,
+        val,
+        model=job.model,
+        window=job.window,
+        options=TrainOptions.from_dict(job.train_options),
+        net_options=recipe["net_options"],
+        run_dir=folder,
+        resume=resume,
+        info={
+            "profile": job.profile,
+            "data": {"path": data_path, "splits": dataset.counts()},
+            "input_names": list(dataset.input_names),
+            "output_names": list(dataset.output_names),
+            "dt": dataset.dt,
+        },
+    )
+    _write_history(folder, fitted.history)
+    metrics = evaluate_run(
+        folder,
+        fitted.model,
+        dataset,
+        data_path=data_path,
+        split=test_name,
+        horizon=int(job.evaluation["horizon"]),
+        stride=int(job.evaluation["stride"]),
+        n_init=None,
+    )
+    clean = metrics.get("clean") or {}
+    return {
+        "rollout_mse": metrics["rollout_mse"],
+        "rollout_mse_clean": clean.get("rollout_mse"),
+        "rmse": metrics["rmse"],
+        "nrmse": metrics["nrmse"],
+        "fit_percent": metrics["fit_percent"],
+        "n_rollouts": metrics["n_rollouts"],
+        "split": test_name,
+        "epochs_run": fitted.epochs_run,
+        "best_epoch": fitted.best_epoch,
+        "best_val_loss": fitted.best_val_loss,
+        "stopped": fitted.stopped,
+        "resumed_from_checkpoint": resume,
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+
+
+@dataclass(frozen=True)
+class AnalysisJob:
+    """The analysis of one system (:func:`analysis.report.analyze`): γ_f, γ_h, α_ℓ brackets and
+    the Monte-Carlo check of Proposition 2 for each window, with the profile's budget; writes
+    ``analysis.json`` and ``bound_vs_window.png`` into ``folder``."""
+
+    system: str
+    folder: str
+    settings: Mapping[str, Any]
+    seed: int = 0
+
+    @property
+    def name(self) -> str:
+        return f"{self.system} analysis"
+
+    def recipe(self) -> dict[str, Any]:
+        return {"system": self.system, "settings": dict(self.settings), "seed": self.seed}
+
+    def run(self) -> JobOutcome:
+        folder = Path(self.folder)
+        done = _finished(folder, self.recipe())
+        if done is not None:
+            return done
+        result = _analyse(self, folder)
+        return _store("analysis", self.name, folder, self.recipe(), result)
+
+
+ANALYSIS_KEYS = frozenset({"windows", "X", "U", "W", "trials", "budget_seconds", "boxes"})
+
+
+def _box(value: Any, where: str) -> Any:
+    from models.sets import Box
+
+    if value is None:
+        return None
+    try:
+        lo, hi = value
+        return Box(lo, hi)
+    except (TypeError, ValueError) as exc:
+        raise OptionError(f"{where}: expected [[lower...], [upper...]], got {value!r}") from exc
+
+
+def _analyse(job: AnalysisJob, folder: Path) -> dict[str, Any]:
+    from analysis.estimate import Budget
+    from analysis.report import analyze
+    from models.registry import get_system
+
+    s = job.settings
+    t0 = time.perf_counter()
+    system = get_system(job.system)
+    report = analyze(
+        system,
+        list(s["windows"]),
+        X=_box(s.get("X"), f"analysis.{job.system}.X"),
+        U=_box(s.get("U"), f"analysis.{job.system}.U"),
+        W=_box(s.get("W"), f"analysis.{job.system}.W"),
+        trials=int(s["trials"]),
+        budget=Budget(seconds=float(s["budget_seconds"]), boxes=int(s["boxes"])),
+        seed=job.seed,
+    )
+    folder.mkdir(parents=True, exist_ok=True)
+    report.write_json(folder / "analysis.json")
+    figure = report.figure(folder / "bound_vs_window.png") if report.checks else None
+    rows = []
+    for r in report.results:
+        c = r.check
+        rows.append(
+            {
+                "window": r.window,
+                "gamma_f": [r.gamma_f.lower.value, r.gamma_f.upper.value],
+                "gamma_h": [r.gamma_h.lower.value, r.gamma_h.upper.value],
+                "alpha": [r.alpha.lower.value, r.alpha.upper.value],
+                "trials": c.trials if c else 0,
+                "violations": c.violations if c else None,
+                "solver_failures": c.solver_failures if c else None,
+                "max_ratio": c.max_ratio if c else None,
+                "max_error": c.max_error if c else None,
+                "worst_case_bound": c.worst_case_bound if c else None,
+            }
+        )
+    return {
+        "windows": rows,
+        "sets": {"X": report.X.to_dict(), "U": report.U.to_dict(), "W": report.W.to_dict()},
+        "table": report.table(),
+        "figure": str(figure) if figure else None,
+        "seconds": round(time.perf_counter() - t0, 3),
+    }
+
+
+Job = TrainJob | AnalysisJob
+
+
+def run_job(job: Job) -> JobOutcome:
+    """Run one job (the function :func:`canonid.runner.run_jobs` sends to workers)."""
+    return job.run()
+
+
+class _torch_threads:
+    """Set torch's CPU threads for a job, then restore them (a job must not starve its
+    neighbours on a shared machine, nor leave a worker changed)."""
+
+    def __init__(self, threads: int | None) -> None:
+        self.threads = threads
+        self.previous: int | None = None
+
+    def __enter__(self) -> None:
+        if self.threads is not None:
+            import torch
+
+            self.previous = torch.get_num_threads()
+            torch.set_num_threads(self.threads)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.previous is not None:
+            import torch
+
+            torch.set_num_threads(self.previous)
+
+
+def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) -> list[Job]:
+    """The reproduction's independent jobs, in a fixed order: the analyses first (the longest
+    single jobs), then Table 1 by system, model, window and seed. The list depends only on the
+    settings and the datasets, never on how it is run."""
+    from canonid.profiles import train_options
+
+    stage = settings.stage
+    out = settings.out.resolve()
+    overrides = dict(stage.get("train", {}))
+    evaluation = {"horizon": 100, "stride": 1, **stage.get("evaluation", {})}
+    jobs: list[Job] = []
+    for system in settings.systems:
+        analysis = stage.get("analysis", {}).get(system)
+        if analysis is None:
+            continue
+        unknown = sorted(set(analysis) - ANALYSIS_KEYS)
+        if unknown:
+            raise OptionError(f"reproduce stage, analysis.{system}: unknown key(s) {unknown}")
+        jobs.append(AnalysisJob(system, str(out / "analysis" / system), dict(analysis)))
+    for system in settings.systems:
+        info = datasets[system]
+        for model in settings.models:
+            for window in settings.windows:
+                for seed in range(settings.seeds):
+                    options = train_options(
+                        settings.profile, **{**overrides, "seed": seed, "device": settings.device}
+                    )
+                    jobs.append(
+                        TrainJob(
+                            system=system,
+                            model=model,
+                            window=window,
+                            seed=seed,
+                            data=str(info.path),
+                            data_sha256=info.checksum,
+                            folder=str(out / "runs" / system / f"{model}-l{window}-s{seed}"),
+                            profile=settings.profile,
+                            train_options=options.to_dict(),
+                            evaluation=evaluation,
+                        )
+                    )
+    return jobs
+
+
+# ------------------------------------------------------------------------------ tables
+@dataclass(frozen=True)
+class Table1Cell:
+    """One (system, model, window) of Table 1 over the seeds (MSE in physical units).
+
+    ``std`` is the sample standard deviation over seeds (``None`` with one seed)."""
+
+    system: str
+    model: str
+    window: int
+    seeds: int
+    mean: float
+    std: float | None
+    mean_clean: float | None
+    std_clean: float | None
+    paper: float | None
+
+
+def _mean_std(values: Sequence[float]) -> tuple[float, float | None]:
+    arr = np.asarray(values, dtype=np.float64)
+    return float(arr.mean()), (float(arr.std(ddof=1)) if arr.size > 1 else None)
+
+
+def table1_rows(outcomes: Sequence[JobOutcome]) -> list[Table1Cell]:
+    """Mean and spread over seeds of every (system, model, window) among the training jobs."""
+    groups: dict[tuple[str, str, int], list[dict[str, Any]]] = {}
+    for o in outcomes:
+        if o.kind == "train":
+            key = (o.recipe["system"], o.recipe["model"], int(o.recipe["window"]))
+            groups.setdefault(key, []).append(o.result)
+    cells = []
+    for (system, model, window), results in groups.items():
+        mean, std = _mean_std([r["rollout_mse"] for r in results])
+        clean = [r["rollout_mse_clean"] for r in results if r["rollout_mse_clean"] is not None]
+        mean_c, std_c = _mean_std(clean) if len(clean) == len(results) else (None, None)
+        cells.append(
+            Table1Cell(
+                system,
+                model,
+                window,
+                len(results),
+                mean,
+                std,
+                mean_c,
+                std_c,
+                table1_value(system, model, window),
+            )
+        )
+    return cells
+
+
+# ------------------------------------------------------------------------------ the pipeline
+@dataclass
+class Reproduction:
+    """What :func:`reproduce` did and wrote."""
+
+    settings: ReproduceSettings
+    datasets: dict[str, DatasetInfo]
+    outcomes: list[JobOutcome]
+    table1: list[Table1Cell]
+    learned: dict[str, Any]
+    compression: dict[str, Any]
+    figures: dict[str, str]
+    report_md: Path
+    report_html: Path
+    summary: Path
+    seconds: dict[str, float] = field(default_factory=dict)
+    failures: list[str] = field(default_factory=list)
+
+    @property
+    def jobs_run(self) -> int:
+        """Jobs executed by this call (the others were finished before)."""
+        return sum(o.ran for o in self.outcomes)
+
+    def to_dict(self, machine: Mapping[str, Any]) -> dict[str, Any]:
+        """The body of ``reproduction.json``."""
+        s = self.settings
+        return {
+            "format": "canonid-reproduction",
+            "settings": {
+                "profile": s.profile,
+                "systems": s.systems,
+                "windows": s.windows,
+                "models": s.models,
+                "seeds": s.seeds,
+                "stage": s.stage,
+                "workers": s.workers,
+                "scheduler": s.scheduler,
+                "command": s.command,
+            },
+            "machine": dict(machine),
+            "datasets": {k: v.to_dict() for k, v in self.datasets.items()},
+            "table1": [
+                {**dataclasses.asdict(c), "units": "physical units squared"} for c in self.table1
+            ],
+            "jobs": [dataclasses.asdict(o) for o in self.outcomes],
+            "learned_checks": self.learned,
+            "compression": self.compression,
+            "figures": self.figures,
+            "report": {"markdown": str(self.report_md), "html": str(self.report_html)},
+            "seconds": self.seconds,
+            "failures": self.failures,
+        }
+
+
+def _check_out(settings: ReproduceSettings) -> None:
+    summary = settings.out / SUMMARY_FILE
+    marker = settings.out / "runs"
+    if not settings.resume and (summary.exists() or marker.exists()):
+        raise CheckpointError(
+            f"{settings.out} already holds a reproduction; add --resume to continue it (finished "
+            "jobs are kept) or choose another --out"
+        )
+
+
+def reproduce(settings: ReproduceSettings) -> Reproduction:
+    """Run the whole reproduction (module docstring); returns what was done and written.
+
+    Raises :class:`canonid.runner.JobsFailedError` after the report is written when jobs failed
+    twice (the report names them); the finished jobs are kept for ``resume``."""
+    _check_out(settings)
+    settings.out.mkdir(parents=True, exist_ok=True)
+    seconds: dict[str, float] = {}
+    runner = functools.partial(
+        run_jobs,
+        workers=settings.workers,
+        scheduler=settings.scheduler,
+        progress=settings.progress,
+    )
+    t0 = time.perf_counter()
+    datasets = prepare_datasets(
+        settings.systems, settings.stage, settings.out / "data", runner=runner
+    )
+    seconds["datasets"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    jobs = plan_jobs(settings, datasets)
+    outcomes, failures = _run_all(jobs, settings)
+    seconds["jobs"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    learned = learned_checks(outcomes, datasets)
+    seconds["learned_checks"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    compression = compression_study(settings, outcomes)
+    seconds["compression"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    table = table1_rows(outcomes)
+    summary_path = settings.out / SUMMARY_FILE
+    host = machine()
+    md, html, figures = write_report(
+        out=settings.out,
+        settings=settings,
+        machine=host,
+        datasets=datasets,
+        outcomes=outcomes,
+        table=table,
+        learned=learned,
+        compression=compression,
+        failures=failures,
+        seconds=seconds,
+        summary_path=summary_path,
+    )
+    seconds["report"] = time.perf_counter() - t0
+    result = Reproduction(
+        settings=settings,
+        datasets=datasets,
+        outcomes=outcomes,
+        table1=table,
+        learned=learned,
+        compression=compression,
+        figures=figures,
+        report_md=md,
+        report_html=html,
+        summary=summary_path,
+        seconds=seconds,
+        failures=[f"{f.job}: {f.error}" for f in failures],
+    )
+    atomic_write_json(summary_path, _jsonable(result.to_dict(host)))
+    if failures:
+        raise JobsFailedError(failures, len(jobs))
+    return result
+
+
+def _run_all(
+    jobs: Sequence[Job], settings: ReproduceSettings
+) -> tuple[list[JobOutcome], list[Any]]:
+    """Run the jobs not finished yet; finished ones are read back, never re-run."""
+    outcomes: dict[int, JobOutcome] = {}
+    todo: list[int] = []
+    for i, job in enumerate(jobs):
+        done = _finished(Path(job.folder), job.recipe())
+        if done is not None:
+            outcomes[i] = done
+        else:
+            todo.append(i)
+    failures: list[Any] = []
+    if todo:
+        try:
+            results = run_jobs(
+                run_job,
+                [jobs[i] for i in todo],
+                workers=settings.workers,
+                scheduler=settings.scheduler,
+                progress=settings.progress,
+                description="reproduce jobs",
+            )
+        except JobsFailedError as exc:
+            failures = [dataclasses.replace(f, position=todo[f.position]) for f in exc.failures]
+            failed = {f.position for f in failures}
+            for i in todo:
+                done = _finished(Path(jobs[i].folder), jobs[i].recipe())
+                if done is not None and i not in failed:
+                    outcomes[i] = done
+        else:
+            outcomes.update(zip(todo, results))
+    return [outcomes[i] for i in sorted(outcomes)], failures
+
+
+def _jsonable(value: Any) -> Any:
+    """JSON-ready copy: numpy scalars to Python, non-finite floats to ``None``, tuples to
+    lists (so a recipe compares equal after a round trip through JSON)."""
+    if isinstance(value, Mapping):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+# ------------------------------------------------------------------------------ checks
+def _estimate(record: Mapping[str, Any]) -> Any:
+    """An :class:`analysis.Estimate` back from its ``analysis.json`` record (``null`` = +∞)."""
+    from analysis.estimate import Estimate
+    from models.sets import Box
+
+    value = record["value"]
+    return Estimate(
+        quantity=record["quantity"],
+        value=math.inf if value is None else float(value),
+        kind=record["kind"],
+        sets={k: Box(v["lower"], v["upper"]) for k, v in record["sets"].items()},
+        method=record["method"],
+        window=record["window"],
+    )
+
+
+def _constants(analysis: Mapping[str, Any], window: int) -> Any:
+    """Certified Proposition 2 constants of ``window`` from an ``analysis.json`` body:
+    γ_f and γ_h upper bounds, α_ℓ lower bound."""
+    from analysis.bound import BoundConstants
+
+    wanted = {("gamma_f", "upper"), ("gamma_h", "upper"), ("alpha", "lower")}
+    found = {
+        (r["quantity"], r["kind"]): _estimate(r)
+        for r in analysis["estimates"]
+        if r["window"] == window and (r["quantity"], r["kind"]) in wanted
+    }
+    return BoundConstants(
+        window, found[("gamma_f", "upper")], found[("alpha", "lower")], found[("gamma_h", "upper")]
+    )
+
+
+def learned_checks(
+    outcomes: Sequence[JobOutcome], datasets: Mapping[str, DatasetInfo]
+) -> dict[str, list[dict[str, Any]]]:
+    """Residual and state-probe checks (:mod:`analysis.learned`) of every trained canonical
+    model of seed 0 whose window the system's analysis covers, on the test split, with the
+    certified constants; per system, one record per model and window."""
+    from analysis.learned import residual_check, state_probe
+    from learning import Model
+    from models.sets import Box
+
+    out: dict[str, list[dict[str, Any]]] = {}
+    for a in (o for o in outcomes if o.kind == "analysis"):
+        system = a.recipe["system"]
+        analysis = read_json(Path(a.folder) / "analysis.json", what="analysis")
+        X = Box(analysis["sets"]["X"]["lower"], analysis["sets"]["X"]["upper"])
+        dataset = Dataset.load(datasets[system].path)
+        # Trajectory satisfies analysis.learned's protocol at run time (read-only arrays)
+        train: list[Any] = list(dataset.split("train"))
+        test: list[Any] = list(dataset.split("test"))
+        records = []
+        for o in outcomes:
+            r = o.recipe
+            if not (
+                o.kind == "train"
+                and r["system"] == system
+                and r["model"] in CANONICAL_MODELS
+                and r["seed"] == 0
+                and r["window"] in analysis["windows"]
+            ):
+                continue
+            constants = _constants(analysis, int(r["window"]))
+            exported = Model.load(o.folder).export()
+            record: dict[str, Any] = {
+                "model": r["model"],
+                "window": r["window"],
+                "run": o.folder,
+                "residual": residual_check(exported.H, test, constants, X=X).to_dict(),
+            }
+            if all(t.x is not None for t in [*train, *test]):
+                record["probe"] = state_probe(
+                    train, test, window=int(r["window"]), constants=constants, X=X
+                ).to_dict()
+            records.append(record)
+        out[system] = records
+    return out
+
+
+def reduction_available() -> bool:
+    """Whether this version of canonid has the model-reduction feature (issue 5)."""
+    return importlib.util.find_spec("canonid.reduction") is not None
+
+
+def compression_study(
+    settings: ReproduceSettings, outcomes: Sequence[JobOutcome]
+) -> dict[str, Any]:
+    """The compression study per system (:func:`canonid.reduction.compression_sweep`) on the
+    trained runs of seed 0 that the profile's ``compression`` entry names; a dict per system
+    with the sweep's folder, figures and rows, or a ``"skipped"`` reason."""
+    spec = dict(settings.stage.get("compression", {}))
+    if not spec:
+        return {"skipped": "the profile has no compression entry"}
+    if not reduction_available():
+        return {
+            "skipped": "model reduction (issue 5) is not part of this version of canonid; "
+            "the compression study will run here once it is"
+        }
+    from canonid.reduction import SweepPlan, compression_sweep
+
+    out: dict[str, Any] = {}
+    for system in settings.systems:
+        runs = [
+            o.folder
+            for o in outcomes
+            if o.kind == "train"
+            and o.recipe["system"] == system
+            and o.recipe["seed"] == 0
+            and o.recipe["model"] in spec.get("models", CANONICAL_MODELS)
+            and o.recipe["window"] in spec.get("windows", settings.windows)
+        ]
+        if not runs:
+            out[system] = {"skipped": "no trained run matches the profile's compression entry"}
+            continue
+        plan = SweepPlan(
+            runs=tuple(runs),
+            out=str(settings.out.resolve() / "compression" / system),
+            rates=tuple(spec.get("rates", ())) or SweepPlan.rates,
+            seeds=tuple(spec.get("seeds", (0,))),
+            profile=settings.profile,
+            device=settings.device,
+        )
+        sweep = compression_sweep(
+            plan,
+            workers=settings.workers,
+            scheduler=settings.scheduler,
+            progress=settings.progress,
+        )
+        out[system] = {
+            "folder": str(sweep.folder),
+            "heatmap": str(sweep.heatmap),
+            "reduced_mse": str(sweep.reduced_mse),
+            "rows": sweep.rows(),
+        }
+    return out
+
+
+def machine() -> dict[str, Any]:
+    """The machine and software a reproduction ran on (for the report)."""
+    info: dict[str, Any] = {
+        "host": platform.node(),
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+        "python": platform.python_version(),
+    }
+    try:
+        info["load_average"] = [round(v, 2) for v in os.getloadavg()]
+    except OSError:
+        info["load_average"] = None
+    for package in ("canonid", "torch", "numpy", "casadi", "dask"):
+        try:
+            info[package] = version(package)
+        except PackageNotFoundError:
+            info[package] = None
+    try:
+        import torch
+
+        info["cuda"] = torch.cuda.get_device_name(0) if torch.cuda.is_available() else None
+    except ImportError:  # pragma: no cover - torch is a dependency
+        info["cuda"] = None
+    return info
