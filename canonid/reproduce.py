@@ -720,9 +720,8 @@ class Reproduction:
 
 
 def _check_out(settings: ReproduceSettings) -> None:
-    summary = settings.out / SUMMARY_FILE
-    marker = settings.out / "runs"
-    if not settings.resume and (summary.exists() or marker.exists()):
+    started = [settings.out / name for name in (SUMMARY_FILE, "runs", "analysis")]
+    if not settings.resume and any(path.exists() for path in started):
         raise CheckpointError(
             f"{settings.out} already holds a reproduction; add --resume to continue it (finished "
             "jobs are kept) or choose another --out"

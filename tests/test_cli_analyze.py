@@ -80,7 +80,10 @@ def test_bad_arguments_are_one_line_errors(argv, message, tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1
 
 
-def test_run_without_identification_exits_2(tmp_path, capsys):
+def test_run_without_identification_exits_2(tmp_path, capsys, monkeypatch):
+    import canonid.commands.analyze as command
+
+    monkeypatch.setattr(command, "_learning_loader_available", lambda: False)  # learning absent
     code = main(["analyze", "tank", "--window", "2", "--run", str(tmp_path), "--quiet"])
     assert code == 2 and "identification" in capsys.readouterr().err
 
