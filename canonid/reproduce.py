@@ -60,6 +60,17 @@ import numpy as np
 
 from canonid.paper import table1_value
 from canonid.profiles import profile as load_profile
+from canonid.reproduce_jobs import (
+    ANALYSIS_KEYS,
+    RESULT_FILE,
+    AnalysisJob,
+    Job,
+    JobOutcome,
+    TrainJob,
+    finished,
+    jsonable,
+    run_job,
+)
 from canonid.reproduce_report import write_report
 from canonid.runner import JobsFailedError, run_jobs
 from datagen.dataset import Dataset
@@ -88,8 +99,6 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-RESULT_FILE = "result.json"
-RESULT_FORMAT = "canonid-reproduce-job"
 SUMMARY_FILE = "reproduction.json"
 #: the models whose regressor is a function of the canonical state (checked, reduced)
 CANONICAL_MODELS = ("mlp", "gru")
@@ -128,7 +137,7 @@ class ReproduceSettings:
     scheduler: str | None = None
     resume: bool = False
     progress: bool = True
-    device: str = "cpu"
+    device: str = "auto"
     command: str | None = None
 
     def __post_init__(self) -> None:
@@ -168,7 +177,7 @@ def settings_from_profile(
     scheduler: str | None = None,
     resume: bool = False,
     progress: bool = True,
-    device: str = "cpu",
+    device: str = "auto",
     command: str | None = None,
 ) -> ReproduceSettings:
     """:class:`ReproduceSettings` from profile ``profile``; ``None`` keeps the profile's value."""
@@ -273,303 +282,6 @@ def prepare_datasets(
 
 
 # ------------------------------------------------------------------------------ jobs
-@dataclass(frozen=True)
-class JobOutcome:
-    """What a job returns: its kind, its recipe, its result (JSON-ready) and whether it ran
-    now (``False``: read back from a finished ``result.json``)."""
-
-    kind: str
-    name: str
-    folder: str
-    recipe: dict[str, Any]
-    result: dict[str, Any]
-    ran: bool
-
-
-def _finished(folder: Path, recipe: Mapping[str, Any]) -> JobOutcome | None:
-    """The outcome stored in ``folder/result.json`` if it holds ``recipe``; ``None`` if there
-    is none; a result of another recipe is an error (the folder belongs to another run)."""
-    path = folder / RESULT_FILE
-    if not path.is_file():
-        return None
-    stored = read_json(path, what="job result")
-    if not isinstance(stored, dict) or stored.get("format") != RESULT_FORMAT:
-        raise CheckpointError(f"{path} is not a canonid reproduction job result")
-    if stored.get("recipe") != _jsonable(dict(recipe)):
-        differs = sorted(
-            k
-            for k in {*recipe, *stored.get("recipe", {})}
-            if stored.get("recipe", {}).get(k) != _jsonable(recipe.get(k))
-        )
-        raise CheckpointError(
-            f"{path} was made with another recipe (differs in {differs}); reproduce into "
-            "another --out, or remove that folder"
-        )
-    return JobOutcome(
-        kind=stored["kind"],
-        name=stored["name"],
-        folder=str(folder),
-        recipe=stored["recipe"],
-        result=stored["result"],
-        ran=False,
-    )
-
-
-def _store(
-    kind: str, name: str, folder: Path, recipe: Mapping[str, Any], result: Any
-) -> JobOutcome:
-    body = {
-        "format": RESULT_FORMAT,
-        "kind": kind,
-        "name": name,
-        "recipe": _jsonable(dict(recipe)),
-        "result": _jsonable(result),
-    }
-    atomic_write_json(folder / RESULT_FILE, body)
-    return JobOutcome(kind, name, str(folder), body["recipe"], body["result"], ran=True)
-
-
-@dataclass(frozen=True)
-class TrainJob:
-    """One cell of Table 1 for one seed: train ``model`` with window ``window`` on the dataset,
-    then score it on its test split. Picklable (sent to Dask workers, which must see ``folder``
-    and ``data``: a shared file system on a cluster).
-
-    The folder is a ``canonid train`` run folder (``run.json``, the model, ``checkpoint.pt``,
-    ``history.csv``, ``training_curve.png``, ``metrics.json``, ``rollouts.png``), so ``canonid
-    evaluate``, ``canonid analyze --run`` and ``canonid reduce`` read it unchanged.
-    """
-
-    system: str
-    model: str
-    window: int
-    seed: int
-    data: str
-    data_sha256: str
-    folder: str
-    profile: str
-    train_options: Mapping[str, Any]
-    evaluation: Mapping[str, Any]
-    threads: int | None = 1
-
-    @property
-    def name(self) -> str:
-        return f"{self.system} {self.model} ℓ={self.window} seed {self.seed}"
-
-    def recipe(self) -> dict[str, Any]:
-        """What a finished job must match to be reused (the data by checksum, not by path)."""
-        return {
-            "system": self.system,
-            "model": self.model,
-            "window": self.window,
-            "seed": self.seed,
-            "data_sha256": self.data_sha256,
-            "profile": self.profile,
-            "train_options": dict(self.train_options),
-            "evaluation": dict(self.evaluation),
-        }
-
-    def run(self) -> JobOutcome:
-        folder = Path(self.folder)
-        done = _finished(folder, self.recipe())
-        if done is not None:
-            return done
-        with _torch_threads(self.threads):
-            result = _train_and_score(self, folder)
-        return _store("train", self.name, folder, self.recipe(), result)
-
-
-def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
-    """Train (or continue from the checkpoint) and evaluate; the ``canonid train`` run
-    folder plus the fields of Table 1."""
-    from canonid.commands.evaluate import RUN_FILE, evaluate_run
-    from canonid.commands.train import _splits, _write_history
-    from learning import TrainOptions, fit
-    from learning.training import CHECKPOINT_FILE
-
-    t0 = time.perf_counter()
-    recipe: dict[str, Any] = {
-        "format": "canonid-run",
-        "data": job.data,
-        "data_options": {},
-        "val": None,
-        "val_fraction": 0.2,
-        "model": job.model,
-        "window": job.window,
-        "net_options": {},
-        "profile": job.profile,
-        "train_options": dict(job.train_options),
-        "command": ["canonid", "reproduce", "(job)", job.name],
-    }
-    dataset, train, val, test_name, data_path = _splits(recipe)
-    folder.mkdir(parents=True, exist_ok=True)
-    resume = (folder / CHECKPOINT_FILE).is_file()
-    atomic_write_json(folder / RUN_FILE, recipe)
-    fitted = fit(
-        train,
-        val,
-        model=job.model,
-        window=job.window,
-        options=TrainOptions.from_dict(job.train_options),
-        net_options=recipe["net_options"],
-        run_dir=folder,
-        resume=resume,
-        info={
-            "profile": job.profile,
-            "data": {"path": data_path, "splits": dataset.counts()},
-            "input_names": list(dataset.input_names),
-            "output_names": list(dataset.output_names),
-            "dt": dataset.dt,
-        },
-    )
-    _write_history(folder, fitted.history)
-    metrics = evaluate_run(
-        folder,
-        fitted.model,
-        dataset,
-        data_path=data_path,
-        split=test_name,
-        horizon=int(job.evaluation["horizon"]),
-        stride=int(job.evaluation["stride"]),
-        n_init=None,
-    )
-    clean = metrics.get("clean") or {}
-    return {
-        "rollout_mse": metrics["rollout_mse"],
-        "rollout_mse_clean": clean.get("rollout_mse"),
-        "rmse": metrics["rmse"],
-        "nrmse": metrics["nrmse"],
-        "fit_percent": metrics["fit_percent"],
-        "n_rollouts": metrics["n_rollouts"],
-        "split": test_name,
-        "epochs_run": fitted.epochs_run,
-        "best_epoch": fitted.best_epoch,
-        "best_val_loss": fitted.best_val_loss,
-        "stopped": fitted.stopped,
-        "resumed_from_checkpoint": resume,
-        "seconds": round(time.perf_counter() - t0, 3),
-    }
-
-
-@dataclass(frozen=True)
-class AnalysisJob:
-    """The analysis of one system (:func:`analysis.report.analyze`): γ_f, γ_h, α_ℓ brackets and
-    the Monte-Carlo check of Proposition 2 for each window, with the profile's budget; writes
-    ``analysis.json`` and ``bound_vs_window.png`` into ``folder``."""
-
-    system: str
-    folder: str
-    settings: Mapping[str, Any]
-    seed: int = 0
-
-    @property
-    def name(self) -> str:
-        return f"{self.system} analysis"
-
-    def recipe(self) -> dict[str, Any]:
-        return {"system": self.system, "settings": dict(self.settings), "seed": self.seed}
-
-    def run(self) -> JobOutcome:
-        folder = Path(self.folder)
-        done = _finished(folder, self.recipe())
-        if done is not None:
-            return done
-        result = _analyse(self, folder)
-        return _store("analysis", self.name, folder, self.recipe(), result)
-
-
-ANALYSIS_KEYS = frozenset({"windows", "X", "U", "W", "trials", "budget_seconds", "boxes"})
-
-
-def _box(value: Any, where: str) -> Any:
-    from models.sets import Box
-
-    if value is None:
-        return None
-    try:
-        lo, hi = value
-        return Box(lo, hi)
-    except (TypeError, ValueError) as exc:
-        raise OptionError(f"{where}: expected [[lower...], [upper...]], got {value!r}") from exc
-
-
-def _analyse(job: AnalysisJob, folder: Path) -> dict[str, Any]:
-    from analysis.estimate import Budget
-    from analysis.report import analyze
-    from models.registry import get_system
-
-    s = job.settings
-    t0 = time.perf_counter()
-    system = get_system(job.system)
-    report = analyze(
-        system,
-        list(s["windows"]),
-        X=_box(s.get("X"), f"analysis.{job.system}.X"),
-        U=_box(s.get("U"), f"analysis.{job.system}.U"),
-        W=_box(s.get("W"), f"analysis.{job.system}.W"),
-        trials=int(s["trials"]),
-        budget=Budget(seconds=float(s["budget_seconds"]), boxes=int(s["boxes"])),
-        seed=job.seed,
-    )
-    folder.mkdir(parents=True, exist_ok=True)
-    report.write_json(folder / "analysis.json")
-    figure = report.figure(folder / "bound_vs_window.png") if report.checks else None
-    rows = []
-    for r in report.results:
-        c = r.check
-        rows.append(
-            {
-                "window": r.window,
-                "gamma_f": [r.gamma_f.lower.value, r.gamma_f.upper.value],
-                "gamma_h": [r.gamma_h.lower.value, r.gamma_h.upper.value],
-                "alpha": [r.alpha.lower.value, r.alpha.upper.value],
-                "trials": c.trials if c else 0,
-                "violations": c.violations if c else None,
-                "solver_failures": c.solver_failures if c else None,
-                "max_ratio": c.max_ratio if c else None,
-                "max_error": c.max_error if c else None,
-                "worst_case_bound": c.worst_case_bound if c else None,
-            }
-        )
-    return {
-        "windows": rows,
-        "sets": {"X": report.X.to_dict(), "U": report.U.to_dict(), "W": report.W.to_dict()},
-        "table": report.table(),
-        "figure": str(figure) if figure else None,
-        "seconds": round(time.perf_counter() - t0, 3),
-    }
-
-
-Job = TrainJob | AnalysisJob
-
-
-def run_job(job: Job) -> JobOutcome:
-    """Run one job (the function :func:`canonid.runner.run_jobs` sends to workers)."""
-    return job.run()
-
-
-class _torch_threads:
-    """Set torch's CPU threads for a job, then restore them (a job must not starve its
-    neighbours on a shared machine, nor leave a worker changed)."""
-
-    def __init__(self, threads: int | None) -> None:
-        self.threads = threads
-        self.previous: int | None = None
-
-    def __enter__(self) -> None:
-        if self.threads is not None:
-            import torch
-
-            self.previous = torch.get_num_threads()
-            torch.set_num_threads(self.threads)
-
-    def __exit__(self, *exc: object) -> None:
-        if self.previous is not None:
-            import torch
-
-            torch.set_num_threads(self.previous)
-
-
 def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) -> list[Job]:
     """The reproduction's independent jobs, in a fixed order: the analyses first (the longest
     single jobs), then Table 1 by system, model, window and seed. The list depends only on the
@@ -579,6 +291,7 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
     stage = settings.stage
     out = settings.out.resolve()
     overrides = dict(stage.get("train", {}))
+    per_model = overrides.pop("per_model", {})
     evaluation = {"horizon": 100, "stride": 1, **stage.get("evaluation", {})}
     jobs: list[Job] = []
     for system in settings.systems:
@@ -595,7 +308,10 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
             for window in settings.windows:
                 for seed in range(settings.seeds):
                     options = train_options(
-                        settings.profile, **{**overrides, "seed": seed, "device": settings.device}
+                        settings.profile,
+                        **{**overrides, **per_model.get(model, {})},
+                        seed=seed,
+                        device=settings.device,
                     )
                     jobs.append(
                         TrainJob(
@@ -793,7 +509,7 @@ def reproduce(settings: ReproduceSettings) -> Reproduction:
         seconds=seconds,
         failures=[f"{f.job}: {f.error}" for f in failures],
     )
-    atomic_write_json(summary_path, _jsonable(result.to_dict(host)))
+    atomic_write_json(summary_path, jsonable(result.to_dict(host)))
     if failures:
         raise JobsFailedError(failures, len(jobs))
     return result
@@ -806,7 +522,7 @@ def _run_all(
     outcomes: dict[int, JobOutcome] = {}
     todo: list[int] = []
     for i, job in enumerate(jobs):
-        done = _finished(Path(job.folder), job.recipe())
+        done = finished(Path(job.folder), job.recipe())
         if done is not None:
             outcomes[i] = done
         else:
@@ -826,29 +542,12 @@ def _run_all(
             failures = [dataclasses.replace(f, position=todo[f.position]) for f in exc.failures]
             failed = {f.position for f in failures}
             for i in todo:
-                done = _finished(Path(jobs[i].folder), jobs[i].recipe())
+                done = finished(Path(jobs[i].folder), jobs[i].recipe())
                 if done is not None and i not in failed:
                     outcomes[i] = done
         else:
             outcomes.update(zip(todo, results))
     return [outcomes[i] for i in sorted(outcomes)], failures
-
-
-def _jsonable(value: Any) -> Any:
-    """JSON-ready copy: numpy scalars to Python, non-finite floats to ``None``, tuples to
-    lists (so a recipe compares equal after a round trip through JSON)."""
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 # ------------------------------------------------------------------------------ checks

@@ -226,7 +226,6 @@ def write_report(
     report = Report(f"canonid reproduction — profile {settings.profile}")
     stage = settings.stage
     train_runs = [o for o in outcomes if o.kind == "train"]
-    first_options = train_runs[0].recipe["train_options"] if train_runs else {}
     report.paragraph(
         f"Profile **{settings.profile}** (canonid/profiles.py, stages `train` and "
         f"`reproduce`); systems {', '.join(settings.systems)}; windows ℓ = "
@@ -256,10 +255,7 @@ def write_report(
     report.table(
         ["stage", "settings"],
         [
-            [
-                "training (every Table-1 job)",
-                ", ".join(f"{k}={v}" for k, v in first_options.items()),
-            ],
+            *_training_budget(train_runs),
             [
                 "evaluation",
                 f"rollout horizon H = {evaluation['horizon']}, every "
@@ -353,6 +349,18 @@ def write_report(
         report.link(Path(o.folder) / "result.json", f"{o.name}: result.json")
     md, html = report.write(out)
     return md, html, figures
+
+
+def _training_budget(train_runs: Sequence[Any]) -> list[list[str]]:
+    """One row per distinct training budget (the seed left out), naming its models."""
+    budgets: dict[str, list[str]] = {}
+    for o in train_runs:
+        options = {k: v for k, v in o.recipe["train_options"].items() if k != "seed"}
+        text = ", ".join(f"{k}={v}" for k, v in options.items())
+        label = MODEL_LABELS.get(o.recipe["model"], o.recipe["model"])
+        if label not in budgets.setdefault(text, []):
+            budgets[text].append(label)
+    return [[f"training: {', '.join(models)}", text] for text, models in budgets.items()]
 
 
 def _analysis_blocks(

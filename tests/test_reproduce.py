@@ -13,7 +13,8 @@ import pytest
 import canonid.reproduce as rp
 from canonid.cli import main
 from canonid.paper import TABLE1
-from canonid.reproduce import RESULT_FILE, reproduce, settings_from_profile
+from canonid.reproduce import reproduce, settings_from_profile
+from canonid.reproduce_jobs import RESULT_FILE, finished, store
 from models.errors import CheckpointError
 
 pytestmark = pytest.mark.slow
@@ -118,7 +119,7 @@ def test_interrupted_run_resumes_without_redoing_finished_jobs(tmp_path, monkeyp
 
 def test_a_folder_of_another_recipe_is_refused(tmp_path):
     folder = tmp_path / "job"
-    rp._store("train", "x", folder, {"seed": 0}, {"rollout_mse": 1.0})
-    assert rp._finished(folder, {"seed": 0}).result == {"rollout_mse": 1.0}
+    store("train", "x", folder, {"seed": 0}, {"rollout_mse": 1.0})
+    assert finished(folder, {"seed": 0}).result == {"rollout_mse": 1.0}
     with pytest.raises(CheckpointError, match="seed"):
-        rp._finished(folder, {"seed": 1})
+        finished(folder, {"seed": 1})

@@ -252,7 +252,9 @@ def test_bad_input_is_refused_with_a_clear_error(data):
         fit(nan, val, window=3, options=opts, net_options=TINY)
     with pytest.raises(ShapeError, match="needs trajectories of at least 103"):
         fit(train, val, window=3, options=tiny_options(horizon=100), net_options=TINY)
-    with pytest.raises(ShapeError, match="validation rollout horizon 39 needs trajectories of at least 42"):
+    with pytest.raises(
+        ShapeError, match="validation rollout horizon 39 needs trajectories of at least 42"
+    ):
         fit(train, val, window=3, options=tiny_options(val_horizon=39), net_options=TINY)
     with pytest.raises(DataError, match="no trajectories"):
         fit([], val, window=3, options=opts)

@@ -73,8 +73,8 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--device",
         choices=("auto", "cpu", "cuda"),
-        default="cpu",
-        help="torch device of the training jobs (default cpu)",
+        default="auto",
+        help="torch device of the training jobs (default auto: CUDA when present)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
