@@ -266,7 +266,9 @@ def test_bad_input_is_refused_with_a_clear_error(data):
 
 @pytest.mark.slow
 def test_mlp_on_a_linear_system_reaches_the_noise_level():
-    """Ours (MLP), quick profile: 100-step rollout MSE within 2× the noise variance."""
+    """Ours (MLP), quick profile shortened to 100 epochs of 30-step rollouts, on a damped
+    linear system: the 100-step rollout MSE is within 2× the noise variance of the measured
+    outputs, and below it against the noise-free outputs."""
     from canonid.profiles import train_options
 
     system = damped_siso()
@@ -274,8 +276,8 @@ def test_mlp_on_a_linear_system_reaches_the_noise_level():
     train = trajectories(system, 20, 200, noise=noise, seed=1)
     val = trajectories(system, 5, 200, noise=noise, seed=2)
     test = trajectories(system, 5, 200, noise=noise, seed=3)
-    opts = train_options("quick", epochs=150, horizon=30, val_horizon=100)
-    res = fit(train, val, model="mlp", window=4, options=opts)
+    opts = train_options("quick", epochs=100, horizon=30, val_horizon=100, device="cpu")
+    res = fit(train, val, model="mlp", window=4, options=opts, net_options={"residual": True})
     scores = evaluate(res.model, test, horizon=100)
     noise_var = noise**2 / 3
     assert scores.measured.rollout_mse < 2 * noise_var
