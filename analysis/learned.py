@@ -52,8 +52,13 @@ _QUANTILES = (0.5, 0.9, 0.99, 1.0)
 
 
 class _Trajectory(Protocol):
-    u: np.ndarray
-    y: np.ndarray
+    """What a trajectory must offer (``y_clean`` and ``x`` are read when present)."""
+
+    @property
+    def u(self) -> np.ndarray: ...
+
+    @property
+    def y(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)

@@ -153,7 +153,7 @@ class AnalysisReport:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
-        fig = Figure(figsize=(6.4, 4.2), dpi=110)
+        fig = Figure(figsize=(6.4, 4.8), dpi=110)
         FigureCanvasAgg(fig)
         ax = fig.add_subplot(1, 1, 1)
         ells, bound, est, worst_err, med_err = [], [], [], [], []
@@ -172,7 +172,14 @@ class AnalysisReport:
         ax.semilogy(ells, np.maximum(med_err, 1e-300), "^:", label="observed error, median")
         for ell, b in zip(ells, bound):
             if not np.isfinite(b):
-                ax.annotate("α=0", (ell, min(v for v in worst_err if v > 0)), ha="center")
+                ax.annotate(
+                    "α_ℓ = 0\nno bound",
+                    xy=(ell, 0.97),
+                    xycoords=("data", "axes fraction"),
+                    ha="center",
+                    va="top",
+                    fontsize=8,
+                )
         ax.set_xlabel("window ℓ")
         ax.set_ylabel("‖x̂_t − x_t‖")
         trials = self.settings.get("trials")
@@ -181,7 +188,7 @@ class AnalysisReport:
         )
         ax.set_xticks(ells)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8)
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
         fig.tight_layout()
         buf = io.BytesIO()
         fig.savefig(buf, format="png", metadata={"Software": None})

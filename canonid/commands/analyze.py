@@ -9,14 +9,18 @@ one ``lo:hi`` applies to every component.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from analysis.bound import BoundConstants
 from analysis.estimate import Budget
-from analysis.report import analyze
-from models.errors import NotImplementedYetError, SetError
+from analysis.learned import residual_check, state_probe
+from analysis.report import AnalysisReport, analyze
+from datagen.dataset import Dataset
+from models.errors import DataError, NotImplementedYetError, SetError
+from models.io import read_json
 from models.registry import get_system
 from models.sets import Box
 
@@ -47,12 +51,31 @@ def register(sub: Any) -> None:
         metavar="SECONDS",
         help="wall-clock limit of each certified branch-and-bound search (default 20)",
     )
+    p.add_argument(
+        "--boxes",
+        type=int,
+        metavar="N",
+        help="also stop each certified search after N boxes: with a budget in boxes (and the "
+        "same --seed) the numbers do not depend on the machine's speed",
+    )
     p.add_argument("--X", dest="X", metavar="BOX", help="state set, e.g. 0.05:5,0.05:5")
     p.add_argument("--U", dest="U", metavar="BOX", help="input set, e.g. 1:3")
     p.add_argument("--W", dest="W", metavar="BOX", help="noise set, e.g. -0.02:0.02")
     p.add_argument("--tol", type=float, default=0.05, help="relative tolerance of γ searches")
     p.add_argument("--seed", type=int, default=0, help="random seed")
-    p.add_argument("--run", type=Path, metavar="RUN", help="a trained model's run folder")
+    p.add_argument(
+        "--run",
+        type=Path,
+        metavar="RUN",
+        help="a trained model's run folder: adds its one-step residual and a state probe, "
+        "checked against the bound, on the test split of its data",
+    )
+    p.add_argument(
+        "--data",
+        type=Path,
+        metavar="FILE",
+        help="canonid dataset (.npz) for --run (default: the data named in RUN/run.json)",
+    )
     p.add_argument("--out", type=Path, help="output folder (default runs/analyze-SYSTEM)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -93,8 +116,44 @@ def parse_box(text: str, dim: int, name: str) -> Box:
         raise SetError(f"--{name}: {exc}") from None
 
 
-def _learning_loader_available() -> bool:
-    return importlib.util.find_spec("learning.export") is not None
+def load_trained_model(run_dir: Path) -> Any:
+    """The numpy view (``H``, ``window``) of the model saved in ``run_dir``.
+
+    Uses the identification layer's contract: ``learning.Model.load(run_dir).export()`` returns
+    an object with ``H(z, u) -> y`` and ``window`` (see ``learning/export.py``).
+    """
+    try:
+        from learning import Model  # type: ignore[attr-defined]
+    except ImportError:
+        raise NotImplementedYetError(
+            "--run needs the identification feature (learning.Model), which this version of "
+            "canonid does not have yet"
+        ) from None
+    return Model.load(run_dir).export()
+
+
+def learned_checks(
+    model: Any, dataset: Dataset, report: AnalysisReport, *, source: Mapping[str, str]
+) -> dict[str, Any]:
+    """Residual and probe checks of ``model`` on ``dataset`` with the report's constants."""
+    ell = int(model.window)
+    result = next((r for r in report.results if r.window == ell), None)
+    if result is None:
+        raise SetError(f"the model has window ℓ = {ell}, which the analysis did not cover")
+    test = list(dataset.split("test" if "test" in dataset.splits else next(iter(dataset.splits))))
+    constants = BoundConstants(ell, result.gamma_f.upper, result.alpha.lower, result.gamma_h.upper)
+    out: dict[str, Any] = {
+        **source,
+        "model": repr(model),
+        "window": ell,
+        "residual": residual_check(model.H, test, constants, X=report.X).to_dict(),
+    }
+    train = list(dataset.splits.get("train", ()))
+    if train and all(t.x is not None for t in [*train, *test]):
+        out["probe"] = state_probe(
+            train, test, window=ell, constants=constants, X=report.X
+        ).to_dict()
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -106,16 +165,25 @@ def run(args: argparse.Namespace) -> int:
         raise SetError(f"--trials must be >= 0, got {args.trials}")
     if not args.budget > 0:
         raise SetError(f"--budget must be a positive number of seconds, got {args.budget}")
-    if args.run is not None and not _learning_loader_available():
-        raise NotImplementedYetError(
-            "--run needs the identification feature (a trained-model loader in learning/), "
-            "which this version of canonid does not have yet"
-        )
+    model, dataset, source = None, None, {}
+    if args.run is not None:
+        model = load_trained_model(args.run)
+        data = args.data
+        if data is None:
+            recipe = read_json(args.run / "run.json", what="run recipe")
+            if not isinstance(recipe, dict) or "data" not in recipe:
+                raise DataError(f"{args.run / 'run.json'}: no field 'data'; give --data FILE")
+            data = Path(recipe["data"])
+        dataset = Dataset.load(data)
+        source = {"run": str(args.run), "data": str(data)}
+        windows = sorted({*windows, int(model.window)})
     X = parse_box(args.X, system.n_x, "X") if args.X else system.X
     U = parse_box(args.U, system.n_u, "U") if args.U else system.U
     W = parse_box(args.W, system.n_y, "W") if args.W else system.W
     out: Path = args.out or Path("runs") / f"analyze-{system.name}"
-    budget = Budget(seconds=args.budget)
+    if args.boxes is not None and args.boxes < 1:
+        raise SetError(f"--boxes must be an integer >= 1, got {args.boxes}")
+    budget = Budget(seconds=args.budget, boxes=args.boxes or 10**9)
 
     bar = None
     if not args.quiet:
@@ -151,8 +219,17 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
+    if model is not None and dataset is not None:
+        report.learned = learned_checks(model, dataset, report, source=source)
     json_path = report.write_json(out / "analysis.json")
     print(report.table())
+    if report.learned:
+        res = report.learned["residual"]
+        print(
+            f"learned model ({report.learned['model']}), ℓ = {report.learned['window']}: "
+            f"one-step residual within the noise-induced level on {res['within']} of "
+            f"{res['rows']} test rows ({res['excluded']} rows start outside X)"
+        )
     lines = [f"analysis written to {json_path.resolve()}"]
     if report.checks:
         figure = report.figure(out / "bound_vs_window.png")
