@@ -343,9 +343,28 @@ def write_report(
         )
         report.table(["job", "error"], [[f.job, f.error] for f in failures])
 
+    report.heading("Jobs")
+    report.table(
+        ["job", "wall [s]", "CPU [s]", "epochs run (best)", "this call"],
+        [
+            [
+                o.name,
+                _fmt(o.result.get("seconds"), 4),
+                _fmt(o.result.get("cpu_seconds"), 4),
+                f"{o.result['epochs_run']} ({o.result['best_epoch']})"
+                if o.kind == "train"
+                else "—",
+                "ran" if o.ran else "finished before (resumed)",
+            ]
+            for o in outcomes
+        ],
+        caption="wall and CPU time of each job in its own process (CPU < wall: the machine "
+        "was shared)",
+    )
     report.heading("Artefacts")
     report.link(summary_path, "reproduction.json (every number of this report)")
     for o in outcomes:
+        report.link(Path(o.folder), f"{o.name}: folder")
         report.link(Path(o.folder) / "result.json", f"{o.name}: result.json")
     md, html = report.write(out)
     return md, html, figures

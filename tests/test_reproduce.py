@@ -15,6 +15,7 @@ from canonid.cli import main
 from canonid.paper import TABLE1
 from canonid.reproduce import reproduce, settings_from_profile
 from canonid.reproduce_jobs import RESULT_FILE, finished, store
+from canonid.runner import JobsFailedError
 from models.errors import CheckpointError
 
 pytestmark = pytest.mark.slow
@@ -123,3 +124,26 @@ def test_a_folder_of_another_recipe_is_refused(tmp_path):
     assert finished(folder, {"seed": 0}).result == {"rollout_mse": 1.0}
     with pytest.raises(CheckpointError, match="seed"):
         finished(folder, {"seed": 1})
+
+
+def test_a_failing_job_is_retried_once_and_reported(tmp_path, monkeypatch):
+    out = tmp_path / "repro"
+    calls: list[str] = []
+    real = rp.run_job
+
+    def classic_gru_fails(job):
+        calls.append(job.name)
+        if "classic-gru" in job.name:
+            raise RuntimeError("simulated failure")
+        return real(job)
+
+    monkeypatch.setattr(rp, "run_job", classic_gru_fails)
+    settings = settings_from_profile("tiny", out=out, progress=False)
+    with pytest.raises(JobsFailedError, match="1 of 3 jobs failed") as exc:
+        reproduce(settings)
+    assert calls.count("tank classic-gru ℓ=5 seed 0") == 2  # the first try and one retry
+    assert "simulated failure" in exc.value.failures[0].error
+    md = (out / "report.md").read_text()
+    assert "Failed jobs" in md and "simulated failure" in md
+    cells = json.loads((out / "reproduction.json").read_text())["table1"]
+    assert [c["model"] for c in cells] == ["mlp"]  # the finished job is kept
