@@ -390,7 +390,7 @@ class Reproduction:
     datasets: dict[str, DatasetInfo]
     outcomes: list[JobOutcome]
     table1: list[Table1Cell]
-    learned: dict[str, Any]
+    learned: dict[str, dict[str, list[dict[str, Any]]]]
     compression: dict[str, Any]
     figures: dict[str, str]
     report_md: Path
@@ -585,15 +585,17 @@ def _constants(analysis: Mapping[str, Any], window: int) -> Any:
 
 def learned_checks(
     outcomes: Sequence[JobOutcome], datasets: Mapping[str, DatasetInfo]
-) -> dict[str, list[dict[str, Any]]]:
-    """Residual and state-probe checks (:mod:`analysis.learned`) of every trained canonical
-    model of seed 0 whose window the system's analysis covers, on the test split, with the
-    certified constants; per system, one record per model and window."""
+) -> dict[str, dict[str, list[dict[str, Any]]]]:
+    """Checks of :mod:`analysis.learned` on the test split with the certified constants, for
+    each analysed system: ``"residual"`` — one record per trained canonical model of seed 0
+    whose window the analysis covers (its one-step residual against the noise-induced level);
+    ``"probe"`` — one record per such window (an affine probe z_t → x_t against Proposition 2's
+    bound; it depends on the data and ℓ only, not on a model)."""
     from analysis.learned import residual_check, state_probe
     from learning import Model
     from models.sets import Box
 
-    out: dict[str, list[dict[str, Any]]] = {}
+    out: dict[str, dict[str, list[dict[str, Any]]]] = {}
     for a in (o for o in outcomes if o.kind == "analysis"):
         system = a.recipe["system"]
         analysis = read_json(Path(a.folder) / "analysis.json", what="analysis")
@@ -602,31 +604,36 @@ def learned_checks(
         # Trajectory satisfies analysis.learned's protocol at run time (read-only arrays)
         train: list[Any] = list(dataset.split("train"))
         test: list[Any] = list(dataset.split("test"))
-        records = []
-        for o in outcomes:
-            r = o.recipe
-            if not (
-                o.kind == "train"
-                and r["system"] == system
-                and r["model"] in CANONICAL_MODELS
-                and r["seed"] == 0
-                and r["window"] in analysis["windows"]
-            ):
-                continue
-            constants = _constants(analysis, int(r["window"]))
+        runs = [
+            o
+            for o in outcomes
+            if o.kind == "train"
+            and o.recipe["system"] == system
+            and o.recipe["model"] in CANONICAL_MODELS
+            and o.recipe["seed"] == 0
+            and o.recipe["window"] in analysis["windows"]
+        ]
+        residuals = []
+        for o in runs:
+            constants = _constants(analysis, int(o.recipe["window"]))
             exported = Model.load(o.folder).export()
-            record: dict[str, Any] = {
-                "model": r["model"],
-                "window": r["window"],
-                "run": o.folder,
-                "residual": residual_check(exported.H, test, constants, X=X).to_dict(),
-            }
-            if all(t.x is not None for t in [*train, *test]):
-                record["probe"] = state_probe(
-                    train, test, window=int(r["window"]), constants=constants, X=X
-                ).to_dict()
-            records.append(record)
-        out[system] = records
+            residual = residual_check(exported.H, test, constants, X=X)
+            residuals.append(
+                {
+                    "model": o.recipe["model"],
+                    "window": o.recipe["window"],
+                    "run": o.folder,
+                    **residual.to_dict(),
+                }
+            )
+        probes = []
+        if all(t.x is not None for t in [*train, *test]):
+            for window in sorted({int(o.recipe["window"]) for o in runs}):
+                probe = state_probe(
+                    train, test, window=window, constants=_constants(analysis, window), X=X
+                )
+                probes.append(probe.to_dict())
+        out[system] = {"residual": residuals, "probe": probes}
     return out
 
 

@@ -62,9 +62,12 @@ def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
     assert html.count("data:image/png;base64,") == md.count("![")  # figures inlined
     kinds = sorted(j["kind"] for j in data["jobs"])
     assert kinds == ["analysis", "train", "train"]
-    (check,) = data["learned_checks"]["tank"]  # the trained MLP at the analysed window
-    assert check["model"] == "mlp" and check["window"] == 5
-    assert check["residual"]["rows"] + check["residual"]["excluded"] > 0
+    checks = data["learned_checks"]["tank"]
+    (residual,) = checks["residual"]  # the trained MLP (canonical) at the analysed window
+    assert residual["model"] == "mlp" and residual["window"] == 5
+    assert residual["rows"] + residual["excluded"] > 0
+    (probe,) = checks["probe"]
+    assert probe["window"] == 5 and probe["test_rows"] == residual["rows"] + residual["excluded"]
 
 
 def test_resume_of_a_finished_reproduction_runs_nothing(serial, capsys):
