@@ -19,6 +19,21 @@ Contract (what ``analysis`` may rely on)
     canonical models this is ``ẑ_{t+1} = Ā ẑ_t + B̄ u_t + S̄ H(ẑ_t, u_t)`` from the measured
     ``z_ℓ``.
 
+A reduced model (:class:`learning.nets.ReducedNet`) exports a :class:`ReducedNumpyModel`: the same
+``H`` (``Ĥ(D(E(z_t)), u_t)``, the prediction from a measured window) and ``simulate``, plus its
+state-space form — ``latent_dim`` (``n̄``) and
+
+``encode(z) -> x``
+    ``x̄ = E(z)``: ``z`` ``(N, ℓ (n_u + n_y))`` physical, as for ``H`` → ``(N, n̄)``.
+``step(x, u) -> x_next``
+    ``x̄_{t+1} = E(Ā D(x̄_t) + B̄ u_t + S̄ Ĥ(D(x̄_t), u_t))``: ``(N, n̄)``, ``(N, n_u)`` → ``(N, n̄)``.
+``output(x, u) -> y``
+    ``ȳ_t = Ĥ(D(x̄_t), u_t)``: ``(N, n̄)``, ``(N, n_u)`` → ``(N, n_y)``, physical units.
+
+The reduced state ``x̄`` has no units (the auto-encoder works on the normalised window); single
+vectors give single vectors, as for ``H``. ``simulate`` equals ``encode`` of the burn-in window
+followed by ``output``/``step``.
+
 The object holds a float64 copy of the network on the CPU; it never changes the model it came
 from.
 """
@@ -31,10 +46,23 @@ import numpy as np
 import torch
 
 from learning.model import Model, load_state
-from learning.nets import build_net
+from learning.nets import ReducedNet, build_net
 from models.errors import ShapeError
 
-__all__ = ["NumpyModel"]
+__all__ = ["NumpyModel", "ReducedNumpyModel"]
+
+
+def _batch(name: str, value: Any, cols: int) -> tuple[np.ndarray, bool]:
+    """``(N, cols)`` float64 and whether a single vector ``(cols,)`` was given."""
+    arr = np.asarray(value, dtype=np.float64)
+    single = arr.ndim == 1
+    if single:
+        arr = arr[None]
+    if arr.ndim != 2 or arr.shape[1] != cols:
+        raise ShapeError(f"{name} must have shape (N, {cols}) or ({cols},), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ShapeError(f"{name} contains NaN or Inf")
+    return arr, single
 
 
 class NumpyModel:
@@ -91,3 +119,54 @@ class NumpyModel:
     def simulate(self, u: Any, y_burn_in: Any) -> np.ndarray:
         """Open-loop simulation after a measured burn-in (see the module docstring)."""
         return self._model.simulate(u, y_burn_in)
+
+
+class ReducedNumpyModel(NumpyModel):
+    """:class:`NumpyModel` of a reduced model, with ``encode``, ``step`` and ``output``."""
+
+    _net: ReducedNet
+
+    def __init__(self, model: Model) -> None:
+        if not isinstance(model.net, ReducedNet):
+            raise ShapeError(f"ReducedNumpyModel needs a reduced model, got {model.name!r}")
+        super().__init__(model)
+        self.latent_dim: int = self._net.latent_dim
+
+    def __repr__(self) -> str:
+        return (
+            f"ReducedNumpyModel(window={self.window}, latent_dim={self.latent_dim}, "
+            f"n_u={self.n_u}, n_y={self.n_y})"
+        )
+
+    def _xu(self, x: Any, u: Any) -> tuple[torch.Tensor, torch.Tensor, bool]:
+        xa, single = _batch("x", x, self.latent_dim)
+        ua = np.asarray(u, dtype=np.float64)
+        if single:
+            ua = ua.reshape(1, -1)
+        elif ua.ndim == 1 and self.n_u == 1:
+            ua = ua[:, None]
+        ua, _ = _batch("u", ua, self.n_u)
+        if ua.shape[0] != xa.shape[0]:
+            raise ShapeError(f"x has {xa.shape[0]} rows but u has {ua.shape[0]}")
+        return torch.from_numpy(xa), torch.from_numpy(self._norm.norm_u(ua)), single
+
+    def encode(self, z: Any) -> np.ndarray:
+        """``x̄ = E(z)`` (see the module docstring)."""
+        za, single = _batch("z", z, self.window * (self.n_u + self.n_y))
+        with torch.no_grad():
+            x = self._net.encode(torch.from_numpy((za - self._z_mean) / self._z_std)).numpy()
+        return x[0] if single else x
+
+    def step(self, x: Any, u: Any) -> np.ndarray:
+        """``x̄_{t+1}`` from ``x̄_t`` and ``u_t`` (see the module docstring)."""
+        xt, ut, single = self._xu(x, u)
+        with torch.no_grad():
+            x_next = self._net.step(xt, ut)[0].numpy()
+        return x_next[0] if single else x_next
+
+    def output(self, x: Any, u: Any) -> np.ndarray:
+        """``ȳ_t = Ĥ(D(x̄_t), u_t)`` in physical units (see the module docstring)."""
+        xt, ut, single = self._xu(x, u)
+        with torch.no_grad():
+            y = self._norm.denorm_y(self._net.output(xt, ut).numpy())
+        return y[0] if single else y

@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from learning.data import Normalisation
-from learning.nets import NETS, SequenceModel, build_net
+from learning.nets import ALL_NETS, SequenceModel, build_net
 from models.errors import CheckpointError, DataError, ShapeError
 from models.io import atomic_write_bytes, atomic_write_json, read_json
 
@@ -127,10 +127,12 @@ class Model:
         return out[0] if single else out
 
     def export(self) -> Any:
-        """A plain numpy object for the analysis layer (see :mod:`learning.export`)."""
-        from learning.export import NumpyModel
+        """A plain numpy object for the analysis layer (see :mod:`learning.export`): a
+        ``ReducedNumpyModel`` for a reduced model, else a ``NumpyModel``."""
+        from learning.export import NumpyModel, ReducedNumpyModel
+        from learning.nets import ReducedNet
 
-        return NumpyModel(self)
+        return ReducedNumpyModel(self) if isinstance(self.net, ReducedNet) else NumpyModel(self)
 
     # ------------------------------------------------------------------ storage
     def save(self, folder: str | os.PathLike[str]) -> Path:
@@ -174,10 +176,10 @@ class Model:
         if not isinstance(config, dict) or config.get("format") != "canonid-model":
             raise CheckpointError(f"{folder / CONFIG_FILE} is not a canonid model configuration")
         name, net_config = config.get("model"), config.get("net")
-        if name not in NETS or not isinstance(net_config, dict):
+        if name not in ALL_NETS or not isinstance(net_config, dict):
             raise CheckpointError(
-                f"{folder / CONFIG_FILE}: field 'model' must be one of {sorted(NETS)} and 'net' "
-                f"an object; got model={name!r}"
+                f"{folder / CONFIG_FILE}: field 'model' must be one of {sorted(ALL_NETS)} and "
+                f"'net' an object; got model={name!r}"
             )
         if expect:
             check_same({"model": name, **net_config}, expect, what=f"saved model in {folder}")

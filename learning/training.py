@@ -23,6 +23,10 @@ Checkpoints (``run_dir/checkpoint.pt``, every ``checkpoint_every`` epochs and at
 network, the optimiser, the best weights, the history and the states of the torch and numpy
 random generators, so a resumed run ends exactly where an uninterrupted one would (same options,
 same data, same device). A non-finite loss stops training and keeps the best model.
+
+:func:`fit` trains a registered identification model from scratch; :func:`fit_net` is the loop
+itself, for a network built by the caller (the reduced model of :mod:`learning.reduction` uses it
+with the full model's normalisation and a per-epoch hook that freezes ``Ĥ``).
 """
 
 from __future__ import annotations
@@ -44,7 +48,7 @@ import torch
 
 from learning.data import Normalisation, Series, WindowBank, as_series
 from learning.model import Model, check_same, load_state
-from learning.nets import SequenceModel, build_net
+from learning.nets import NETS, SequenceModel, UnknownModelError, build_net
 from models.errors import CanonidError, CheckpointError, ShapeError
 from models.io import atomic_write_bytes
 
@@ -55,6 +59,7 @@ __all__ = [
     "OptionError",
     "TrainOptions",
     "fit",
+    "fit_net",
     "resolve_device",
     "validation_loss",
 ]
@@ -287,8 +292,10 @@ class _Run:
         train_bank: WindowBank,
         val_bank: WindowBank,
         identity: dict[str, Any],
+        before_epoch: Callable[[SequenceModel, int], None] | None = None,
     ) -> None:
         self.net, self.opts, self.identity = net, opts, identity
+        self.before_epoch = before_epoch
         self.train_bank, self.val_bank = train_bank, val_bank
         self.val_horizon = opts.rollout_horizon
         self.val_starts = val_bank.starts(net.window + self.val_horizon, stride=opts.val_stride)
@@ -356,6 +363,8 @@ class _Run:
         on that batch)."""
         opts, net, ell = self.opts, self.net, self.net.window
         t0 = time.perf_counter()
+        if self.before_epoch is not None:
+            self.before_epoch(net, epoch)
         horizon, lr = opts.horizon_at(epoch), opts.lr_at(epoch)
         for group in self.optimiser.param_groups:
             group["lr"] = lr
@@ -460,6 +469,54 @@ def fit(
     If training is interrupted (an exception, Ctrl-C), the best model so far is still written
     to ``run_dir`` before the exception propagates.
     """
+    if model not in NETS:
+        raise UnknownModelError(f"unknown model {model!r}; expected one of {list(NETS)}")
+
+    def build(norm: Normalisation) -> SequenceModel:
+        net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **dict(net_options or {}))
+        net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
+        return net
+
+    return fit_net(
+        build,
+        train,
+        val,
+        window=window,
+        options=options,
+        run_dir=run_dir,
+        resume=resume,
+        callback=callback,
+        info=info,
+    )
+
+
+def fit_net(
+    build: Callable[[Normalisation], SequenceModel],
+    train: Any,
+    val: Any,
+    *,
+    window: int,
+    norm: Normalisation | None = None,
+    options: TrainOptions | None = None,
+    run_dir: str | Path | None = None,
+    resume: bool = False,
+    callback: Callable[[EpochReport], None] | None = None,
+    info: Mapping[str, Any] | None = None,
+    identity: Mapping[str, Any] | None = None,
+    before_epoch: Callable[[SequenceModel, int], None] | None = None,
+) -> FitResult:
+    """The training loop of :func:`fit` for a network built by the caller.
+
+    Args:
+        build: called once as ``build(norm)``, under ``torch.manual_seed(options.seed)``, to
+            make the network (window ``window``, the data's ``n_u``, ``n_y``); its
+            :meth:`~learning.nets.SequenceModel.training_loss` is the loss minimised.
+        train, val, window, options, run_dir, resume, callback, info: as for :func:`fit`.
+        norm: the normalisation to train under (default: fitted on ``train``).
+        identity: extra JSON facts that a resumed run must match (saved in the checkpoint).
+        before_epoch: called as ``before_epoch(net, epoch)`` before each epoch (1-based), also
+            after a resume; it must depend on nothing but its arguments.
+    """
     opts = options or TrainOptions()
     train_s = as_series(train, what="training data")
     val_s = as_series(val, what="validation data")
@@ -468,6 +525,11 @@ def fit(
         raise ShapeError(
             f"validation data have n_u={val_s[0].u.shape[1]}, n_y={val_s[0].y.shape[1]}; "
             f"training data have n_u={n_u}, n_y={n_y}"
+        )
+    if norm is not None and (norm.n_u, norm.n_y) != (n_u, n_y):
+        raise ShapeError(
+            f"the normalisation is for n_u={norm.n_u}, n_y={norm.n_y}; the training data have "
+            f"n_u={n_u}, n_y={n_y}"
         )
     _check_lengths(train_s, window, "training data")
     _check_lengths(val_s, window, "validation data")
@@ -486,26 +548,29 @@ def fit(
     if resume and run_path is None:
         raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")
     device = resolve_device(opts.device)
-    norm = Normalisation.fit(train_s)
+    norm = norm if norm is not None else Normalisation.fit(train_s)
     fingerprint = data_fingerprint(train_s, val_s)
 
     with torch.random.fork_rng(devices=[device.index or 0] if device.type == "cuda" else []):
         torch.manual_seed(opts.seed)
-        net = build_net(model, window=window, n_u=n_u, n_y=n_y, **dict(net_options or {}))
-        net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
+        net = build(norm)
+        if net.window != window:
+            raise ShapeError(f"the network has window {net.window}, the data were cut for {window}")
         net.to(device)
-        identity = {
-            "model": model,
+        identity_all = {
+            "model": net.name,
             "net": net.config(),
             "data": fingerprint,
             "options": {k: v for k, v in opts.to_dict().items() if k not in RESUMABLE_CHANGES},
+            "extra": dict(identity or {}),
         }
         state = _Run(
             net,
             opts,
             WindowBank(train_s, norm, device=device),
             WindowBank(val_s, norm, device=device),
-            identity,
+            identity_all,
+            before_epoch,
         )
         if resume:
             assert run_path is not None
@@ -611,4 +676,5 @@ def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
     check_same(
         found.get("options", {}), identity["options"], what=f"checkpoint {path} (training options)"
     )
+    check_same(found.get("extra", {}), identity["extra"], what=f"checkpoint {path}")
     return state

@@ -1,17 +1,183 @@
-"""`canonid reduce` — model reduction (not implemented yet)."""
+"""``canonid reduce`` — compress the state of a trained canonical model with an auto-encoder.
+
+``canonid reduce RUN --compression R`` trains one reduced model and writes its run folder (see
+:mod:`canonid.reduction`); ``canonid reduce RUN [RUN ...] --sweep`` runs the compression study
+over rates and seeds and writes its figures.
+"""
 
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 from typing import Any
 
-from canonid.commands._pending import not_yet
+from canonid.commands.evaluate import METRICS_FILE, table
+from canonid.profiles import profile_names, reduce_options
+from canonid.reduction import (
+    DEFAULT_RATES,
+    ReductionJob,
+    SweepPlan,
+    compression_sweep,
+    rate_label,
+    reduce_run,
+)
+from learning import EpochReport
+from models.errors import DataError
+from models.io import read_json
+
+__all__ = ["register", "run"]
+
+
+def _rate(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number in (0, 1), got {text!r}") from None
 
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "reduce",
-        help="model reduction (not implemented yet)",
-        description="model reduction (not implemented yet)",
+        help="auto-encoder reduction of a trained canonical model (one rate, or the study)",
+        description=(
+            "Reduce the state z of the canonical model (Ours MLP/GRU) trained in RUN: an "
+            "auto-encoder (E, D) gives the reduced model x̄⁺ = E(Ā D(x̄) + B̄ u + S̄ Ĥ(D(x̄), u)), "
+            "ȳ = Ĥ(D(x̄), u) with n̄ = ⌊dim z (1 − r)⌋ + 1 states. --compression R trains one "
+            "reduced model and writes a run folder that `canonid evaluate` reads; --sweep "
+            "trains one per (RUN, rate, seed) and draws the reconstruction heat-map and the "
+            "reduced model's 100-step MSE against n̄."
+        ),
     )
-    p.set_defaults(func=not_yet("model reduction"))
+    p.add_argument(
+        "runs", nargs="+", type=Path, metavar="RUN", help="run folder(s) of canonid train"
+    )
+    mode = p.add_mutually_exclusive_group(required=True)
+    mode.add_argument(
+        "--compression", type=_rate, metavar="R", help="compression rate in (0, 1), e.g. 0.6"
+    )
+    mode.add_argument("--sweep", action="store_true", help="the compression study")
+    p.add_argument(
+        "--profile", choices=profile_names(), default="quick", help="budget (default quick)"
+    )
+    p.add_argument(
+        "--out",
+        type=Path,
+        metavar="DIR",
+        help="output folder (default: RUN-r<rate> beside RUN; runs/compression-sweep)",
+    )
+    p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
+    p.add_argument("--seed", type=int, default=0, help="seed (--sweep: the first of --seeds)")
+    p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads (per job)")
+    p.add_argument(
+        "--resume", action="store_true", help="continue the interrupted reduction in --out"
+    )
+    g = p.add_argument_group("compression study (--sweep)")
+    g.add_argument(
+        "--rates",
+        type=_rate,
+        nargs="+",
+        default=list(DEFAULT_RATES),
+        metavar="R",
+        help="rates (default 0.15 0.30 … 0.90)",
+    )
+    g.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per rate (default 3)")
+    workers = g.add_mutually_exclusive_group()
+    workers.add_argument(
+        "--workers", type=int, default=0, metavar="N", help="local worker processes (0: serial)"
+    )
+    workers.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, tcp://host:port")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def _one(args: argparse.Namespace) -> int:
+    if len(args.runs) != 1:
+        raise DataError(f"--compression reduces one RUN, got {len(args.runs)} (use --sweep)")
+    source: Path = args.runs[0]
+    out = args.out or source.parent / f"{source.name}-{rate_label(args.compression)}"
+    job = ReductionJob(
+        source=str(source),
+        compression=args.compression,
+        out=str(out),
+        profile=args.profile,
+        seed=args.seed,
+        epochs=args.epochs,
+        device=args.device,
+        threads=None,
+        resume=args.resume,
+    )
+    train_opts, red_opts = reduce_options(args.profile, epochs=args.epochs)
+    frozen = red_opts.frozen_epochs(train_opts.epochs)
+    bar = None
+    if not args.no_progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=train_opts.epochs, desc="reduce", unit="epoch", file=sys.stderr)
+
+    def progress(report: EpochReport) -> None:
+        if bar is None:
+            return
+        bar.n = report.epoch
+        phase = "Ĥ frozen" if report.epoch <= frozen else "Ĥ fine-tuned"
+        val = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
+        recon = report.parts.get("reconstruction", float("nan"))
+        bar.set_postfix_str(
+            f"{phase}, H={report.horizon}, recon={recon:.3g}, val rollout={val} "
+            f"(best {report.best_val_loss:.3g} at {report.best_epoch})"
+        )
+
+    try:
+        result = reduce_run(job, callback=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    print(
+        f"{result.model} (ℓ = {result.window}) reduced at r = {result.compression:.0%}: "
+        f"n̄ = {result.latent_dim} of dim z = {result.state_dim}; {result.stopped} after "
+        f"{result.epochs_run} epochs (best at {result.best_epoch})"
+    )
+    print(
+        f"100-step rollout MSE on the test split: reduced {result.rollout_mse:.4g}, full "
+        f"{result.full_rollout_mse:.4g} (ratio {result.ratio:.3g}); reconstruction MSE "
+        f"{result.reconstruction_mse:.3g} (normalised)"
+    )
+    print(table(read_json(out / METRICS_FILE, what="metrics")))
+    print(f"run written to {out}")
+    return 0
+
+
+def _sweep(args: argparse.Namespace) -> int:
+    if args.resume:
+        raise DataError("--resume is for one reduction; a sweep always resumes its jobs")
+    if args.seeds < 1:
+        raise DataError(f"--seeds must be >= 1, got {args.seeds}")
+    out = args.out or Path("runs") / "compression-sweep"
+    plan = SweepPlan(
+        runs=tuple(str(r) for r in args.runs),
+        out=str(out),
+        rates=tuple(args.rates),
+        seeds=tuple(range(args.seed, args.seed + args.seeds)),
+        profile=args.profile,
+        epochs=args.epochs,
+        device=args.device,
+        threads=args.threads if args.threads is not None else 1,
+    )
+    sweep = compression_sweep(
+        plan,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+    )
+    print(sweep.table())
+    print(f"figures: {sweep.heatmap}, {sweep.reduced_mse}; results: {out / 'sweep.json'}")
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.threads is not None and not args.sweep:
+        import torch
+
+        torch.set_num_threads(args.threads)
+    return _sweep(args) if args.sweep else _one(args)

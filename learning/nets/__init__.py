@@ -19,18 +19,23 @@ from learning.nets.classic_gru import ClassicGRU
 from learning.nets.masti import Masti
 from learning.nets.ours_gru import OursGRU
 from learning.nets.ours_mlp import OursMLP
+from learning.nets.reduced import NotReducibleError, ReducedNet, check_reducible
 from models.errors import CanonidError
 
 __all__ = [
+    "ALL_NETS",
     "NETS",
     "CanonicalModel",
     "ClassicGRU",
     "Masti",
+    "NotReducibleError",
     "OursGRU",
     "OursMLP",
+    "ReducedNet",
     "SequenceModel",
     "UnknownModelError",
     "build_net",
+    "check_reducible",
     "model_names",
 ]
 
@@ -44,6 +49,9 @@ NETS: dict[str, type[SequenceModel]] = {
     cls.name: cls for cls in (OursMLP, OursGRU, ClassicGRU, Masti)
 }
 
+#: every network a saved model may hold: the identification models and the reduced model
+ALL_NETS: dict[str, type[SequenceModel]] = {**NETS, ReducedNet.name: ReducedNet}
+
 
 def model_names() -> list[str]:
     """Registered model names, in table order."""
@@ -51,9 +59,10 @@ def model_names() -> list[str]:
 
 
 def build_net(name: str, **config: Any) -> SequenceModel:
-    """Build network ``name`` from its constructor arguments (as :meth:`SequenceModel.config`)."""
+    """Build network ``name`` (one of :data:`ALL_NETS`) from its constructor arguments (as
+    :meth:`SequenceModel.config`)."""
     try:
-        cls = NETS[name]
+        cls = ALL_NETS[name]
     except KeyError:
         raise UnknownModelError(
             f"unknown model {name!r}; expected one of {model_names()}"

@@ -1,0 +1,594 @@
+"""Model reduction of trained runs: one reduction, and the compression study of the paper.
+
+**One reduction** (:func:`reduce_run`, ``canonid reduce RUN --compression R``) reads the trained
+canonical model of run folder ``RUN`` and the data it was trained on (``RUN/run.json``: same
+training and validation trajectories), trains the reduced model of :mod:`learning.reduction`
+and writes a run folder of the same format as ``canonid train`` (so ``canonid evaluate`` works
+on it unchanged): ``run.json``, the model (``config.json``, ``weights.pt``,
+``normalisation.json``), ``checkpoint.pt``, ``history.csv``, ``training_curve.png``,
+``metrics.json`` and ``rollouts.png`` (the reduced model on the test split), plus
+
+* ``reduction.json`` — :class:`ReductionResult`: ``n̄``, ``dim z``, the auto-encoder's
+  reconstruction MSE on the test split (normalised units, :func:`learning.reduction.
+  reconstruction_mse`) and the 100-step rollout MSE (paper metric, physical units, every start
+  of every test trajectory) of the reduced *and* the full model;
+* ``reduced_vs_full.png`` — open-loop simulations of both models on three test records.
+
+**The compression study** (:func:`compression_sweep`, ``canonid reduce RUN … --sweep``): for
+every trained run (one per window ℓ), every rate ``r`` and every seed, one independent
+:class:`ReductionJob`, run through :func:`canonid.runner.run_jobs` (serially, on local
+processes or on a Dask cluster). A job whose folder already holds a finished ``reduction.json``
+for the same recipe is not run again, and one with a checkpoint resumes from it, so an
+interrupted study continues where it stopped (:class:`SweepPlan` says what runs). The study
+writes ``sweep.json`` (every result),
+``heatmap.png`` (reconstruction MSE over (ℓ, r), mean over seeds — the paper's Fig. 4) and
+``reduced_mse.png`` (reduced model's 100-step MSE against ``n̄`` per ℓ, mean ± standard
+deviation over seeds, the full model as a dashed line — the paper's Fig. 3). The seeds vary the
+auto-encoder's initialisation and sub-window draws; the full model of each ℓ is the one given.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from canonid.profiles import reduce_options
+from canonid.runner import run_jobs
+from learning import EpochReport, Model, evaluate
+from learning.data import as_series
+from learning.evaluate import simulate_records
+from learning.model import check_same
+from learning.nets import ReducedNet, check_reducible
+from learning.reduction import latent_size, reconstruction_mse, reduce_model
+from learning.training import CHECKPOINT_FILE
+from models.errors import CheckpointError, DataError
+from models.io import atomic_write_json, read_json
+
+__all__ = [
+    "DEFAULT_RATES",
+    "REDUCTION_FILE",
+    "ReductionJob",
+    "ReductionResult",
+    "SweepPlan",
+    "SweepResult",
+    "compression_sweep",
+    "rate_label",
+    "reduce_run",
+    "run_reduction_job",
+]
+
+#: the paper's rates: 15 %, 30 %, …, 90 %
+DEFAULT_RATES = (0.15, 0.30, 0.45, 0.60, 0.75, 0.90)
+REDUCTION_FILE = "reduction.json"
+SWEEP_FILE = "sweep.json"
+EVAL_HORIZON = 100
+
+
+def rate_label(rate: float) -> str:
+    """``0.6`` → ``"r60"``, ``0.125`` → ``"r12.5"`` (folder names)."""
+    return f"r{round(100 * rate, 6):g}"
+
+
+@dataclass(frozen=True)
+class ReductionJob:
+    """One reduction: the run folder of a trained canonical model, the rate, the seed and where
+    to write the reduced run. ``epochs`` overrides the profile's; ``threads`` sets torch's CPU
+    threads for the job (then restores them); ``resume`` continues from ``out/checkpoint.pt``."""
+
+    source: str
+    compression: float
+    out: str
+    profile: str = "quick"
+    seed: int = 0
+    epochs: int | None = None
+    device: str = "cpu"
+    threads: int | None = 1
+    resume: bool = False
+
+    @property
+    def name(self) -> str:
+        return f"{self.source} at r = {self.compression:g}, seed {self.seed}"
+
+    def recipe_key(self) -> dict[str, Any]:
+        """What a finished run must match to be reused by a sweep."""
+        return {
+            "source_run": os.path.abspath(self.source),
+            "compression": float(self.compression),
+            "seed": self.seed,
+            "profile": self.profile,
+            "epochs": self.epochs,
+        }
+
+
+@dataclass(frozen=True)
+class ReductionResult:
+    """The figures of one reduction (see the module docstring; MSEs on the test split).
+
+    Attributes:
+        reconstruction_mse: auto-encoder error, normalised units.
+        rollout_mse, full_rollout_mse: 100-step rollout MSE of the reduced and the full model,
+            physical units (against the measured outputs).
+        rollout_mse_clean, full_rollout_mse_clean: the same against the noise-free outputs
+            (``None`` when the data have none).
+    """
+
+    source: str
+    out: str
+    model: str
+    window: int
+    compression: float
+    seed: int
+    state_dim: int
+    latent_dim: int
+    reconstruction_mse: float
+    rollout_mse: float
+    full_rollout_mse: float
+    rollout_mse_clean: float | None
+    full_rollout_mse_clean: float | None
+    rollout_horizon: int
+    best_epoch: int
+    epochs_run: int
+    stopped: str
+    seconds: float
+    recipe: dict[str, Any]
+
+    @property
+    def ratio(self) -> float:
+        """Reduced over full 100-step MSE."""
+        return self.rollout_mse / self.full_rollout_mse
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": "canonid-reduction", **dataclasses.asdict(self)}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str) -> ReductionResult:
+        fields = {f.name for f in dataclasses.fields(cls)}
+        if data.get("format") != "canonid-reduction" or not fields <= set(data):
+            raise CheckpointError(f"{where} is not a canonid reduction result")
+        return cls(**{k: data[k] for k in fields})
+
+
+def _load_source(source: Path) -> tuple[Model, dict[str, Any]]:
+    from canonid.commands.evaluate import RUN_FILE
+
+    recipe = read_json(source / RUN_FILE, what="run recipe")
+    if (
+        not isinstance(recipe, dict)
+        or recipe.get("format") != "canonid-run"
+        or "data" not in recipe
+    ):
+        raise DataError(f"{source / RUN_FILE} is not the recipe of a canonid training run")
+    model = Model.load(source)
+    check_reducible(model.name)
+    return model, recipe
+
+
+def reduce_run(
+    job: ReductionJob, *, callback: Callable[[EpochReport], None] | None = None
+) -> ReductionResult:
+    """Run one reduction and write its run folder (see the module docstring)."""
+    # the run-folder helpers of `train` and `evaluate`; imported here because the command
+    # modules import this one
+    from canonid.commands import _data
+    from canonid.commands.evaluate import RUN_FILE, evaluate_run
+    from canonid.commands.train import _splits, _write_history
+
+    source, out = Path(job.source), Path(job.out)
+    model, recipe = _load_source(source)
+    latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early
+    train_opts, red_opts = reduce_options(
+        job.profile, epochs=job.epochs, seed=job.seed, device=job.device
+    )
+    if job.resume:
+        if not (out / CHECKPOINT_FILE).is_file():
+            raise CheckpointError(f"{out} holds no {CHECKPOINT_FILE} to resume from")
+        before = read_json(out / RUN_FILE, what="run recipe")
+        key = {k: v for k, v in job.recipe_key().items() if k != "epochs"}
+        check_same(before if isinstance(before, dict) else {}, key, what=f"run {out}")
+    elif (out / CHECKPOINT_FILE).exists():
+        raise CheckpointError(
+            f"{out} already holds a reduction run; resume it or choose another output folder"
+        )
+    dataset, train, val, test_name, data_path = _splits(recipe)
+    out.mkdir(parents=True, exist_ok=True)
+    run_recipe: dict[str, Any] = {
+        **{k: recipe[k] for k in ("data", "data_options", "val", "val_fraction") if k in recipe},
+        "format": "canonid-run",
+        "kind": "reduction",
+        "model": "reduced",
+        "regressor": model.name,
+        "window": model.window,
+        "latent_dim": latent,
+        **job.recipe_key(),
+        "train_options": train_opts.to_dict(),
+        "reduction_options": red_opts.to_dict(),
+        "command": ["canonid", *sys.argv[1:]],
+    }
+    atomic_write_json(out / RUN_FILE, run_recipe)
+    t0 = time.perf_counter()
+    fit = reduce_model(
+        model,
+        train,
+        val,
+        compression=job.compression,
+        options=train_opts,
+        reduction=red_opts,
+        run_dir=out,
+        resume=job.resume,
+        callback=callback,
+        info={
+            "profile": job.profile,
+            "source_run": str(source),
+            "data": {"path": data_path, "splits": dataset.counts()},
+            "input_names": list(dataset.input_names),
+            "output_names": list(dataset.output_names),
+            "dt": dataset.dt,
+        },
+    )
+    seconds = time.perf_counter() - t0
+    _write_history(out, fit.history)
+    reduced = fit.model
+    metrics = evaluate_run(
+        out,
+        reduced,
+        dataset,
+        data_path=data_path,
+        split=test_name,
+        horizon=EVAL_HORIZON,
+        stride=1,
+        n_init=None,
+    )
+    _, trajs = _data.pick_split(dataset, test_name, where=data_path)
+    full = evaluate(model, trajs, horizon=EVAL_HORIZON, stride=1, n_init=metrics["n_init"])
+    _plot_reduced_vs_full(
+        model, reduced, trajs, out / "reduced_vs_full.png", n_init=metrics["n_init"], dt=dataset.dt
+    )
+    result = ReductionResult(
+        source=str(source),
+        out=str(out),
+        model=model.name,
+        window=model.window,
+        compression=float(job.compression),
+        seed=job.seed,
+        state_dim=model.net.state_dim,
+        latent_dim=latent,
+        reconstruction_mse=reconstruction_mse(reduced, trajs),
+        rollout_mse=float(metrics["rollout_mse"]),
+        full_rollout_mse=full.measured.rollout_mse,
+        rollout_mse_clean=(metrics["clean"] or {}).get("rollout_mse"),
+        full_rollout_mse_clean=full.clean.rollout_mse if full.clean else None,
+        rollout_horizon=EVAL_HORIZON,
+        best_epoch=fit.best_epoch,
+        epochs_run=fit.epochs_run,
+        stopped=fit.stopped,
+        seconds=seconds,
+        recipe=job.recipe_key(),
+    )
+    atomic_write_json(out / REDUCTION_FILE, result.to_dict())
+    return result
+
+
+def run_reduction_job(job: ReductionJob) -> ReductionResult:
+    """The runner's job function: reuse a finished result for the same recipe, resume an
+    interrupted one, else reduce (with ``job.threads`` torch threads)."""
+    out = Path(job.out)
+    if (out / REDUCTION_FILE).is_file():
+        done = ReductionResult.from_dict(
+            read_json(out / REDUCTION_FILE, what="reduction result"), where=str(out)
+        )
+        if done.recipe == job.recipe_key():
+            return done
+    if (out / CHECKPOINT_FILE).is_file():
+        job = dataclasses.replace(job, resume=True)
+    import torch
+
+    previous = torch.get_num_threads()
+    if job.threads is not None:
+        torch.set_num_threads(job.threads)
+    try:
+        return reduce_run(job)
+    finally:
+        torch.set_num_threads(previous)
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """The compression study: every :class:`ReductionResult` and the figures written."""
+
+    results: list[ReductionResult]
+    folder: Path
+    heatmap: Path
+    reduced_mse: Path
+
+    def rows(self) -> list[dict[str, Any]]:
+        """Mean and standard deviation over seeds per (source run, rate)."""
+        groups: dict[tuple[str, float], list[ReductionResult]] = {}
+        for r in self.results:
+            groups.setdefault((r.source, r.compression), []).append(r)
+        out = []
+        for (source, rate), rs in groups.items():
+            rec = np.array([r.reconstruction_mse for r in rs])
+            mse = np.array([r.rollout_mse for r in rs])
+            out.append(
+                {
+                    "source": source,
+                    "model": rs[0].model,
+                    "window": rs[0].window,
+                    "compression": rate,
+                    "state_dim": rs[0].state_dim,
+                    "latent_dim": rs[0].latent_dim,
+                    "seeds": len(rs),
+                    "reconstruction_mse_mean": float(rec.mean()),
+                    "reconstruction_mse_std": float(rec.std()),
+                    "rollout_mse_mean": float(mse.mean()),
+                    "rollout_mse_std": float(mse.std()),
+                    "full_rollout_mse": rs[0].full_rollout_mse,
+                }
+            )
+        return out
+
+    def table(self) -> str:
+        """A Markdown table of :meth:`rows`."""
+        lines = [
+            "| run | ℓ | r | n̄ / dim z | reconstruction MSE (normalised) | 100-step MSE "
+            "reduced | full | seeds |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for row in self.rows():
+            lines.append(
+                f"| {Path(row['source']).name} | {row['window']} | {row['compression']:.0%} | "
+                f"{row['latent_dim']} / {row['state_dim']} | "
+                f"{row['reconstruction_mse_mean']:.3g} ± {row['reconstruction_mse_std']:.2g} | "
+                f"{row['rollout_mse_mean']:.3g} ± {row['rollout_mse_std']:.2g} | "
+                f"{row['full_rollout_mse']:.3g} | {row['seeds']} |"
+            )
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class SweepPlan:
+    """What a compression study runs: every (run, rate, seed) of these, each job writing to
+    ``out/<run folder name>-r<rate>-s<seed>``.
+
+    Attributes:
+        runs: run folders of trained Ours (MLP/GRU) models, typically one per window ℓ.
+        out: folder of the study (one sub-folder per job, ``sweep.json`` and the figures).
+        rates: compression rates in (0, 1) (default 15 %, 30 %, …, 90 %).
+        seeds: auto-encoder seeds.
+        profile, epochs, device, threads: of every job (see :class:`ReductionJob`).
+    """
+
+    runs: tuple[str, ...]
+    out: str
+    rates: tuple[float, ...] = DEFAULT_RATES
+    seeds: tuple[int, ...] = (0, 1, 2)
+    profile: str = "quick"
+    epochs: int | None = None
+    device: str = "cpu"
+    threads: int | None = 1
+
+    def jobs(self) -> list[ReductionJob]:
+        """The jobs, in (run, rate, seed) order; bad rates, repeated values and runs that are
+        not canonical models are refused before any job starts."""
+        sources = [Path(r) for r in self.runs]
+        rates, seeds = list(self.rates), list(self.seeds)
+        if not sources or not rates or not seeds:
+            raise DataError("a sweep needs at least one run, one rate and one seed")
+        names = [s.name for s in sources]
+        if len(set(names)) != len(names):
+            raise DataError(f"the runs of a sweep need distinct folder names, got {names}")
+        if len(set(seeds)) != len(seeds) or len(set(rates)) != len(rates):
+            raise DataError(f"rates and seeds must not repeat: rates {rates}, seeds {seeds}")
+        for source in sources:
+            model, _ = _load_source(source)
+            for rate in rates:
+                latent_size(model.net.state_dim, rate)
+        base = Path(self.out)
+        return [
+            ReductionJob(
+                source=str(source),
+                compression=float(rate),
+                out=str(base / f"{source.name}-{rate_label(rate)}-s{seed}"),
+                profile=self.profile,
+                seed=int(seed),
+                epochs=self.epochs,
+                device=self.device,
+                threads=self.threads,
+            )
+            for source in sources
+            for rate in rates
+            for seed in seeds
+        ]
+
+
+def compression_sweep(
+    plan: SweepPlan,
+    *,
+    workers: int = 0,
+    scheduler: str | None = None,
+    progress: bool = True,
+) -> SweepResult:
+    """Run the compression study ``plan`` through :func:`canonid.runner.run_jobs` (``workers``,
+    ``scheduler``, ``progress`` are its options) and write ``sweep.json`` and the two figures
+    into ``plan.out`` (see the module docstring)."""
+    jobs = plan.jobs()
+    folder = Path(plan.out)
+    folder.mkdir(parents=True, exist_ok=True)
+    results = run_jobs(
+        run_reduction_job,
+        jobs,
+        workers=workers,
+        scheduler=scheduler,
+        progress=progress,
+        description="reductions",
+    )
+    sweep = SweepResult(
+        results=results,
+        folder=folder,
+        heatmap=plot_heatmap(results, folder / "heatmap.png"),
+        reduced_mse=plot_reduced_mse(results, folder / "reduced_mse.png"),
+    )
+    atomic_write_json(
+        folder / SWEEP_FILE,
+        {
+            "format": "canonid-sweep",
+            "kind": "compression",
+            "plan": dataclasses.asdict(plan),
+            "summary": sweep.rows(),
+            "results": [r.to_dict() for r in results],
+        },
+    )
+    return sweep
+
+
+# ---------------------------------------------------------------------- figures
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig: Any, path: str | os.PathLike[str]) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    _pyplot().close(fig)
+    return Path(path)
+
+
+def _run_label(results: Sequence[ReductionResult], source: str) -> str:
+    first = next(r for r in results if r.source == source)
+    windows = [r.window for r in results if r.source != source]
+    clash = first.window in windows
+    return f"ℓ = {first.window}" + (f" ({Path(source).name})" if clash else "")
+
+
+def _sources_by_window(results: Sequence[ReductionResult]) -> list[str]:
+    firsts: dict[str, ReductionResult] = {}
+    for r in results:
+        firsts.setdefault(r.source, r)
+    return sorted(firsts, key=lambda s: (firsts[s].window, s))
+
+
+def plot_heatmap(results: Sequence[ReductionResult], path: str | os.PathLike[str]) -> Path:
+    """Reconstruction MSE (normalised units, mean over seeds) over window ℓ (rows) and rate r
+    (columns), log colour scale, each cell annotated (the paper's Fig. 4)."""
+    from matplotlib.colors import LogNorm
+
+    plt = _pyplot()
+    sources = _sources_by_window(results)
+    rates = sorted({r.compression for r in results})
+    grid = np.full((len(sources), len(rates)), np.nan)
+    for i, source in enumerate(sources):
+        for j, rate in enumerate(rates):
+            vals = [
+                r.reconstruction_mse for r in results if (r.source, r.compression) == (source, rate)
+            ]
+            if vals:
+                grid[i, j] = float(np.mean(vals))
+    positive = grid[np.isfinite(grid) & (grid > 0)]
+    norm = LogNorm(vmin=positive.min(), vmax=positive.max()) if positive.size else None
+    fig, ax = plt.subplots(figsize=(1.2 * len(rates) + 2.5, 0.7 * len(sources) + 1.8))
+    image = ax.imshow(np.where(grid > 0, grid, np.nan), cmap="viridis", norm=norm, aspect="auto")
+    for i in range(len(sources)):
+        for j in range(len(rates)):
+            if np.isfinite(grid[i, j]):
+                ax.text(j, i, f"{grid[i, j]:.2g}", ha="center", va="center", fontsize=8, color="w")
+    ax.set_xticks(range(len(rates)), [f"{r:.0%}" for r in rates])
+    ax.set_yticks(range(len(sources)), [_run_label(results, s) for s in sources])
+    ax.set_xlabel("compression rate r")
+    seeds = len({r.seed for r in results})
+    ax.set_title(
+        f"auto-encoder reconstruction MSE (test, normalised; mean of {seeds} seeds)", fontsize=9
+    )
+    fig.colorbar(image, ax=ax)
+    return _save(fig, path)
+
+
+def plot_reduced_mse(results: Sequence[ReductionResult], path: str | os.PathLike[str]) -> Path:
+    """100-step rollout MSE of the reduced model against its state size ``n̄``, one line per
+    window ℓ with mean ± standard deviation over seeds; the full model's MSE (state size
+    ``dim z``) as a dashed line of the same colour (the paper's Fig. 3)."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for k, source in enumerate(_sources_by_window(results)):
+        mine = [r for r in results if r.source == source]
+        sizes = sorted({r.latent_dim for r in mine})
+        stats = [np.array([r.rollout_mse for r in mine if r.latent_dim == n]) for n in sizes]
+        colour = f"C{k % 10}"
+        ax.errorbar(
+            sizes,
+            [s.mean() for s in stats],
+            yerr=[s.std() for s in stats],
+            marker="o",
+            ms=4,
+            capsize=3,
+            color=colour,
+            label=f"{_run_label(results, source)} (dim z = {mine[0].state_dim})",
+        )
+        ax.axhline(mine[0].full_rollout_mse, color=colour, ls="--", lw=0.9)
+    ax.set_yscale("log")
+    ax.set_xlabel("reduced state size n̄")
+    ax.set_ylabel("100-step rollout MSE (test, physical units)")
+    seeds = len({r.seed for r in results})
+    ax.set_title(
+        f"reduced model vs state size (mean ± std over {seeds} seeds; dashed: full model)",
+        fontsize=9,
+    )
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def _plot_reduced_vs_full(
+    full: Model,
+    reduced: Model,
+    trajs: Sequence[Any],
+    path: Path,
+    *,
+    n_init: int,
+    dt: float,
+    count: int = 3,
+) -> Path:
+    """Open-loop simulations of the full and the reduced model from sample ``n_init`` on the
+    first ``count`` test records, one row per output."""
+    plt = _pyplot()
+    records = [s for s in as_series(list(trajs), what="test data") if s.T > n_init][:count]
+    sims_full = simulate_records(full, records, n_init)
+    sims_red = simulate_records(reduced, records, n_init)
+    n_y = full.n_y
+    fig, axes = plt.subplots(
+        n_y, len(records), figsize=(4.2 * len(records), 2.4 * n_y), squeeze=False, sharex="col"
+    )
+    assert isinstance(reduced.net, ReducedNet)
+    latent = reduced.net.latent_dim
+    for j, (rec, yf, yr) in enumerate(zip(records, sims_full, sims_red)):
+        t = np.arange(rec.T) * dt
+        for i in range(n_y):
+            ax = axes[i, j]
+            ax.plot(t, rec.y[:, i], ".", ms=2, color="0.55", label="measured")
+            ax.plot(
+                t[n_init:],
+                yf[:, i],
+                color="C0",
+                lw=1.2,
+                label=f"full (dim z = {full.net.state_dim})",
+            )
+            ax.plot(
+                t[n_init:], yr[:, i], color="C3", lw=1.2, ls="--", label=f"reduced (n̄ = {latent})"
+            )
+            ax.axvline(t[n_init], color="0.3", ls=":", lw=0.8)
+            if i == n_y - 1:
+                ax.set_xlabel("time [s]")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle(f"{full.name}, ℓ = {full.window}: full vs reduced model, open loop", fontsize=10)
+    return _save(fig, path)

@@ -1,0 +1,215 @@
+"""The reduced model (paper §IV-B): a canonical model whose state is compressed by an
+auto-encoder.
+
+With the regressor ``Ĥ`` of a canonical model (Ours MLP / Ours GRU), an encoder ``E: R^{ℓp} →
+R^{n̄}`` and a decoder ``D: R^{n̄} → R^{ℓp}`` (``p = n_u + n_y``, all in normalised units):
+
+    x̄_{t+1} = E(Ā D(x̄_t) + B̄ u_t + S̄ Ĥ(D(x̄_t), u_t)),      ȳ_t = Ĥ(D(x̄_t), u_t),
+
+where ``Ā z + B̄ u + S̄ y`` is the canonical shift (:func:`learning.canonical.shift`). The reduced
+state is initialised from the measured burn-in window: ``x̄ = E(z)`` with ``z`` the samples
+``s … s+ℓ−1`` (the rollout convention of :mod:`learning.nets.base`). ``Ĥ`` is the regressor's
+:meth:`~learning.nets.base.CanonicalModel.one_step`, residual option included (the previous output
+it adds is the newest ``y`` of the *decoded* window).
+
+Training loss on a sub-window of ``ℓ + H`` samples (*authors' code*; means over every entry):
+
+    reconstruction_weight · mean_k ‖z_k − D(E(z_k))‖²          k = 0 … H
+    + consistency_weight  · mean_k ‖E(z_k) − x̄_k‖²             k = 1 … H
+    + output_weight       · output error of ȳ_0 … ȳ_{H−1}       (α on the first step)
+
+``z_k`` is the measured window of samples ``k … k+ℓ−1`` of the sub-window (the window before
+predicted sample ``k``), and ``x̄_k`` the reduced state after ``k`` open-loop steps from
+``x̄_0 = E(z_0)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import torch
+
+from learning.canonical import pairs_to_state, shift
+from learning.nets.base import CanonicalModel, SequenceModel, mlp, output_error
+from models.errors import CanonidError, ShapeError
+
+__all__ = ["NotReducibleError", "ReducedNet", "check_reducible"]
+
+
+class NotReducibleError(CanonidError, ValueError):
+    """The model asked for cannot be reduced (only canonical models can)."""
+
+
+def check_reducible(name: str) -> type[CanonicalModel]:
+    """The class of registered model ``name`` if it is a canonical model, else
+    :class:`NotReducibleError` naming the models that can be reduced."""
+    from learning.nets import ALL_NETS  # the registry imports this module
+
+    cls = ALL_NETS.get(name)
+    if cls is None or not issubclass(cls, CanonicalModel):
+        reducible = [
+            f"{c.label} ({n!r})" for n, c in ALL_NETS.items() if issubclass(c, CanonicalModel)
+        ]
+        label = f"{cls.label} ({name!r})" if cls is not None else repr(name)
+        raise NotReducibleError(
+            f"only canonical models can be reduced ({', '.join(reducible)}); got {label}"
+        )
+    return cls
+
+
+class ReducedNet(SequenceModel):
+    """``Ĥ`` of a canonical model with an auto-encoder ``(E, D)`` around its state.
+
+    Args:
+        regressor: registry name of the canonical model (``"mlp"`` or ``"gru"``).
+        regressor_config: its constructor arguments (:meth:`SequenceModel.config`); ``window``,
+            ``n_u``, ``n_y``, ``feedthrough`` and ``residual`` must equal the common ones.
+        latent_dim: ``n̄``, the size of the reduced state (see
+            :func:`learning.reduction.latent_size`).
+        encoder_hidden, decoder_hidden: hidden widths of the ReLU MLPs ``E`` and ``D`` (paper:
+            2 × 512).
+        reconstruction_weight, consistency_weight, output_weight: weights of the three loss
+            terms (see the module docstring; default 1 each).
+        common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``.
+
+    Raises:
+        NotReducibleError: ``regressor`` is not a canonical model.
+    """
+
+    name = "reduced"
+    label = "Reduced"
+
+    def __init__(
+        self,
+        *,
+        regressor: str,
+        regressor_config: Mapping[str, Any],
+        latent_dim: int,
+        encoder_hidden: Sequence[int] = (512, 512),
+        decoder_hidden: Sequence[int] = (512, 512),
+        reconstruction_weight: float = 1.0,
+        consistency_weight: float = 1.0,
+        output_weight: float = 1.0,
+        **common: Any,
+    ) -> None:
+        super().__init__(**common)
+        cls = check_reducible(regressor)
+        mismatched = [
+            f"{key} ({regressor_config.get(key)!r} in the regressor, {value!r} here)"
+            for key, value in common.items()
+            if regressor_config.get(key) != value
+        ]
+        if mismatched:
+            raise ShapeError(
+                "the reduced model and its regressor disagree on " + ", ".join(mismatched)
+            )
+        if isinstance(latent_dim, bool) or not isinstance(latent_dim, int) or latent_dim < 1:
+            raise ShapeError(f"latent_dim must be an integer >= 1, got {latent_dim!r}")
+        self.regressor: CanonicalModel = cls(**regressor_config)
+        self.latent_dim = latent_dim
+        self.encoder_hidden = tuple(int(h) for h in encoder_hidden)
+        self.decoder_hidden = tuple(int(h) for h in decoder_hidden)
+        self.reconstruction_weight = float(reconstruction_weight)
+        self.consistency_weight = float(consistency_weight)
+        self.output_weight = float(output_weight)
+        self.encoder = mlp(self.state_dim, self.encoder_hidden, latent_dim)
+        self.decoder = mlp(latent_dim, self.decoder_hidden, self.state_dim)
+        self.residual_scale.copy_(self.regressor.residual_scale)
+
+    @classmethod
+    def around(cls, regressor: SequenceModel, *, latent_dim: int, **options: Any) -> ReducedNet:
+        """A reduced net holding a copy of ``regressor`` (weights included) and a freshly
+        initialised auto-encoder; ``options`` are the other constructor arguments."""
+        config = regressor.config()
+        common = {k: config[k] for k in ("window", "n_u", "n_y", "feedthrough", "residual")}
+        net = cls(
+            regressor=regressor.name,
+            regressor_config=config,
+            latent_dim=latent_dim,
+            **options,
+            **common,
+        )
+        net.regressor.load_state_dict(regressor.state_dict())
+        net.residual_scale.copy_(net.regressor.residual_scale)
+        return net.to(next(regressor.parameters()).dtype)
+
+    def options(self) -> dict[str, Any]:
+        return {
+            "regressor": self.regressor.name,
+            "regressor_config": self.regressor.config(),
+            "latent_dim": self.latent_dim,
+            "encoder_hidden": list(self.encoder_hidden),
+            "decoder_hidden": list(self.decoder_hidden),
+            "reconstruction_weight": self.reconstruction_weight,
+            "consistency_weight": self.consistency_weight,
+            "output_weight": self.output_weight,
+        }
+
+    def freeze_regressor(self, frozen: bool) -> None:
+        """Stop (``True``) or allow (``False``) gradient updates of ``Ĥ``'s weights."""
+        for p in self.regressor.parameters():
+            p.requires_grad_(not frozen)
+
+    # ------------------------------------------------------------------ the reduced model
+    def encode(self, z: torch.Tensor) -> torch.Tensor:
+        """``x̄ = E(z)``: ``(…, ℓp)`` → ``(…, n̄)``."""
+        return self.encoder(z)
+
+    def decode(self, x: torch.Tensor) -> torch.Tensor:
+        """``D(x̄)``: ``(…, n̄)`` → ``(…, ℓp)``."""
+        return self.decoder(x)
+
+    def output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """``ȳ_t = Ĥ(D(x̄_t), u_t)``: ``x`` ``(B, n̄)``, ``u`` ``(B, n_u)`` → ``(B, n_y)``."""
+        return self.regressor.one_step(self.decoder(x), u)
+
+    def step(self, x: torch.Tensor, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(x̄_{t+1}, ȳ_t)`` from ``x̄_t`` ``(B, n̄)`` and ``u_t`` ``(B, n_u)``."""
+        z = self.decoder(x)
+        y = self.regressor.one_step(z, u)
+        return self.encoder(shift(z, u, y)), y
+
+    def one_step(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        return self.output(self.encoder(z), u)
+
+    def _latent_rollout(
+        self, x: torch.Tensor, u_future: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Outputs ``(B, H, n_y)`` and states ``x̄_0 … x̄_H`` ``(B, H+1, n̄)`` from ``x̄_0 = x``."""
+        outputs, states = [], [x]
+        for k in range(u_future.shape[1]):
+            x, y = self.step(x, u_future[:, k])
+            outputs.append(y)
+            states.append(x)
+        return torch.stack(outputs, dim=1), torch.stack(states, dim=1)
+
+    def rollout(
+        self, u_past: torch.Tensor, y_past: torch.Tensor, u_future: torch.Tensor
+    ) -> torch.Tensor:
+        self._check_rollout_args(u_past, y_past, u_future)
+        return self._latent_rollout(self.encoder(pairs_to_state(u_past, y_past)), u_future)[0]
+
+    def training_loss(
+        self, u: torch.Tensor, y: torch.Tensor, *, alpha_first: float
+    ) -> tuple[torch.Tensor, dict[str, float]]:
+        ell = self.window
+        # measured windows z_k, k = 0 … H: samples k … k+ℓ−1 of the sub-window
+        pairs = torch.cat([u, y], dim=-1)  # (B, ℓ+H, p)
+        z_meas = pairs.unfold(1, ell, 1).transpose(2, 3).reshape(u.shape[0], -1, self.state_dim)
+        x_enc = self.encoder(z_meas)  # (B, H+1, n̄)
+        recon = (self.decoder(x_enc) - z_meas).pow(2).mean()
+        y_pred, x_roll = self._latent_rollout(x_enc[:, 0], u[:, ell:])
+        consist = (x_roll[:, 1:] - x_enc[:, 1:]).pow(2).mean()
+        oe = output_error(y_pred, y[:, ell:], alpha_first=alpha_first)
+        loss = (
+            self.reconstruction_weight * recon
+            + self.consistency_weight * consist
+            + self.output_weight * oe
+        )
+        parts = {
+            "output_error": float(oe.detach()),
+            "consistency": float(consist.detach()),
+            "reconstruction": float(recon.detach()),
+        }
+        return loss, parts
