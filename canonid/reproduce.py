@@ -18,8 +18,8 @@
    models (Ours MLP/GRU, seed 0) against the analysis's certified constants
    (:mod:`analysis.learned`), for the windows both stages cover.
 4. **Compression study** — :func:`canonid.reduction.compression_sweep` on the profile's trained
-   canonical runs (heat-map and reduced-model figure), when the model-reduction feature is
-   present in this version of canonid.
+   canonical runs of seed 0 (heat-map and reduced-model figure); its jobs go through the same
+   runner and are resumable too.
 5. **Figures and report** — Table 1 against the paper's printed values (:mod:`canonid.paper`)
    as a figure and tables, one rollout figure per system, and ``report.md`` + ``report.html``
    (:mod:`canonid.report`) linking every artefact; ``reproduction.json`` holds every number.
@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import importlib.util
 import logging
 import math
 import os
@@ -60,6 +59,7 @@ import numpy as np
 
 from canonid.paper import table1_value
 from canonid.profiles import profile as load_profile
+from canonid.reduction import SweepPlan, compression_sweep
 from canonid.reproduce_jobs import (
     ANALYSIS_KEYS,
     RESULT_FILE,
@@ -637,11 +637,6 @@ def learned_checks(
     return out
 
 
-def reduction_available() -> bool:
-    """Whether this version of canonid has the model-reduction feature (issue 5)."""
-    return importlib.util.find_spec("canonid.reduction") is not None
-
-
 def compression_study(
     settings: ReproduceSettings, outcomes: Sequence[JobOutcome]
 ) -> dict[str, Any]:
@@ -651,13 +646,6 @@ def compression_study(
     spec = dict(settings.stage.get("compression", {}))
     if not spec:
         return {"skipped": "the profile has no compression entry"}
-    if not reduction_available():
-        return {
-            "skipped": "model reduction (issue 5) is not part of this version of canonid; "
-            "the compression study will run here once it is"
-        }
-    from canonid.reduction import SweepPlan, compression_sweep
-
     out: dict[str, Any] = {}
     for system in settings.systems:
         runs = [

@@ -152,8 +152,8 @@ def _fmt(value: float | None, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
-def _pm(mean: float, std: float) -> str:
-    return f"{_fmt(mean)} ± {_fmt(std, 2)}"
+def _pm(mean: float, std: float, seeds: int) -> str:
+    return f"{_fmt(mean)} ± {_fmt(std, 2)}" if seeds > 1 else _fmt(mean)
 
 
 def _mean_std(mean: float | None, std: float | None, scale: float) -> str:
@@ -515,13 +515,18 @@ def _compression_blocks(
                     str(r["window"]),
                     f"{r['compression']:.0%}",
                     f"{r['latent_dim']} / {r['state_dim']}",
-                    _pm(r["reconstruction_mse_mean"], r["reconstruction_mse_std"]),
-                    _pm(r["rollout_mse_mean"], r["rollout_mse_std"]),
+                    _pm(r["reconstruction_mse_mean"], r["reconstruction_mse_std"], r["seeds"]),
+                    _pm(r["rollout_mse_mean"], r["rollout_mse_std"], r["seeds"]),
                     _fmt(r["full_rollout_mse"]),
                     str(r["seeds"]),
                 ]
                 for r in study["rows"]
             ],
+            caption=(
+                "auto-encoder reduction of the trained canonical model (seed 0) to n̄ states; "
+                "100-step MSE of the reduced and the full model against the measured test "
+                "outputs, physical units; mean ± standard deviation over the auto-encoder seeds"
+            ),
         )
         report.figure(
             Path(study["heatmap"]),

@@ -22,11 +22,12 @@ pytestmark = pytest.mark.slow
 
 
 def _results(out: Path) -> dict[str, tuple[bytes, int]]:
-    """Every job's result.json: bytes and modification time (ns)."""
-    return {
-        str(p.relative_to(out)): (p.read_bytes(), p.stat().st_mtime_ns)
-        for p in sorted(out.glob(f"**/{RESULT_FILE}"))
-    }
+    """Every job's result file (Table 1, analysis, reductions) and model weights: bytes and
+    modification time (ns)."""
+    files = [
+        p for name in (RESULT_FILE, "reduction.json", "weights.pt") for p in out.glob(f"**/{name}")
+    ]
+    return {str(p.relative_to(out)): (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(files)}
 
 
 def _table(out: Path) -> list[dict]:
@@ -60,6 +61,8 @@ def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
         assert (serial / target).exists(), target
     html = (serial / "report.html").read_text()
     assert html.count("data:image/png;base64,") == md.count("![")  # figures inlined
+    (row,) = data["compression"]["tank"]["rows"]  # the tiny study: one run, one rate
+    assert row["window"] == 5 and row["compression"] == 0.5 and row["latent_dim"] < row["state_dim"]
     kinds = sorted(j["kind"] for j in data["jobs"])
     assert kinds == ["analysis", "train", "train"]
     checks = data["learned_checks"]["tank"]
@@ -107,7 +110,7 @@ def test_interrupted_run_resumes_without_redoing_finished_jobs(tmp_path, monkeyp
     with pytest.raises(KeyboardInterrupt):
         reproduce(settings_from_profile("tiny", out=out, progress=False))
     finished = _results(out)
-    assert list(finished) == ["analysis/tank/result.json"]
+    assert list(finished) == ["analysis/tank/result.json"]  # the one job done before Ctrl-C
 
     with pytest.raises(CheckpointError, match="--resume"):
         reproduce(settings_from_profile("tiny", out=out, progress=False))
