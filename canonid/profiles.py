@@ -16,7 +16,9 @@ order, so the longest come first; the tables sort them); per system, the dataset
 seed, flights per split, samples per flight; missing keys take the scenario's defaults);
 ``train``: overrides of the ``train`` stage for every Table-1 job (``per_model``: further
 overrides for one model — in ``quick``, Ours (GRU), whose epoch costs ℓ times more as it re-reads
-the window at every step, gets fewer epochs); ``evaluation``: the paper metric's rollout length
+the window at every step, gets fewer epochs); ``networks``: per system and model, constructor
+options of the network (``paper``: Ours (MLP) of 2 × 2048 on the quadrotor, as the paper's
+appendix; otherwise the registry's defaults); ``evaluation``: the paper metric's rollout length
 and start stride; ``analysis``: per system, the windows, sets, Monte-Carlo trials and the budget
 of every certified search (systems not listed are not analysed); ``compression``: which trained
 runs the compression study reduces, at which rates and seeds; ``rollouts``: the window of the
@@ -127,6 +129,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "quadrotor": {"seed": 0, "counts": {"train": 146, "val": 20, "test": 10}},
             },
             "train": {},
+            "networks": {"quadrotor": {"mlp": {"hidden": [2048, 2048]}}},
             "evaluation": {"horizon": 100, "stride": 1},
             "analysis": {
                 "tank": {

@@ -292,6 +292,7 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
     out = settings.out.resolve()
     overrides = dict(stage.get("train", {}))
     per_model = overrides.pop("per_model", {})
+    networks = stage.get("networks", {})
     evaluation = {"horizon": 100, "stride": 1, **stage.get("evaluation", {})}
     jobs: list[Job] = []
     for system in settings.systems:
@@ -325,6 +326,7 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
                             profile=settings.profile,
                             train_options=options.to_dict(),
                             evaluation=evaluation,
+                            net_options=networks.get(system, {}).get(model, {}),
                         )
                     )
     return jobs

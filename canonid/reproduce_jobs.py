@@ -17,7 +17,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -118,6 +118,7 @@ class TrainJob:
     profile: str
     train_options: Mapping[str, Any]
     evaluation: Mapping[str, Any]
+    net_options: Mapping[str, Any] = field(default_factory=dict)
     threads: int | None = 1
 
     @property
@@ -135,6 +136,7 @@ class TrainJob:
             "profile": self.profile,
             "train_options": dict(self.train_options),
             "evaluation": dict(self.evaluation),
+            "net_options": dict(self.net_options),
         }
 
     def run(self) -> JobOutcome:
@@ -164,7 +166,7 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
         "val_fraction": 0.2,
         "model": job.model,
         "window": job.window,
-        "net_options": {},
+        "net_options": dict(job.net_options),
         "profile": job.profile,
         "train_options": dict(job.train_options),
         "command": ["canonid", "reproduce", "(job)", job.name],
