@@ -1,6 +1,6 @@
 """Experiment profiles: the one place where the budgets of every stage are written down, as data.
 
-A profile maps a stage name (``"train"``, ``"reduce"``; later ``"reproduce"``) to the options of
+A profile maps a stage name (``"train"``, ``"reduce"``, ``"reproduce"``) to the options of
 that stage. ``quick`` fits in minutes on a 2-core CPU and goes through the same code path as
 ``paper``, which uses the paper's numbers (10,000 regressor epochs, Adam at 1e-4) and is meant for
 a GPU or a cluster. Later issues add their stages here.
@@ -9,6 +9,20 @@ How ``quick`` ``train`` was chosen (tank, ℓ = 10; commands and figures in the 
 rollout length, learning-rate schedule, batch and curriculum were tuned for the best validation
 error in a few CPU minutes; validation runs every 5 epochs on every 5th start time to keep its
 cost below the training's.
+
+The ``reproduce`` stage (read by :mod:`canonid.reproduce`) says what ``canonid reproduce`` runs:
+the default systems, windows, models and number of seeds of Table 1 (jobs start in the listed
+order, so the longest come first; the tables sort them); per system, the dataset (``data``:
+seed, flights per split, samples per flight; missing keys take the scenario's defaults);
+``train``: overrides of the ``train`` stage for every Table-1 job (``per_model``: further
+overrides for one model — in ``quick``, Ours (GRU), whose epoch costs ℓ times more as it re-reads
+the window at every step, gets fewer epochs); ``networks``: per system and model, constructor
+options of the network (``paper``: Ours (MLP) of 2 × 2048 on the quadrotor, as the paper's
+appendix; otherwise the registry's defaults); ``evaluation``: the paper metric's rollout length
+and start stride; ``analysis``: per system, the windows, sets, Monte-Carlo trials and the budget
+of every certified search (systems not listed are not analysed); ``compression``: which trained
+runs the compression study reduces, at which rates and seeds; ``rollouts``: the window of the
+per-system rollout figure. ``tiny`` exists for the tests: the same code path in seconds.
 
 The ``reduce`` stage holds the :class:`learning.training.TrainOptions` of the auto-encoder's
 training and the :class:`learning.reduction.ReductionOptions` (sizes of E and D, the share of
@@ -30,6 +44,42 @@ __all__ = ["PROFILES", "profile", "profile_names", "reduce_options", "train_opti
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
     "quick": {
+        "reproduce": {
+            "systems": ["tank"],
+            "windows": [10, 5],
+            "models": ["gru", "mlp", "classic-gru", "masti"],
+            "seeds": 1,
+            "data": {
+                "tank": {"seed": 0, "counts": {"train": 60, "val": 20, "test": 20}},
+                "drone2d": {"seed": 0, "counts": {"train": 60, "val": 10, "test": 10}},
+                "quadrotor": {"seed": 0, "counts": {"train": 40, "val": 10, "test": 10}},
+            },
+            "train": {"epochs": 150, "per_model": {"gru": {"epochs": 30}}},
+            "evaluation": {"horizon": 100, "stride": 5},
+            "analysis": {
+                "tank": {
+                    "windows": [1, 2, 3, 4, 5],
+                    "X": [[0.05, 0.05], [5.0, 5.0]],
+                    "U": [[1.0], [3.0]],
+                    "trials": 200,
+                    "budget_seconds": 5.0,
+                    "boxes": 20_000,
+                },
+                "drone2d": {
+                    "windows": [1, 2, 3, 4, 5],
+                    "trials": 100,
+                    "budget_seconds": 5.0,
+                    "boxes": 20_000,
+                },
+            },
+            "compression": {
+                "models": ["mlp"],
+                "windows": [10],
+                "rates": [0.15, 0.45, 0.75, 0.9],
+                "seeds": [0],
+            },
+            "rollouts": {"window": 10},
+        },
         "train": {
             "epochs": 600,
             "batch_size": 16,
@@ -68,6 +118,43 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
         },
     },
     "paper": {
+        "reproduce": {
+            "systems": ["tank", "drone2d", "quadrotor"],
+            "windows": [30, 25, 20, 15, 10, 5],
+            "models": ["gru", "mlp", "classic-gru", "masti"],
+            "seeds": 3,
+            "data": {
+                "tank": {"seed": 0, "counts": {"train": 60, "val": 20, "test": 20}},
+                "drone2d": {"seed": 0, "counts": {"train": 500, "val": 20, "test": 20}},
+                "quadrotor": {"seed": 0, "counts": {"train": 146, "val": 20, "test": 10}},
+            },
+            "train": {},
+            "networks": {"quadrotor": {"mlp": {"hidden": [2048, 2048]}}},
+            "evaluation": {"horizon": 100, "stride": 1},
+            "analysis": {
+                "tank": {
+                    "windows": list(range(1, 11)),
+                    "X": [[0.05, 0.05], [5.0, 5.0]],
+                    "U": [[1.0], [3.0]],
+                    "trials": 1000,
+                    "budget_seconds": 600.0,
+                    "boxes": 200_000,
+                },
+                "drone2d": {
+                    "windows": list(range(1, 11)),
+                    "trials": 1000,
+                    "budget_seconds": 600.0,
+                    "boxes": 200_000,
+                },
+            },
+            "compression": {
+                "models": ["mlp"],
+                "windows": [5, 10, 15, 20, 25, 30],
+                "rates": [0.15, 0.30, 0.45, 0.60, 0.75, 0.90],
+                "seeds": [0, 1, 2],
+            },
+            "rollouts": {"window": 10},
+        },
         "train": {
             "epochs": 10_000,
             "batch_size": 32,
@@ -100,6 +187,65 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "encoder_hidden": [512, 512],
             "decoder_hidden": [512, 512],
             "freeze_fraction": 0.75,
+            "reconstruction_weight": 1.0,
+            "consistency_weight": 1.0,
+            "output_weight": 1.0,
+        },
+    },
+    "tiny": {
+        "reproduce": {
+            "systems": ["tank"],
+            "windows": [5],
+            "models": ["mlp", "classic-gru"],
+            "seeds": 1,
+            "data": {"tank": {"seed": 0, "counts": {"train": 4, "val": 2, "test": 2}, "T": 140}},
+            "train": {},
+            "evaluation": {"horizon": 100, "stride": 5},
+            "analysis": {
+                "tank": {
+                    "windows": [5],
+                    "X": [[0.05, 0.05], [5.0, 5.0]],
+                    "U": [[1.0], [3.0]],
+                    "trials": 5,
+                    "budget_seconds": 1.0,
+                    "boxes": 100,
+                },
+            },
+            "compression": {"models": ["mlp"], "windows": [5], "rates": [0.5], "seeds": [0]},
+            "rollouts": {"window": 5},
+        },
+        "train": {
+            "epochs": 3,
+            "batch_size": 8,
+            "lr": 1e-3,
+            "lr_final": None,
+            "horizon": 10,
+            "curriculum_epochs": 0,
+            "windows_per_trajectory": 1,
+            "alpha_first": 10.0,
+            "patience": None,
+            "val_every": 1,
+            "val_stride": 10,
+            "val_horizon": 20,
+            "checkpoint_every": 1,
+        },
+        "reduce": {
+            "epochs": 2,
+            "batch_size": 8,
+            "lr": 1e-3,
+            "lr_final": None,
+            "horizon": 10,
+            "curriculum_epochs": 0,
+            "windows_per_trajectory": 1,
+            "alpha_first": 1.0,
+            "patience": None,
+            "val_every": 1,
+            "val_stride": 10,
+            "val_horizon": 20,
+            "checkpoint_every": 1,
+            "encoder_hidden": [16],
+            "decoder_hidden": [16],
+            "freeze_fraction": 0.5,
             "reconstruction_weight": 1.0,
             "consistency_weight": 1.0,
             "output_weight": 1.0,

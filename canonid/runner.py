@@ -34,6 +34,7 @@ import signal
 import socket
 import threading
 import traceback
+import warnings
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -162,7 +163,9 @@ def _executor(
             _probe_scheduler(scheduler, connect_timeout)
             client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
         else:
-            with _workers_ignore_ctrl_c():
+            with _workers_ignore_ctrl_c(), warnings.catch_warnings():
+                # the scheduler's HTTP server moves to a free port when 8787 is taken: not news
+                warnings.filterwarnings("ignore", message="Port .* is already in use")
                 cluster = LocalCluster(
                     n_workers=workers,
                     threads_per_worker=1,

@@ -1,4 +1,4 @@
-"""The command line: help, version, the systems table, readable errors, pending commands."""
+"""The command line: help, version, the systems table, readable errors."""
 
 from __future__ import annotations
 
@@ -48,15 +48,3 @@ def test_console_entry_point_errors_are_one_line():
 
 def test_parser_builds():
     assert build_parser().prog == "canonid"
-
-
-def test_pending_subcommand_says_so_and_exits_2(capsys):
-    from canonid.commands import COMMANDS
-    from canonid.commands._pending import not_yet
-
-    pending = [m for m in COMMANDS if m.__doc__ and "not implemented yet" in m.__doc__]
-    for module in pending:
-        name = module.__name__.rsplit(".", 1)[1]
-        assert main([name]) == 2
-        assert "not implemented yet" in capsys.readouterr().err
-    assert callable(not_yet("x"))

@@ -2,7 +2,6 @@
 
 from canonid.commands import (
     analyze,
-    demo,
     evaluate,
     generate,
     reduce,
@@ -12,6 +11,6 @@ from canonid.commands import (
 )
 
 #: registration order is the order shown by ``canonid --help``
-COMMANDS = (systems, generate, train, reduce, evaluate, analyze, reproduce, demo)
+COMMANDS = (systems, generate, train, reduce, evaluate, analyze, reproduce)
 
 __all__ = ["COMMANDS"]

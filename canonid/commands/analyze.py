@@ -125,7 +125,7 @@ def load_trained_model(run_dir: Path) -> Any:
     an object with ``H(z, u) -> y`` and ``window`` (see ``learning/export.py``).
     """
     try:
-        from learning import Model  # type: ignore[attr-defined]
+        from learning import Model  # type: ignore[attr-defined,unused-ignore]
     except ImportError:
         raise NotImplementedYetError(
             "--run needs the identification feature (learning.Model), which this version of "

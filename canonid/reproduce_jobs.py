@@ -1,0 +1,359 @@
+"""The independent jobs of a reproduction (:mod:`canonid.reproduce`) and their stored results.
+
+A job is a small frozen dataclass (picklable, so Dask can send it to a worker) with a ``name``,
+a ``folder``, a ``recipe()`` — everything that determines its result — and ``run()``. ``run``
+first looks for ``folder/result.json``: when it holds the same recipe the job is finished and its
+stored outcome is returned without running anything; otherwise the job does its work and writes
+``result.json`` last, atomically (so a file that exists is complete). A ``result.json`` of another
+recipe is an error: the folder belongs to another reproduction.
+
+* :class:`TrainJob` — one cell of Table 1 for one seed: a ``canonid train`` run folder, trained
+  (or continued from its checkpoint) and scored on the test split.
+* :class:`AnalysisJob` — the analysis of one system (:func:`analysis.report.analyze`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from learning.training import OptionError
+from models.errors import CheckpointError
+from models.io import atomic_write_json, read_json
+
+__all__ = [
+    "ANALYSIS_KEYS",
+    "RESULT_FILE",
+    "AnalysisJob",
+    "Job",
+    "JobOutcome",
+    "TrainJob",
+    "finished",
+    "jsonable",
+    "run_job",
+]
+
+RESULT_FILE = "result.json"
+RESULT_FORMAT = "canonid-reproduce-job"
+
+
+@dataclass(frozen=True)
+class JobOutcome:
+    """What a job returns: its kind, its recipe, its result (JSON-ready) and whether it ran
+    now (``False``: read back from a finished ``result.json``)."""
+
+    kind: str
+    name: str
+    folder: str
+    recipe: dict[str, Any]
+    result: dict[str, Any]
+    ran: bool
+
+
+def finished(folder: Path, recipe: Mapping[str, Any]) -> JobOutcome | None:
+    """The outcome stored in ``folder/result.json`` if it holds ``recipe``; ``None`` if there
+    is none; a result of another recipe is an error (the folder belongs to another run)."""
+    path = folder / RESULT_FILE
+    if not path.is_file():
+        return None
+    stored = read_json(path, what="job result")
+    if not isinstance(stored, dict) or stored.get("format") != RESULT_FORMAT:
+        raise CheckpointError(f"{path} is not a canonid reproduction job result")
+    if stored.get("recipe") != jsonable(dict(recipe)):
+        differs = sorted(
+            k
+            for k in {*recipe, *stored.get("recipe", {})}
+            if stored.get("recipe", {}).get(k) != jsonable(recipe.get(k))
+        )
+        raise CheckpointError(
+            f"{path} was made with another recipe (differs in {differs}); reproduce into "
+            "another --out, or remove that folder"
+        )
+    return JobOutcome(
+        kind=stored["kind"],
+        name=stored["name"],
+        folder=str(folder),
+        recipe=stored["recipe"],
+        result=stored["result"],
+        ran=False,
+    )
+
+
+def store(kind: str, name: str, folder: Path, recipe: Mapping[str, Any], result: Any) -> JobOutcome:
+    body = {
+        "format": RESULT_FORMAT,
+        "kind": kind,
+        "name": name,
+        "recipe": jsonable(dict(recipe)),
+        "result": jsonable(result),
+    }
+    atomic_write_json(folder / RESULT_FILE, body)
+    return JobOutcome(kind, name, str(folder), body["recipe"], body["result"], ran=True)
+
+
+@dataclass(frozen=True)
+class TrainJob:
+    """One cell of Table 1 for one seed: train ``model`` with window ``window`` on the dataset,
+    then score it on its test split. Picklable (sent to Dask workers, which must see ``folder``
+    and ``data``: a shared file system on a cluster).
+
+    The folder is a ``canonid train`` run folder (``run.json``, the model, ``checkpoint.pt``,
+    ``history.csv``, ``training_curve.png``, ``metrics.json``, ``rollouts.png``), so ``canonid
+    evaluate``, ``canonid analyze --run`` and ``canonid reduce`` read it unchanged.
+    """
+
+    system: str
+    model: str
+    window: int
+    seed: int
+    data: str
+    data_sha256: str
+    folder: str
+    profile: str
+    train_options: Mapping[str, Any]
+    evaluation: Mapping[str, Any]
+    net_options: Mapping[str, Any] = field(default_factory=dict)
+    threads: int | None = 1
+
+    @property
+    def name(self) -> str:
+        return f"{self.system} {self.model} ℓ={self.window} seed {self.seed}"
+
+    def recipe(self) -> dict[str, Any]:
+        """What a finished job must match to be reused (the data by checksum, not by path)."""
+        return {
+            "system": self.system,
+            "model": self.model,
+            "window": self.window,
+            "seed": self.seed,
+            "data_sha256": self.data_sha256,
+            "profile": self.profile,
+            "train_options": dict(self.train_options),
+            "evaluation": dict(self.evaluation),
+            "net_options": dict(self.net_options),
+        }
+
+    def run(self) -> JobOutcome:
+        folder = Path(self.folder)
+        done = finished(folder, self.recipe())
+        if done is not None:
+            return done
+        with _torch_threads(self.threads):
+            result = _train_and_score(self, folder)
+        return store("train", self.name, folder, self.recipe(), result)
+
+
+def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
+    """Train (or continue from the checkpoint) and evaluate; the ``canonid train`` run
+    folder plus the fields of Table 1."""
+    from canonid.commands.evaluate import RUN_FILE, evaluate_run
+    from canonid.commands.train import _splits, _write_history
+    from learning import TrainOptions, fit
+    from learning.training import CHECKPOINT_FILE
+
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    recipe: dict[str, Any] = {
+        "format": "canonid-run",
+        "data": job.data,
+        "data_options": {},
+        "val": None,
+        "val_fraction": 0.2,
+        "model": job.model,
+        "window": job.window,
+        "net_options": dict(job.net_options),
+        "profile": job.profile,
+        "train_options": dict(job.train_options),
+        "command": ["canonid", "reproduce", "(job)", job.name],
+    }
+    dataset, train, val, test_name, data_path = _splits(recipe)
+    folder.mkdir(parents=True, exist_ok=True)
+    resume = (folder / CHECKPOINT_FILE).is_file()
+    atomic_write_json(folder / RUN_FILE, recipe)
+    fitted = fit(
+        train,
+        val,
+        model=job.model,
+        window=job.window,
+        options=TrainOptions.from_dict(job.train_options),
+        net_options=recipe["net_options"],
+        run_dir=folder,
+        resume=resume,
+        info={
+            "profile": job.profile,
+            "data": {"path": data_path, "splits": dataset.counts()},
+            "input_names": list(dataset.input_names),
+            "output_names": list(dataset.output_names),
+            "dt": dataset.dt,
+        },
+    )
+    _write_history(folder, fitted.history)
+    metrics = evaluate_run(
+        folder,
+        fitted.model,
+        dataset,
+        data_path=data_path,
+        split=test_name,
+        horizon=int(job.evaluation["horizon"]),
+        stride=int(job.evaluation["stride"]),
+        n_init=None,
+    )
+    clean = metrics.get("clean") or {}
+    return {
+        "rollout_mse": metrics["rollout_mse"],
+        "rollout_mse_clean": clean.get("rollout_mse"),
+        "rmse": metrics["rmse"],
+        "nrmse": metrics["nrmse"],
+        "fit_percent": metrics["fit_percent"],
+        "n_rollouts": metrics["n_rollouts"],
+        "split": test_name,
+        "epochs_run": fitted.epochs_run,
+        "best_epoch": fitted.best_epoch,
+        "best_val_loss": fitted.best_val_loss,
+        "stopped": fitted.stopped,
+        "resumed_from_checkpoint": resume,
+        "seconds": round(time.perf_counter() - t0, 3),
+        "cpu_seconds": round(time.process_time() - cpu0, 3),
+    }
+
+
+@dataclass(frozen=True)
+class AnalysisJob:
+    """The analysis of one system (:func:`analysis.report.analyze`): γ_f, γ_h, α_ℓ brackets and
+    the Monte-Carlo check of Proposition 2 for each window, with the profile's budget; writes
+    ``analysis.json`` and ``bound_vs_window.png`` into ``folder``."""
+
+    system: str
+    folder: str
+    settings: Mapping[str, Any]
+    seed: int = 0
+
+    @property
+    def name(self) -> str:
+        return f"{self.system} analysis"
+
+    def recipe(self) -> dict[str, Any]:
+        return {"system": self.system, "settings": dict(self.settings), "seed": self.seed}
+
+    def run(self) -> JobOutcome:
+        folder = Path(self.folder)
+        done = finished(folder, self.recipe())
+        if done is not None:
+            return done
+        result = _analyse(self, folder)
+        return store("analysis", self.name, folder, self.recipe(), result)
+
+
+ANALYSIS_KEYS = frozenset({"windows", "X", "U", "W", "trials", "budget_seconds", "boxes"})
+
+
+def _box(value: Any, where: str) -> Any:
+    from models.sets import Box
+
+    if value is None:
+        return None
+    try:
+        lo, hi = value
+        return Box(lo, hi)
+    except (TypeError, ValueError) as exc:
+        raise OptionError(f"{where}: expected [[lower...], [upper...]], got {value!r}") from exc
+
+
+def _analyse(job: AnalysisJob, folder: Path) -> dict[str, Any]:
+    from analysis.estimate import Budget
+    from analysis.report import analyze
+    from models.registry import get_system
+
+    s = job.settings
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    system = get_system(job.system)
+    report = analyze(
+        system,
+        list(s["windows"]),
+        X=_box(s.get("X"), f"analysis.{job.system}.X"),
+        U=_box(s.get("U"), f"analysis.{job.system}.U"),
+        W=_box(s.get("W"), f"analysis.{job.system}.W"),
+        trials=int(s["trials"]),
+        budget=Budget(seconds=float(s["budget_seconds"]), boxes=int(s["boxes"])),
+        seed=job.seed,
+    )
+    folder.mkdir(parents=True, exist_ok=True)
+    report.write_json(folder / "analysis.json")
+    figure = report.figure(folder / "bound_vs_window.png") if report.checks else None
+    rows = []
+    for r in report.results:
+        c = r.check
+        rows.append(
+            {
+                "window": r.window,
+                "gamma_f": [r.gamma_f.lower.value, r.gamma_f.upper.value],
+                "gamma_h": [r.gamma_h.lower.value, r.gamma_h.upper.value],
+                "alpha": [r.alpha.lower.value, r.alpha.upper.value],
+                "trials": c.trials if c else 0,
+                "violations": c.violations if c else None,
+                "solver_failures": c.solver_failures if c else None,
+                "max_ratio": c.max_ratio if c else None,
+                "max_error": c.max_error if c else None,
+                "worst_case_bound": c.worst_case_bound if c else None,
+            }
+        )
+    return {
+        "windows": rows,
+        "sets": {"X": report.X.to_dict(), "U": report.U.to_dict(), "W": report.W.to_dict()},
+        "table": report.table(),
+        "figure": str(figure) if figure else None,
+        "seconds": round(time.perf_counter() - t0, 3),
+        "cpu_seconds": round(time.process_time() - cpu0, 3),
+    }
+
+
+Job = TrainJob | AnalysisJob
+
+
+def run_job(job: Job) -> JobOutcome:
+    """Run one job (the function :func:`canonid.runner.run_jobs` sends to workers)."""
+    return job.run()
+
+
+class _torch_threads:
+    """Set torch's CPU threads for a job, then restore them (a job must not starve its
+    neighbours on a shared machine, nor leave a worker changed)."""
+
+    def __init__(self, threads: int | None) -> None:
+        self.threads = threads
+        self.previous: int | None = None
+
+    def __enter__(self) -> None:
+        if self.threads is not None:
+            import torch
+
+            self.previous = torch.get_num_threads()
+            torch.set_num_threads(self.threads)
+
+    def __exit__(self, *exc: object) -> None:
+        if self.previous is not None:
+            import torch
+
+            torch.set_num_threads(self.previous)
+
+
+def jsonable(value: Any) -> Any:
+    """JSON-ready copy: numpy scalars to Python, non-finite floats to ``None``, tuples to
+    lists (so a recipe compares equal after a round trip through JSON)."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, Path):
+        return str(value)
+    return value

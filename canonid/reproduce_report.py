@@ -1,0 +1,539 @@
+"""Figures and the report of a reproduction (:mod:`canonid.reproduce`).
+
+:func:`write_report` draws, per system, Table 1 as a figure (our 100-step MSE against ℓ, mean ±
+standard deviation over seeds, beside the paper's printed values) and the open-loop rollouts of
+every model on a test record, then writes ``report.md`` and ``report.html``
+(:class:`canonid.report.Report`): each of our numbers next to the paper's, the profile and
+budget that produced it, the machine, and a link to every artefact.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
+from canonid.report import Report
+
+__all__ = ["QUADROTOR_NOTE", "plot_rollouts", "plot_table1", "system_label", "write_report"]
+
+#: how the quadrotor column is labelled everywhere (the paper used the real Blackbird flights)
+QUADROTOR_NOTE = "simulated stand-in vs real data in the paper"
+
+
+def system_label(system: str) -> str:
+    """The paper's name of ``system`` (the registry name when the paper has none), with the
+    quadrotor's caveat."""
+    column = TABLE1.get(system)
+    label = column.label if column else system
+    return f"{label} ({QUADROTOR_NOTE})" if system == "quadrotor" else label
+
+
+def _scale(system: str) -> float:
+    column = TABLE1.get(system)
+    return column.scale if column else 1.0
+
+
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig: Any, path: Path) -> Path:
+    import io
+
+    from models.io import atomic_write_bytes
+
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
+    _pyplot().close(fig)
+    return atomic_write_bytes(path, buf.getvalue())
+
+
+def plot_table1(cells: Sequence[Any], system: str, path: Path) -> Path:
+    """Our MSE against ℓ per model (mean ± std over seeds, solid) and the paper's (dashed),
+    log scale, in the paper's scale for the system."""
+    plt = _pyplot()
+    scale = _scale(system)
+    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    models = sorted({c.model for c in cells if c.system == system}, key=_model_order)
+    for k, model in enumerate(models):
+        mine = sorted(
+            (c for c in cells if c.system == system and c.model == model), key=lambda c: c.window
+        )
+        x = [c.window for c in mine]
+        y = np.array([c.mean for c in mine]) / scale
+        err = np.array([c.std or 0.0 for c in mine]) / scale
+        ax.errorbar(
+            x,
+            y,
+            yerr=err,
+            fmt="o-",
+            color=f"C{k}",
+            capsize=3,
+            label=f"{MODEL_LABELS.get(model, model)} (canonid)",
+        )
+        column = TABLE1.get(system)
+        if column is not None and model in column.values:
+            ax.plot(
+                PAPER_WINDOWS,
+                column.values[model],
+                "x--",
+                color=f"C{k}",
+                alpha=0.6,
+                label=f"{MODEL_LABELS.get(model, model)} (paper)",
+            )
+    ax.set_yscale("log")
+    ax.set_xlabel("window ℓ")
+    ax.set_ylabel(f"100-step MSE [×{scale:g}]")
+    ax.set_title(f"Table 1, {system_label(system)}", fontsize=10)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, ncol=2)
+    return _save(fig, path)
+
+
+def plot_rollouts(
+    runs: Mapping[str, str], dataset: Any, path: Path, *, title: str, record: int = 0
+) -> Path:
+    """Open-loop simulations of one test record by every model in ``runs`` (model name → run
+    folder), from a burn-in on the measured samples ``n_init−ℓ … n_init−1``, ``n_init =
+    max(ℓ, 50)`` (capped to leave half the record), against the measured and noise-free
+    outputs; one panel per output."""
+    from learning import Model
+    from learning.evaluate import simulate_records
+
+    plt = _pyplot()
+    test = dataset.split("test") if "test" in dataset.splits else dataset.split("val")
+    trajectory = test[record]
+    models = {name: Model.load(folder) for name, folder in runs.items()}
+    window = max(m.window for m in models.values())
+    n_init = min(max(window, 50), max(window, trajectory.T // 2))
+    t = np.arange(trajectory.T) * dataset.dt
+    fig, axes = plt.subplots(
+        dataset.n_y, 1, figsize=(7.5, 2.2 * dataset.n_y + 0.6), squeeze=False, sharex=True
+    )
+    for i, name in enumerate(dataset.output_names):
+        ax = axes[i, 0]
+        ax.plot(t, trajectory.y[:, i], ".", ms=2, color="0.6", label="measured y")
+        if trajectory.y_clean is not None:
+            ax.plot(t, trajectory.y_clean[:, i], color="k", lw=1, label="noise-free y")
+        ax.set_ylabel(name)
+        ax.axvline(t[n_init], color="0.3", ls="--", lw=0.8)
+    for k, (name, model) in enumerate(sorted(models.items(), key=lambda kv: _model_order(kv[0]))):
+        (sim,) = simulate_records(model, [trajectory], n_init)
+        for i in range(dataset.n_y):
+            axes[i, 0].plot(
+                t[n_init:], sim[:, i], color=f"C{k}", lw=1.1, label=MODEL_LABELS.get(name, name)
+            )
+    axes[-1, 0].set_xlabel("time [s]")
+    axes[0, 0].legend(fontsize=7, ncol=3, loc="best")
+    fig.suptitle(title, fontsize=10)
+    return _save(fig, path)
+
+
+def _model_order(model: str) -> int:
+    order = list(MODEL_LABELS)
+    return order.index(model) if model in order else len(order)
+
+
+def _fmt(value: float | None, digits: int = 3) -> str:
+    if value is None or not math.isfinite(value):
+        return "—"
+    return f"{value:.{digits}g}"
+
+
+def _pm(mean: float, std: float, seeds: int) -> str:
+    return f"{_fmt(mean)} ± {_fmt(std, 2)}" if seeds > 1 else _fmt(mean)
+
+
+def _mean_std(mean: float | None, std: float | None, scale: float) -> str:
+    if mean is None:
+        return "—"
+    text = _fmt(mean / scale)
+    return text if std is None else f"{text} ± {_fmt(std / scale, 2)}"
+
+
+def _table1_blocks(report: Report, cells: Sequence[Any], system: str, seeds: int) -> None:
+    scale = _scale(system)
+    mine = [c for c in cells if c.system == system]
+    models = sorted({c.model for c in mine}, key=_model_order)
+    windows = sorted({c.window for c in mine})
+    by_key = {(c.model, c.window): c for c in mine}
+    spread = "mean ± sample standard deviation" if seeds > 1 else "one seed (no spread)"
+    for target, attr in (
+        ("measured y (noisy, as the paper's data)", "mean"),
+        ("noise-free y_clean", "mean_clean"),
+    ):
+        header = ["ℓ"]
+        for m in models:
+            header += [f"{MODEL_LABELS.get(m, m)} canonid", "paper"]
+        rows = []
+        for w in windows:
+            row = [str(w)]
+            for m in models:
+                c = by_key.get((m, w))
+                if c is None:
+                    row += ["—", "—"]
+                    continue
+                std = c.std if attr == "mean" else c.std_clean
+                row += [
+                    _mean_std(getattr(c, attr), std, scale),
+                    _fmt(c.paper / scale) if c.paper is not None else "—",
+                ]
+            rows.append(row)
+        report.table(
+            header,
+            rows,
+            caption=(
+                f"{system_label(system)}: 100-step open-loop MSE against {target}, physical "
+                f"units, ×{scale:g}; canonid: {spread} over {seeds} seed(s); paper: Table 1 as "
+                "printed (the paper's column is against its own noisy data)"
+            ),
+        )
+
+
+def write_report(
+    *,
+    out: Path,
+    settings: Any,
+    machine: Mapping[str, Any],
+    datasets: Mapping[str, Any],
+    outcomes: Sequence[Any],
+    table: Sequence[Any],
+    learned: Mapping[str, Any],
+    compression: Mapping[str, Any],
+    failures: Sequence[Any],
+    seconds: Mapping[str, float],
+    summary_path: Path,
+) -> tuple[Path, Path, dict[str, str]]:
+    """Draw the figures and write ``out/report.md`` and ``out/report.html``; return both paths
+    and the figures (name → path)."""
+    from datagen.dataset import Dataset
+
+    figures: dict[str, str] = {}
+    fig_dir = out / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    report = Report(f"canonid reproduction — profile {settings.profile}")
+    stage = settings.stage
+    train_runs = [o for o in outcomes if o.kind == "train"]
+    report.paragraph(
+        f"Profile **{settings.profile}** (canonid/profiles.py, stages `train` and "
+        f"`reproduce`); systems {', '.join(settings.systems)}; windows ℓ = "
+        f"{', '.join(map(str, settings.windows))}; models "
+        f"{', '.join(MODEL_LABELS.get(m, m) for m in settings.models)}; {settings.seeds} "
+        f"seed(s). Written {_dt.datetime.now().astimezone().isoformat(timespec='seconds')}."
+    )
+    if settings.command:
+        report.paragraph(f"Command: `{settings.command}`")
+    if settings.scheduler:
+        ran_on = f"a Dask cluster at {settings.scheduler}"
+    elif settings.workers:
+        ran_on = f"{settings.workers} local Dask worker process(es)"
+    else:
+        ran_on = "one process, serially"
+    report.paragraph(
+        f"Machine: {machine.get('platform')}, {machine.get('cpus')} CPU(s) "
+        f"({machine.get('processor')}), GPU: {machine.get('cuda') or 'none used'}; load "
+        f"average at the end {machine.get('load_average')}; Python {machine.get('python')}, "
+        f"torch {machine.get('torch')}, CasADi {machine.get('casadi')}, Dask "
+        f"{machine.get('dask')}. Jobs ran on {ran_on}. Wall time by stage: "
+        + ", ".join(f"{k} {v:.1f} s" for k, v in seconds.items())
+        + "."
+    )
+    report.heading("Budget")
+    evaluation = train_runs[0].recipe["evaluation"] if train_runs else stage.get("evaluation")
+    report.table(
+        ["stage", "settings"],
+        [
+            *_training_budget(train_runs),
+            [
+                "evaluation",
+                f"rollout horizon H = {evaluation['horizon']}, every "
+                f"{evaluation['stride']}-th start of every test trajectory",
+            ],
+            *(
+                [f"analysis, {s}", ", ".join(f"{k}={v}" for k, v in a.items())]
+                for s, a in stage.get("analysis", {}).items()
+                if s in settings.systems
+            ),
+            ["compression", ", ".join(f"{k}={v}" for k, v in stage.get("compression", {}).items())],
+        ],
+    )
+
+    report.heading("Datasets")
+    report.table(
+        ["system", "flights (train/val/test)", "samples per flight", "sha256", "made or reused"],
+        [
+            [
+                d.system,
+                "/".join(str(d.counts.get(s, 0)) for s in ("train", "val", "test")),
+                str(d.config.get("T")),
+                d.checksum[:12] + "…",
+                f"reused ({d.config})" if d.reused else f"generated in {d.seconds:.1f} s",
+            ]
+            for d in datasets.values()
+        ],
+    )
+    for d in datasets.values():
+        report.link(d.path, f"{d.system} dataset")
+
+    report.heading("Table 1: 100-step open-loop MSE")
+    report.paragraph(
+        "The paper metric (learning.evaluate): from every start of every test trajectory, ℓ "
+        "measured samples burn in and the model predicts the next H outputs in open loop; MSE "
+        "over rollouts, steps and outputs, in physical units, shown in the paper's scale per "
+        "system. Table 1 of the paper is against its noisy data, so the first table of each "
+        "system is the one to compare; the second, against the noise-free outputs, shows what "
+        "the noise adds."
+    )
+    for system in settings.systems:
+        report.heading(system_label(system), level=3)
+        _table1_blocks(report, table, system, settings.seeds)
+        path = plot_table1(table, system, fig_dir / f"table1_{system}.png")
+        figures[f"table1_{system}"] = str(path)
+        report.figure(
+            path,
+            f"Table 1 as a figure, {system_label(system)}: canonid (solid, "
+            "mean ± std over seeds) and the paper (dashed)",
+        )
+
+    report.heading("Rollouts")
+    rollout_window = int(stage.get("rollouts", {}).get("window", settings.windows[0]))
+    if rollout_window not in settings.windows:
+        rollout_window = settings.windows[0]
+    for system in settings.systems:
+        runs = {
+            o.recipe["model"]: o.folder
+            for o in train_runs
+            if o.recipe["system"] == system
+            and o.recipe["window"] == rollout_window
+            and o.recipe["seed"] == 0
+        }
+        if not runs:
+            continue
+        dataset = Dataset.load(datasets[system].path)
+        path = plot_rollouts(
+            runs,
+            dataset,
+            fig_dir / f"rollouts_{system}.png",
+            title=f"{system_label(system)}: open-loop simulation of test record 0, ℓ = "
+            f"{rollout_window}, seed 0 (burn-in before the dashed line)",
+        )
+        figures[f"rollouts_{system}"] = str(path)
+        report.figure(path, f"Rollouts, {system_label(system)}, ℓ = {rollout_window}")
+
+    _analysis_blocks(report, outcomes, learned, figures)
+    _compression_blocks(report, compression, figures)
+
+    if failures:
+        report.heading("Failed jobs")
+        report.paragraph(
+            "These jobs failed twice (once retried); their cells are missing above. Re-run with "
+            "--resume to try them again (finished jobs are kept)."
+        )
+        report.table(["job", "error"], [[f.job, f.error] for f in failures])
+
+    report.heading("Jobs")
+    report.table(
+        ["job", "wall [s]", "CPU [s]", "epochs run (best)", "this call"],
+        [
+            [
+                o.name,
+                _fmt(o.result.get("seconds"), 4),
+                _fmt(o.result.get("cpu_seconds"), 4),
+                f"{o.result['epochs_run']} ({o.result['best_epoch']})"
+                if o.kind == "train"
+                else "—",
+                "ran" if o.ran else "finished before (resumed)",
+            ]
+            for o in outcomes
+        ],
+        caption="wall and CPU time of each job in its own process (CPU < wall: the machine "
+        "was shared)",
+    )
+    report.heading("Artefacts")
+    report.link(summary_path, "reproduction.json (every number of this report)")
+    for o in outcomes:
+        report.link(Path(o.folder), f"{o.name}: folder")
+        report.link(Path(o.folder) / "result.json", f"{o.name}: result.json")
+    md, html = report.write(out)
+    return md, html, figures
+
+
+def _training_budget(train_runs: Sequence[Any]) -> list[list[str]]:
+    """One row per distinct training budget (the seed left out), naming its models."""
+    budgets: dict[str, list[str]] = {}
+    for o in train_runs:
+        options = {k: v for k, v in o.recipe["train_options"].items() if k != "seed"}
+        text = ", ".join(f"{k}={v}" for k, v in options.items())
+        label = MODEL_LABELS.get(o.recipe["model"], o.recipe["model"])
+        if label not in budgets.setdefault(text, []):
+            budgets[text].append(label)
+    return [[f"training: {', '.join(models)}", text] for text, models in budgets.items()]
+
+
+def _analysis_blocks(
+    report: Report, outcomes: Sequence[Any], learned: Mapping[str, Any], figures: dict[str, str]
+) -> None:
+    analyses = [o for o in outcomes if o.kind == "analysis"]
+    if not analyses:
+        return
+    report.heading("Analysis: α_ℓ, γ_f and Proposition 2")
+    report.paragraph(
+        "Brackets [lower, upper]: γ_f upper and α_ℓ lower bounds are certified (interval "
+        "branch-and-bound), the other sides sampled. The bound 2 γ_f^ℓ α_ℓ^{-1}‖w̄‖ uses the "
+        "certified constants; the Monte-Carlo trials solve the output-error argmin and compare "
+        "its error with the bound (a violation would be a bug)."
+    )
+    for o in analyses:
+        system = o.recipe["system"]
+        report.heading(system_label(system), level=3)
+        rows = [
+            [
+                str(r["window"]),
+                f"[{_fmt(r['gamma_f'][0], 4)}, {_fmt(r['gamma_f'][1], 4)}]",
+                f"[{_fmt(r['alpha'][0], 4)}, {_fmt(r['alpha'][1], 4)}]",
+                str(r["trials"]),
+                str(r["violations"]),
+                str(r["solver_failures"]),
+                _fmt(r["max_error"]),
+                _fmt(r["worst_case_bound"]),
+                _fmt(r["max_ratio"]),
+            ]
+            for r in o.result["windows"]
+        ]
+        report.table(
+            [
+                "ℓ",
+                "γ_f",
+                "α_ℓ",
+                "trials",
+                "violations",
+                "solver failures",
+                "max error",
+                "bound (max ‖w̄‖)",
+                "max error/bound",
+            ],
+            rows,
+            caption=f"sets {o.result['sets']}; settings {o.recipe['settings']}",
+        )
+        if o.result.get("figure"):
+            figures[f"bound_{system}"] = o.result["figure"]
+            report.figure(Path(o.result["figure"]), f"{system}: bound and observed error versus ℓ")
+        report.link(Path(o.folder) / "analysis.json", f"{system}: analysis.json")
+        checks = learned.get(system, {})
+        if checks.get("residual"):
+            report.table(
+                [
+                    "model (seed 0)",
+                    "ℓ",
+                    "test rows with residual ≤ level",
+                    "max residual / level",
+                    "median residual",
+                    "median level",
+                ],
+                [
+                    [
+                        MODEL_LABELS.get(c["model"], c["model"]),
+                        str(c["window"]),
+                        f"{c['within']} / {c['rows']}",
+                        _fmt(c["max_ratio"]),
+                        _fmt(c["residual"]["q50"]),
+                        _fmt(c["level"]["q50"]),
+                    ]
+                    for c in checks["residual"]
+                ],
+                caption=(
+                    "one-step residual ‖y_t − Ĥ(z_t, u_t)‖ of the learned regressor against the "
+                    "noise-induced level ‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{-1}‖w̄‖ (certified constants), "
+                    "test rows whose window starts in X (analysis.learned.residual_check)"
+                ),
+            )
+        else:
+            report.paragraph(
+                "No learned-model check: no trained canonical model (Ours MLP/GRU, seed 0) has a "
+                "window the analysis covers."
+            )
+        if checks.get("probe"):
+            report.table(
+                ["ℓ", "probe RMSE ‖x̂ − x‖", "median bound", "test rows with error ≤ bound"],
+                [
+                    [
+                        str(p["window"]),
+                        _fmt(p["rmse"]),
+                        _fmt(p["bound"]["q50"]),
+                        f"{p['within']} / {p['bound_rows']}",
+                    ]
+                    for p in checks["probe"]
+                ],
+                caption=(
+                    "affine least-squares probe from the canonical state z_t to the true state "
+                    "x_t (fitted on the training split) against Proposition 2's bound 2 γ_f^ℓ "
+                    "α_ℓ^{-1}‖w̄‖ (analysis.learned.state_probe)"
+                ),
+            )
+
+
+def _compression_blocks(
+    report: Report, compression: Mapping[str, Any], figures: dict[str, str]
+) -> None:
+    report.heading("Compression study")
+    if "skipped" in compression:
+        report.paragraph(f"Not run: {compression['skipped']}.")
+        return
+    for system, study in compression.items():
+        report.heading(system_label(system), level=3)
+        if "skipped" in study:
+            report.paragraph(f"Not run: {study['skipped']}.")
+            continue
+        figures[f"heatmap_{system}"] = study["heatmap"]
+        figures[f"reduced_mse_{system}"] = study["reduced_mse"]
+        report.table(
+            [
+                "run",
+                "ℓ",
+                "r",
+                "n̄ / dim z",
+                "reconstruction MSE (normalised)",
+                "100-step MSE reduced",
+                "full",
+                "seeds",
+            ],
+            [
+                [
+                    Path(r["source"]).name,
+                    str(r["window"]),
+                    f"{r['compression']:.0%}",
+                    f"{r['latent_dim']} / {r['state_dim']}",
+                    _pm(r["reconstruction_mse_mean"], r["reconstruction_mse_std"], r["seeds"]),
+                    _pm(r["rollout_mse_mean"], r["rollout_mse_std"], r["seeds"]),
+                    _fmt(r["full_rollout_mse"]),
+                    str(r["seeds"]),
+                ]
+                for r in study["rows"]
+            ],
+            caption=(
+                "auto-encoder reduction of the trained canonical model (seed 0) to n̄ states; "
+                "100-step MSE of the reduced and the full model against the measured test "
+                "outputs, physical units; mean ± standard deviation over the auto-encoder seeds"
+            ),
+        )
+        report.figure(
+            Path(study["heatmap"]),
+            f"{system}: auto-encoder reconstruction error over (ℓ, compression rate)",
+        )
+        report.figure(
+            Path(study["reduced_mse"]),
+            f"{system}: reduced model's 100-step MSE against the latent size",
+        )
+        report.link(Path(study["folder"]) / "sweep.json", f"{system}: sweep.json")

@@ -1,0 +1,155 @@
+"""``canonid reproduce`` on the tiny profile: the report, the same table serially and on a
+2-worker Dask cluster, and resumption that never redoes a finished job."""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import pytest
+
+import canonid.reproduce as rp
+from canonid.cli import main
+from canonid.paper import TABLE1
+from canonid.reproduce import reproduce, settings_from_profile
+from canonid.reproduce_jobs import RESULT_FILE, finished, store
+from canonid.runner import JobsFailedError
+from models.errors import CheckpointError
+
+pytestmark = pytest.mark.slow
+
+
+def _results(out: Path) -> dict[str, tuple[bytes, int]]:
+    """Every job's result file (Table 1, analysis, reductions) and model weights: bytes and
+    modification time (ns)."""
+    files = [
+        p for name in (RESULT_FILE, "reduction.json", "weights.pt") for p in out.glob(f"**/{name}")
+    ]
+    return {str(p.relative_to(out)): (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(files)}
+
+
+def _table(out: Path) -> list[dict]:
+    return json.loads((out / "reproduction.json").read_text())["table1"]
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    """One serial tiny reproduction through the command line."""
+    out = tmp_path_factory.mktemp("serial") / "repro"
+    code = main(["reproduce", "--profile", "tiny", "--out", str(out), "--no-progress"])
+    assert code == 0
+    return out
+
+
+def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
+    md = (serial / "report.md").read_text()
+    data = json.loads((serial / "reproduction.json").read_text())
+    cells = data["table1"]
+    assert {(c["model"], c["window"]) for c in cells} == {("mlp", 5), ("classic-gru", 5)}
+    scale = TABLE1["tank"].scale
+    for c in cells:
+        assert c["paper"] == pytest.approx(
+            TABLE1["tank"].values[c["model"]][0] * scale
+        )  # ℓ = 5 is the first column
+        assert c["mean"] > 0 and c["mean_clean"] > 0 and c["std"] is None and c["seeds"] == 1
+        assert f"{c['mean'] / scale:.3g}" in md and f"{c['paper'] / scale:.3g}" in md
+    assert "profile tiny" in md and "Machine:" in md and "load average" in md
+    assert "against measured y" in md and "against noise-free y_clean" in md
+    for target in re.findall(r"\]\(([^)]+)\)", md):
+        assert (serial / target).exists(), target
+    html = (serial / "report.html").read_text()
+    assert html.count("data:image/png;base64,") == md.count("![")  # figures inlined
+    (row,) = data["compression"]["tank"]["rows"]  # the tiny study: one run, one rate
+    assert row["window"] == 5 and row["compression"] == 0.5 and row["latent_dim"] < row["state_dim"]
+    kinds = sorted(j["kind"] for j in data["jobs"])
+    assert kinds == ["analysis", "train", "train"]
+    checks = data["learned_checks"]["tank"]
+    (residual,) = checks["residual"]  # the trained MLP (canonical) at the analysed window
+    assert residual["model"] == "mlp" and residual["window"] == 5
+    assert residual["rows"] + residual["excluded"] > 0
+    (probe,) = checks["probe"]
+    assert probe["window"] == 5 and probe["test_rows"] == residual["rows"] + residual["excluded"]
+
+
+def test_resume_of_a_finished_reproduction_runs_nothing(serial, capsys):
+    before = _results(serial)
+    assert main(["reproduce", "--profile", "tiny", "--out", str(serial), "--resume"]) == 0
+    assert "0 run now, 3 already finished" in capsys.readouterr().out
+    assert _results(serial) == before
+
+
+def test_existing_output_needs_resume(serial, capsys):
+    assert main(["reproduce", "--profile", "tiny", "--out", str(serial)]) == 1
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_two_dask_workers_give_the_same_table(serial, tmp_path):
+    out = tmp_path / "dask"
+    shutil.copytree(serial / "data", out / "data")  # reused: same configuration
+    settings = settings_from_profile("tiny", out=out, workers=2, progress=False)
+    result = reproduce(settings)
+    assert all(d.reused for d in result.datasets.values())
+    assert result.jobs_run == 3
+    assert _table(out) == _table(serial)
+
+
+def test_interrupted_run_resumes_without_redoing_finished_jobs(tmp_path, monkeypatch):
+    out = tmp_path / "repro"
+    calls: list[str] = []
+    real = rp.run_job
+
+    def interrupt_second(job):
+        calls.append(job.name)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real(job)
+
+    monkeypatch.setattr(rp, "run_job", interrupt_second)
+    with pytest.raises(KeyboardInterrupt):
+        reproduce(settings_from_profile("tiny", out=out, progress=False))
+    finished = _results(out)
+    assert list(finished) == ["analysis/tank/result.json"]  # the one job done before Ctrl-C
+
+    with pytest.raises(CheckpointError, match="--resume"):
+        reproduce(settings_from_profile("tiny", out=out, progress=False))
+
+    calls.clear()
+    monkeypatch.setattr(rp, "run_job", lambda job: (calls.append(job.name), real(job))[1])
+    result = reproduce(settings_from_profile("tiny", out=out, progress=False, resume=True))
+    assert sorted(calls) == ["tank classic-gru ℓ=5 seed 0", "tank mlp ℓ=5 seed 0"]
+    assert result.jobs_run == 2 and len(result.outcomes) == 3
+    after = _results(out)
+    assert after["analysis/tank/result.json"] == finished["analysis/tank/result.json"]
+
+
+def test_a_folder_of_another_recipe_is_refused(tmp_path):
+    folder = tmp_path / "job"
+    store("train", "x", folder, {"seed": 0}, {"rollout_mse": 1.0})
+    assert finished(folder, {"seed": 0}).result == {"rollout_mse": 1.0}
+    with pytest.raises(CheckpointError, match="seed"):
+        finished(folder, {"seed": 1})
+
+
+def test_a_failing_job_is_retried_once_and_reported(tmp_path, monkeypatch):
+    out = tmp_path / "repro"
+    calls: list[str] = []
+    real = rp.run_job
+
+    def classic_gru_fails(job):
+        calls.append(job.name)
+        if "classic-gru" in job.name:
+            raise RuntimeError("simulated failure")
+        return real(job)
+
+    monkeypatch.setattr(rp, "run_job", classic_gru_fails)
+    settings = settings_from_profile("tiny", out=out, progress=False)
+    with pytest.raises(JobsFailedError, match="1 of 3 jobs failed") as exc:
+        reproduce(settings)
+    assert calls.count("tank classic-gru ℓ=5 seed 0") == 2  # the first try and one retry
+    assert "simulated failure" in exc.value.failures[0].error
+    md = (out / "report.md").read_text()
+    assert "Failed jobs" in md and "simulated failure" in md
+    cells = json.loads((out / "reproduction.json").read_text())["table1"]
+    assert [c["model"] for c in cells] == ["mlp"]  # the finished job is kept
