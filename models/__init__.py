@@ -16,6 +16,7 @@ from models.errors import (
     UnknownSystemError,
 )
 from models.linear import LinearSystem, linear_example
+from models.quadrotor import Quadrotor
 from models.registry import get_system, register_system, system_names
 from models.sets import Box
 from models.tank import Tank
@@ -28,6 +29,7 @@ __all__ = [
     "Drone2D",
     "LinearSystem",
     "NotImplementedYetError",
+    "Quadrotor",
     "SetError",
     "ShapeError",
     "SimResult",
