@@ -13,6 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from datagen.controllers.quadrotor_cascade import CascadeGains, QuadrotorCascade
+from datagen.quadrotor_reference import quadrotor_reference
 from models import Quadrotor, SetError, ShapeError, get_system
 
 
@@ -285,3 +286,27 @@ def test_controller_errors_name_the_problem(quad):
     settings = QuadrotorCascade(quad, gains=CascadeGains(max_tilt_deg=20.0)).settings()
     assert settings["gains"]["max_tilt_deg"] == 20.0
     assert settings["reference_columns"] == ["px", "py", "pz", "vx", "vy", "vz", "yaw"]
+
+
+# ---------------------------------------------------------------- random 3-D references
+
+
+def test_reference_is_a_seeded_smooth_spline_with_its_derivative():
+    ref = quadrotor_reference(np.random.default_rng(7), steps=500, dt=0.02)
+    assert ref.shape == (500, 7)
+    np.testing.assert_array_equal(ref, quadrotor_reference(np.random.default_rng(7), steps=500))
+    assert not np.array_equal(ref, quadrotor_reference(np.random.default_rng(8), steps=500))
+    # velocity columns are the derivative of the position columns (central differences, O(dt²))
+    fd = (ref[2:, 0:3] - ref[:-2, 0:3]) / (2 * 0.02)
+    np.testing.assert_allclose(fd, ref[1:-1, 3:6], atol=1e-2)
+    assert np.max(np.abs(np.diff(ref[:, 6]))) < 0.2  # unwrapped yaw: no ±2π jumps
+    assert np.max(np.abs(ref[:, 0:3])) <= 4.0 and np.max(np.abs(ref[:, 3:6])) <= 6.0
+
+
+def test_reference_limits_and_arguments_are_enforced():
+    with pytest.raises(ShapeError, match="no spline within"):
+        quadrotor_reference(np.random.default_rng(0), speed_limit=1e-3, max_draws=3)
+    with pytest.raises(ShapeError, match="waypoints"):
+        quadrotor_reference(np.random.default_rng(0), waypoints=(1, 3))
+    with pytest.raises(ShapeError, match="box must be"):
+        quadrotor_reference(np.random.default_rng(0), box=((0, 1), (0, 1)))
