@@ -1,0 +1,250 @@
+"""One runner for every batch of independent jobs (dataset flights, sweeps, reproduction).
+
+API::
+
+    run_jobs(fn, jobs, *, workers=0, scheduler=None, progress=True, description="jobs",
+             on_result=None, tally=None, tally_name="failures", retries=1,
+             connect_timeout=5.0, processes=True) -> list
+
+* ``workers=0`` and no ``scheduler``: the jobs run one after the other in this process.
+* ``workers=N`` (N ≥ 1): a Dask ``LocalCluster`` of N single-threaded workers (processes, or
+  threads with ``processes=False``) is started for the call and closed after it.
+* ``scheduler="tcp://host:8786"``: an existing Dask cluster; its workers must be able to import
+  ``fn`` (install canonid there). An address that does not answer within ``connect_timeout``
+  seconds raises :class:`RunnerError` before any job runs.
+
+The three go through one loop: jobs are submitted to a ``concurrent.futures``-style executor (an
+inline one, or ``dask.distributed.Client.get_executor``), a bounded number at a time, and are
+collected as they complete. ``on_result(position, result)`` is called in this process as each
+job finishes (generation writes its resumable parts there); the return value is the list of
+results in job order. A job that raises is retried ``retries`` times; if it still fails, the
+other jobs finish and :class:`JobsFailedError` lists every failed job with its error — a job is
+never dropped silently. The progress bar (tqdm, on stderr) shows jobs done, the sum of
+``tally(result)`` over finished jobs as ``tally_name`` (e.g. solver failures), failed attempts
+and the ETA; ``progress=False`` switches it off. ``fn`` and the jobs must be picklable for the
+Dask paths.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures as cf
+import logging
+import socket
+import traceback
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+from tqdm.auto import tqdm
+
+from models.errors import CanonidError
+
+__all__ = ["FailedJob", "JobsFailedError", "RunnerError", "run_jobs"]
+
+log = logging.getLogger(__name__)
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+class RunnerError(CanonidError, RuntimeError):
+    """The runner could not start (bad arguments, a scheduler that does not answer)."""
+
+
+@dataclass(frozen=True)
+class FailedJob:
+    """A job that still failed after its retries."""
+
+    position: int
+    job: str
+    error: str
+    traceback: str
+
+
+class JobsFailedError(CanonidError, RuntimeError):
+    """Some jobs failed after their retries; ``failures`` says which and why."""
+
+    def __init__(self, failures: Sequence[FailedJob], total: int) -> None:
+        self.failures = tuple(failures)
+        first = self.failures[0]
+        super().__init__(
+            f"{len(self.failures)} of {total} jobs failed after retrying; first: job "
+            f"{first.position} ({first.job}): {first.error}"
+        )
+
+
+class _InlineExecutor(cf.Executor):
+    """Runs each submitted call at once, in this thread; returns a finished future."""
+
+    def submit(self, fn: Callable[..., Any], /, *args: Any, **kwargs: Any) -> cf.Future[Any]:
+        future: cf.Future[Any] = cf.Future()
+        try:
+            future.set_result(fn(*args, **kwargs))
+        except Exception as exc:  # reported through the future, like any executor
+            future.set_exception(exc)
+        return future
+
+
+@contextmanager
+def _dask_logs_at_warning() -> Iterator[None]:
+    """Dask's scheduler logs every connection at INFO; keep them out of the user's terminal
+    unless debug logging is on."""
+    logger = logging.getLogger("distributed")
+    old = logger.level
+    if logging.getLogger().getEffectiveLevel() > logging.DEBUG:
+        logger.setLevel(logging.WARNING)
+    try:
+        yield
+    finally:
+        logger.setLevel(old)
+
+
+def _probe_scheduler(address: str, timeout: float) -> None:
+    """Open and close one Dask connection (handshake included) to ``address`` in a thread of
+    its own, raising :class:`RunnerError` within about ``timeout`` seconds if it fails.
+
+    Done before ``Client(address)`` because a client whose construction fails hangs for tens
+    of seconds when it is garbage-collected.
+    """
+    from distributed.comm import connect
+    from distributed.comm.addressing import get_address_host_port, parse_address
+
+    async def handshake() -> None:
+        if parse_address(address)[0] in ("tcp", "tls"):  # refused: fail now, not after timeout
+            socket.create_connection(get_address_host_port(address), timeout=timeout).close()
+        comm = await connect(address, timeout=timeout)
+        await comm.close()
+
+    try:
+        with cf.ThreadPoolExecutor(1) as pool:
+            pool.submit(asyncio.run, asyncio.wait_for(handshake(), timeout + 1)).result(
+                timeout=timeout + 2
+            )
+    except Exception as exc:  # any failure (refused, timeout, garbage, bad address) is one error
+        raise RunnerError(
+            f"the Dask scheduler at {address!r} did not answer within {timeout:g} s "
+            f"({type(exc).__name__}: {exc}); expected the address of a running scheduler, "
+            "e.g. tcp://host:8786"
+        ) from exc
+
+
+@contextmanager
+def _executor(
+    workers: int, scheduler: str | None, *, connect_timeout: float, processes: bool
+) -> Iterator[tuple[cf.Executor, int]]:
+    """An executor and how many jobs to keep in flight on it."""
+    if scheduler is None and workers == 0:
+        yield _InlineExecutor(), 1
+        return
+    from dask.distributed import Client, LocalCluster
+
+    with _dask_logs_at_warning():
+        cluster = None
+        if scheduler is not None:
+            _probe_scheduler(scheduler, connect_timeout)
+            client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
+        else:
+            cluster = LocalCluster(
+                n_workers=workers,
+                threads_per_worker=1,
+                processes=processes,
+                dashboard_address=None,
+                silence_logs=logging.ERROR,
+            )
+            client = Client(cluster, set_as_default=False)
+        try:
+            threads = sum(client.nthreads().values()) or 1
+            yield client.get_executor(pure=False), 2 * threads
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def run_jobs(
+    fn: Callable[[J], R],
+    jobs: Sequence[J],
+    *,
+    workers: int = 0,
+    scheduler: str | None = None,
+    progress: bool = True,
+    description: str = "jobs",
+    on_result: Callable[[int, R], None] | None = None,
+    tally: Callable[[R], int] | None = None,
+    tally_name: str = "failures",
+    retries: int = 1,
+    connect_timeout: float = 5.0,
+    processes: bool = True,
+) -> list[R]:
+    """Run ``fn(job)`` for every job; see the module docstring for the three ways and the
+    failure rules. Returns the results in job order."""
+    if workers < 0 or int(workers) != workers:
+        raise RunnerError(f"workers must be an integer >= 0, got {workers!r}")
+    if scheduler is not None and workers:
+        raise RunnerError("give either workers (a local cluster) or a scheduler address, not both")
+    if retries < 0:
+        raise RunnerError(f"retries must be >= 0, got {retries}")
+    if scheduler is not None and not scheduler.strip():
+        raise RunnerError("the scheduler address is empty (expected e.g. tcp://host:8786)")
+
+    total = len(jobs)
+    results: list[Any] = [None] * total
+    attempts = [0] * total
+    failed: list[FailedJob] = []
+    tallied = 0
+    retried = 0
+    if total == 0:
+        return []
+    bar = tqdm(total=total, desc=description, unit="job", disable=not progress, leave=True)
+    try:
+        with _executor(
+            int(workers), scheduler, connect_timeout=connect_timeout, processes=processes
+        ) as (executor, window):
+            queue = list(range(total - 1, -1, -1))  # pop() from the end: job order
+            running: dict[cf.Future[Any], int] = {}
+            while queue or running:
+                while queue and len(running) < window:
+                    position = queue.pop()
+                    attempts[position] += 1
+                    running[executor.submit(fn, jobs[position])] = position
+                done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
+                for future in sorted(done, key=running.__getitem__):
+                    position = running.pop(future)
+                    exc = future.exception()
+                    if exc is not None:
+                        if attempts[position] <= retries:
+                            retried += 1
+                            log.warning("job %d failed (%s); retrying", position, exc)
+                            queue.append(position)
+                        else:
+                            failed.append(_failure(position, jobs[position], exc))
+                            bar.update(1)
+                    else:
+                        result = future.result()
+                        results[position] = result
+                        if on_result is not None:
+                            on_result(position, result)
+                        if tally is not None:
+                            tallied += int(tally(result))
+                        bar.update(1)
+                    bar.set_postfix(
+                        {tally_name: tallied, "retried": retried, "failed": len(failed)},
+                        refresh=False,
+                    )
+    finally:
+        bar.close()
+    if failed:
+        raise JobsFailedError(sorted(failed, key=lambda f: f.position), total)
+    return results
+
+
+def _failure(position: int, job: Any, exc: BaseException) -> FailedJob:
+    name = getattr(job, "name", None) or repr(job)[:80]
+    return FailedJob(
+        position=position,
+        job=str(name),
+        error=f"{type(exc).__name__}: {exc}",
+        traceback="".join(traceback.format_exception(exc)),
+    )

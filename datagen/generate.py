@@ -1,0 +1,505 @@
+"""Dataset generation: independent flights, per-flight seeds, resumable parts, one final file.
+
+A dataset is planned as one :class:`FlightJob` per flight (split, index). Each job is a pure
+function of the :class:`GenerationConfig` and its position: its generator is seeded with
+``SeedSequence(seed, spawn_key=(SPLIT_CODES[split], index, attempt))`` (``attempt`` = 0 unless
+the flight had to be regenerated), so no random stream is shared between flights and the result
+does not depend on which process ran which flight, nor in what order.
+
+Within a flight the seed sequence spawns two children: the first draws the reference, the second
+the simulation's random numbers (noise, excitation, loose steps; see :mod:`datagen.simulate`).
+
+Training flight ``i`` is *loose* when ``⌊(i+1)·f⌋ > ⌊i·f⌋`` with ``f`` the scenario's loose
+fraction: exactly ``⌊n·f⌋`` of ``n`` flights, spread evenly (every fifth for ``f = 0.2``).
+
+A flight whose controller failed on more than ``max_failure_fraction · T`` steps, or whose state
+diverged, is regenerated with the next ``attempt``; the replaced seeds and their failure counts
+are recorded in the kept flight's ``info["replaced"]``. A flight that fails ``max_attempts`` times
+stops the generation with a :class:`~models.errors.DataError`.
+
+On disk (``out`` is the folder the caller names)::
+
+    out/dataset.npz, out/dataset.json      the dataset (Dataset.save), written last
+    out/parts/config.json                  the configuration the parts belong to
+    out/parts/<split>-<index>.npz/.json    one finished flight each (removed after assembly
+                                           unless keep_parts)
+
+Re-running with ``resume=True`` keeps the finished parts of the same configuration and runs
+only the missing flights; the assembled dataset has the same bytes as an uninterrupted run.
+Jobs are run by a ``run_jobs`` callable (serially by default); the application layer passes its
+process or Dask runner through the same argument.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import logging
+import math
+import platform
+import shutil
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+from typing import Any, Protocol, TypeVar
+
+import numpy as np
+
+from datagen.controllers.base import Controller
+from datagen.dataset import Dataset, Trajectory
+from datagen.scenarios import Scenario, get_scenario
+from datagen.simulate import Excitation, noise_box, simulate_closed_loop
+from models.base import System
+from models.errors import DataError, ShapeError
+from models.io import atomic_write_json, read_json
+from models.registry import get_system
+
+__all__ = [
+    "SPLIT_CODES",
+    "FlightJob",
+    "FlightResult",
+    "GenerationConfig",
+    "GenerationResult",
+    "JobRunner",
+    "flight_seed",
+    "generate_dataset",
+    "is_loose",
+    "plan_flights",
+    "run_flight",
+    "run_serially",
+]
+
+log = logging.getLogger(__name__)
+
+#: the split's code in every flight's spawn key; fixed so seeds never depend on dict order
+SPLIT_CODES: Mapping[str, int] = {"train": 0, "val": 1, "test": 2}
+PARTS = "parts"
+DATASET_FILE = "dataset.npz"
+
+J = TypeVar("J")
+R = TypeVar("R")
+
+
+class JobRunner(Protocol):
+    """Runs ``fn`` on every job and returns the results in job order, calling
+    ``on_result(position, result)`` in the caller's process as each job finishes."""
+
+    def __call__(
+        self,
+        fn: Callable[[Any], Any],
+        jobs: Sequence[Any],
+        *,
+        on_result: Callable[[int, Any], None] | None = None,
+    ) -> list[Any]: ...
+
+
+def run_serially(
+    fn: Callable[[J], R],
+    jobs: Sequence[J],
+    *,
+    on_result: Callable[[int, R], None] | None = None,
+) -> list[R]:
+    """The default :class:`JobRunner`: one job after the other in this process."""
+    results = []
+    for position, job in enumerate(jobs):
+        result = fn(job)
+        if on_result is not None:
+            on_result(position, result)
+        results.append(result)
+    return results
+
+
+# ---------------------------------------------------------------------------- configuration
+@dataclass(frozen=True)
+class GenerationConfig:
+    """What to generate; validated on construction.
+
+    Attributes:
+        system: a system with a scenario (:func:`datagen.scenarios.scenario_names`).
+        seed: the root seed (integer >= 0).
+        counts: flights per split; splits left out get the scenario's default size.
+        noise: measurement-noise half-width(s), see :func:`datagen.simulate.noise_box`;
+            ``None`` uses the system's W.
+        controller_options: overrides passed to the scenario's controller factory (only the
+            names the scenario lists, e.g. ``{"horizon": 20}``).
+        T: samples per flight; ``None`` uses the scenario's.
+    """
+
+    system: str
+    seed: int = 0
+    counts: Mapping[str, int] = field(default_factory=dict)
+    noise: float | tuple[float, ...] | None = None
+    controller_options: Mapping[str, Any] = field(default_factory=dict)
+    T: int | None = None
+
+    def __post_init__(self) -> None:
+        scenario = get_scenario(self.system)
+        if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
+            raise ShapeError(f"seed must be an integer >= 0, got {self.seed!r}")
+        counts = dict(scenario.split_sizes)
+        for split, n in dict(self.counts).items():
+            if split not in SPLIT_CODES:
+                raise ShapeError(f"unknown split {split!r}; expected one of {list(SPLIT_CODES)}")
+            if not (isinstance(n, (int, np.integer)) and n >= 0):
+                raise ShapeError(f"number of {split} flights must be an integer >= 0, got {n!r}")
+            counts[split] = int(n)
+        if sum(counts.values()) == 0:
+            raise ShapeError("nothing to generate: every split has 0 flights")
+        object.__setattr__(self, "counts", counts)
+        unknown = sorted(set(self.controller_options) - set(scenario.controller_options))
+        if unknown:
+            accepted = ", ".join(scenario.controller_options) or "none"
+            raise ShapeError(
+                f"controller option(s) {unknown} do not apply to {self.system} (accepted: "
+                f"{accepted})"
+            )
+        object.__setattr__(self, "controller_options", dict(self.controller_options))
+        if self.T is not None and not (isinstance(self.T, (int, np.integer)) and self.T >= 2):
+            raise ShapeError(f"T (samples per flight) must be an integer >= 2, got {self.T!r}")
+        if self.noise is not None and not isinstance(self.noise, (int, float)):
+            object.__setattr__(self, "noise", tuple(float(v) for v in self.noise))
+        noise_box(_system(self.system), self.noise)  # raises if outside W
+
+    @property
+    def scenario(self) -> Scenario:
+        return get_scenario(self.system)
+
+    @property
+    def steps(self) -> int:
+        """Samples per flight."""
+        return int(self.T if self.T is not None else self.scenario.T)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "system": self.system,
+            "seed": int(self.seed),
+            "counts": {k: self.counts[k] for k in SPLIT_CODES if k in self.counts},
+            "noise": self.noise
+            if self.noise is None or isinstance(self.noise, float)
+            else list(self.noise),
+            "controller_options": dict(sorted(self.controller_options.items())),
+            "T": self.steps,
+        }
+
+
+@dataclass(frozen=True)
+class FlightJob:
+    """One flight to generate (picklable; sent to worker processes)."""
+
+    config: GenerationConfig
+    split: str
+    index: int
+
+    @property
+    def name(self) -> str:
+        return f"{self.split}-{self.index:05d}"
+
+
+@dataclass(frozen=True)
+class FlightResult:
+    """A finished flight: its trajectory and the number of failed controller steps it kept."""
+
+    job: FlightJob
+    trajectory: Trajectory
+
+    @property
+    def solver_failures(self) -> int:
+        return int(self.trajectory.info.get("solver_failures", 0))
+
+
+@dataclass(frozen=True)
+class GenerationResult:
+    """What :func:`generate_dataset` did.
+
+    Attributes:
+        path: the dataset file (``out/dataset.npz``).
+        counts: flights per split.
+        generated: flights simulated in this call.
+        resumed: flights taken from existing parts.
+        solver_failures: failed controller steps in the kept flights (all fell back).
+        replaced: flights that were regenerated with a new seed at least once.
+    """
+
+    path: Path
+    counts: dict[str, int]
+    generated: int
+    resumed: int
+    solver_failures: int
+    replaced: int
+
+
+def plan_flights(config: GenerationConfig) -> list[FlightJob]:
+    """One job per flight, in dataset order: train 0…, val 0…, test 0…."""
+    return [
+        FlightJob(config, split, i)
+        for split in SPLIT_CODES
+        for i in range(config.counts.get(split, 0))
+    ]
+
+
+def flight_seed(seed: int, split: str, index: int, attempt: int = 0) -> np.random.SeedSequence:
+    """The seed sequence of one flight attempt (see the module docstring)."""
+    return np.random.SeedSequence(int(seed), spawn_key=(SPLIT_CODES[split], index, attempt))
+
+
+def is_loose(split: str, index: int, fraction: float) -> bool:
+    """Whether flight ``index`` of ``split`` is loose (training flights only)."""
+    if split != "train" or fraction <= 0:
+        return False
+    return math.floor((index + 1) * fraction + 1e-9) > math.floor(index * fraction + 1e-9)
+
+
+# ---------------------------------------------------------------------------- one flight
+@functools.lru_cache(maxsize=8)
+def _system(name: str) -> System:
+    return get_system(name)
+
+
+_local = threading.local()
+
+
+def _controller_cache() -> dict[tuple[Any, ...], Controller]:
+    """This thread's controllers, one per (system, options): building an NMPC costs far more
+    than a flight, and ``Controller.reset`` clears everything a flight leaves behind. Per thread,
+    because a controller keeps per-flight state (threaded Dask workers share the module)."""
+    cache: dict[tuple[Any, ...], Controller] | None = getattr(_local, "controllers", None)
+    if cache is None:
+        cache = _local.controllers = {}
+    return cache
+
+
+def _controller_for(config: GenerationConfig) -> Controller:
+    factory = config.scenario.controller
+    key = (config.system, factory, json.dumps(config.controller_options, sort_keys=True))
+    cache = _controller_cache()
+    if key not in cache:
+        cache[key] = factory(_system(config.system), config.controller_options)
+    return cache[key]
+
+
+def run_flight(job: FlightJob) -> FlightResult:
+    """Simulate one flight, regenerating it with the next seed while it fails (module docs)."""
+    config, scenario = job.config, job.config.scenario
+    system, controller = _system(config.system), _controller_for(config)
+    noise = noise_box(system, config.noise)
+    loose = is_loose(job.split, job.index, scenario.loose_fraction)
+    excitation = Excitation(
+        std=scenario.excitation_std,
+        loose_probability=scenario.loose_probability if loose else 0.0,
+        loose_std=scenario.loose_std,
+    )
+    allowed = int(scenario.max_failure_fraction * config.steps)
+    replaced: list[dict[str, Any]] = []
+    for attempt in range(scenario.max_attempts):
+        seq = flight_seed(config.seed, job.split, job.index, attempt)
+        reference_seq, simulation_seq = seq.spawn(2)
+        reference = scenario.reference(system, np.random.default_rng(reference_seq), config.steps)
+        loop = simulate_closed_loop(
+            system,
+            controller,
+            reference,
+            x0=scenario.initial_state(system, reference),
+            rng=np.random.default_rng(simulation_seq),
+            noise=noise,
+            excitation=excitation,
+            clip_input=scenario.clip_input,
+        )
+        spawn_key = [int(k) for k in seq.spawn_key]
+        if loop.diverged_at is None and loop.failures <= allowed:
+            info = {
+                "split": job.split,
+                "index": job.index,
+                "seed": int(config.seed),
+                "spawn_key": spawn_key,
+                "loose": loose,
+                **loop.summary(),
+                "replaced": replaced,
+            }
+            trajectory = Trajectory(
+                u=loop.u,
+                y=loop.y,
+                y_clean=loop.y_clean,
+                x=loop.x,
+                reference=loop.reference,
+                info=info,
+            )
+            return FlightResult(job, trajectory)
+        log.info("flight %s attempt %d rejected: %s", job.name, attempt, loop.summary())
+        replaced.append({"spawn_key": spawn_key, **loop.summary()})
+    raise DataError(
+        f"flight {job.name} of {config.system} failed {scenario.max_attempts} times (more than "
+        f"{allowed} failed controller steps or a diverged state): {replaced}"
+    )
+
+
+# ---------------------------------------------------------------------------- the dataset
+def _versions() -> dict[str, str]:
+    out = {"python": platform.python_version()}
+    for package in ("canonid", "numpy", "scipy", "casadi"):
+        try:
+            out[package] = version(package)
+        except PackageNotFoundError:
+            out[package] = "unknown"
+    return out
+
+
+def _metadata(config: GenerationConfig) -> dict[str, Any]:
+    system = _system(config.system)
+    return {
+        "source": "canonid generate",
+        "system": system.describe(),
+        "units": {
+            "inputs": dict(zip(system.input_names, system.input_units)),
+            "outputs": dict(zip(system.output_names, system.output_units)),
+            "states": dict(zip(system.state_names, system.state_units)),
+        },
+        "generation": config.to_json(),
+        "scenario": config.scenario.describe(),
+        "controller": _controller_for(config).settings(),
+        "noise": {
+            "distribution": "uniform, independent per sample and output",
+            "box": noise_box(system, config.noise).to_dict(),
+            "inside_W": True,
+        },
+        "seeding": (
+            "flight (split, index) uses SeedSequence(seed, spawn_key=(split_code, index, "
+            "attempt)); children 0 and 1 draw the reference and the simulation noise"
+        ),
+        "split_codes": dict(SPLIT_CODES),
+        "versions": _versions(),
+    }
+
+
+def _part_path(parts: Path, job: FlightJob) -> Path:
+    return parts / f"{job.name}.npz"
+
+
+def _save_part(parts: Path, result: FlightResult, system: System) -> None:
+    Dataset(
+        splits={result.job.split: (result.trajectory,)},
+        dt=system.dt,
+        input_names=system.input_names,
+        output_names=system.output_names,
+        state_names=system.state_names,
+        metadata={"part_of": result.job.config.to_json()},
+    ).save(_part_path(parts, result.job))
+
+
+def _load_part(parts: Path, job: FlightJob) -> Trajectory | None:
+    path = _part_path(parts, job)
+    if not path.with_suffix(".json").exists():
+        return None
+    try:
+        part = Dataset.load(path)
+        (trajectory,) = part.split(job.split)
+    except (DataError, ValueError) as exc:
+        log.warning("part %s is unusable and will be regenerated: %s", path, exc)
+        return None
+    return trajectory
+
+
+def _check_parts(parts: Path, config: GenerationConfig | None) -> None:
+    """Refuse a parts folder that canonid did not write or (with ``config``) that belongs to
+    another configuration."""
+    if not parts.exists():
+        return
+    stamp = parts / "config.json"
+    if not stamp.exists():
+        raise DataError(
+            f"{parts} exists but is not a canonid parts folder (no config.json); move it away"
+        )
+    if config is not None:
+        found, wanted = read_json(stamp, what="parts configuration"), config.to_json()
+        if found != wanted:
+            raise DataError(
+                f"cannot resume: the parts in {parts} were made with {found}, not {wanted}; "
+                "generate into another folder or drop --resume"
+            )
+
+
+def generate_dataset(
+    config: GenerationConfig,
+    out: str | Path,
+    *,
+    run_jobs: JobRunner | None = None,
+    resume: bool = False,
+    keep_parts: bool = False,
+) -> GenerationResult:
+    """Generate the dataset ``config`` describes into the folder ``out``.
+
+    Args:
+        config: what to generate.
+        out: the output folder (created); the dataset is ``out/dataset.npz`` + ``.json``.
+        run_jobs: how to run the flights (default :func:`run_serially`); results arrive through
+            ``on_result`` and are written as parts as they finish.
+        resume: keep finished parts of the same configuration; without it existing parts are
+            discarded.
+        keep_parts: keep ``out/parts`` after the dataset is assembled.
+    """
+    out_dir = Path(out)
+    parts = out_dir / PARTS
+    system = _system(config.system)
+    dataset_path = out_dir / DATASET_FILE
+    jobs = plan_flights(config)
+    finished: dict[str, Trajectory] = {}
+    if resume:
+        _check_parts(parts, config)
+        for job in jobs:
+            found = _load_part(parts, job)
+            if found is not None:
+                finished[job.name] = found
+    todo = [job for job in jobs if job.name not in finished]
+    resumed = len(finished)
+    prepared = False
+
+    def prepare() -> None:
+        # Nothing is written before the first flight is back: a runner that cannot start
+        # (say, a scheduler that does not answer) leaves ``out`` as it was.
+        nonlocal prepared
+        if not prepared:
+            for stale in (dataset_path.with_suffix(".json"), dataset_path):
+                stale.unlink(missing_ok=True)  # the JSON (completion marker) first
+            if not resume and parts.exists():
+                _check_parts(parts, None)
+                shutil.rmtree(parts)
+            atomic_write_json(parts / "config.json", config.to_json())
+            prepared = True
+
+    def keep(position: int, result: FlightResult) -> None:
+        prepare()
+        _save_part(parts, result, system)
+        finished[result.job.name] = result.trajectory
+
+    if todo:
+        (run_jobs or run_serially)(run_flight, todo, on_result=keep)
+    prepare()
+    missing = [job.name for job in jobs if job.name not in finished]
+    if missing:
+        raise DataError(f"the job runner returned without flights {missing[:5]}")
+
+    splits = {
+        split: tuple(finished[job.name] for job in jobs if job.split == split)
+        for split in SPLIT_CODES
+    }
+    kept = [tr for trs in splits.values() for tr in trs]
+    dataset = Dataset(
+        splits=splits,
+        dt=system.dt,
+        input_names=system.input_names,
+        output_names=system.output_names,
+        state_names=system.state_names,
+        metadata=_metadata(config),
+    )
+    dataset.save(dataset_path)
+    if not keep_parts:
+        shutil.rmtree(parts)
+    return GenerationResult(
+        path=dataset_path,
+        counts=dataset.counts(),
+        generated=len(todo),
+        resumed=resumed,
+        solver_failures=sum(int(tr.info.get("solver_failures", 0)) for tr in kept),
+        replaced=sum(1 for tr in kept if tr.info.get("replaced")),
+    )

@@ -1,0 +1,152 @@
+"""The scenario registry: how each system's closed-loop dataset is generated.
+
+One :class:`Scenario` per system name (the name of :func:`models.registry.get_system`) gives the
+reference sampler, the initial state, the controller factory, the flight length, the default
+split sizes and the excitation. A new system joins generation with one :func:`register_scenario`
+call (or one entry in ``_SCENARIOS``); :mod:`datagen.generate` needs nothing else.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from datagen.controllers.base import Controller
+from datagen.controllers.pid import PID
+from datagen.references import TANK_REFERENCE_NAMES, tank_reference
+from models.base import System
+from models.errors import ShapeError, UnknownSystemError
+
+__all__ = ["Scenario", "get_scenario", "register_scenario", "scenario_names"]
+
+#: reference sampler: ``(system, rng, T) -> (T, n_r)`` array
+ReferenceSampler = Callable[[System, np.random.Generator, int], np.ndarray]
+#: controller factory: ``(system, options) -> Controller``; options are the user's overrides
+ControllerFactory = Callable[[System, Mapping[str, Any]], Controller]
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """How to generate one system's dataset.
+
+    Attributes:
+        system: registry name of the true system.
+        T: samples per flight.
+        split_sizes: default number of flights per split (``train``, ``val``, ``test``).
+        reference: the reference sampler.
+        reference_names: names of the reference's columns.
+        initial_state: ``(system, reference) -> x0``.
+        controller: the controller factory.
+        controller_options: the option names the factory accepts (e.g. ``"horizon"``); any
+            other option is refused before generation starts.
+        excitation_std: Gaussian excitation on every applied input (input units).
+        loose_fraction: fraction of *training* flights that are loose.
+        loose_probability: per-step probability of a random command on a loose flight.
+        loose_std: standard deviation of that random command change.
+        clip_input: clip applied inputs to the system's U after excitation.
+        max_failure_fraction: a flight with more failed controller steps than this fraction of
+            ``T`` (or a diverged one) is regenerated with a new derived seed.
+        max_attempts: how many seeds a flight may use before generation gives up on it.
+        notes: one paragraph for the dataset metadata (what was chosen and why).
+    """
+
+    system: str
+    T: int
+    split_sizes: Mapping[str, int]
+    reference: ReferenceSampler
+    reference_names: tuple[str, ...]
+    initial_state: Callable[[System, np.ndarray], np.ndarray]
+    controller: ControllerFactory
+    controller_options: tuple[str, ...] = ()
+    excitation_std: float = 0.0
+    loose_fraction: float = 0.0
+    loose_probability: float = 0.0
+    loose_std: float = 0.0
+    clip_input: bool = False
+    max_failure_fraction: float = 0.05
+    max_attempts: int = 5
+    notes: str = ""
+
+    def __post_init__(self) -> None:
+        if self.T < 2:
+            raise ShapeError(f"scenario {self.system}: T must be >= 2, got {self.T}")
+        if not 0.0 <= self.loose_fraction <= 1.0:
+            raise ShapeError(
+                f"scenario {self.system}: loose_fraction must be in [0, 1], got "
+                f"{self.loose_fraction}"
+            )
+        object.__setattr__(self, "split_sizes", MappingProxyType(dict(self.split_sizes)))
+
+    def describe(self) -> dict[str, Any]:
+        """JSON-ready settings for the dataset metadata."""
+        return {
+            "system": self.system,
+            "T": self.T,
+            "reference_names": list(self.reference_names),
+            "excitation_std": self.excitation_std,
+            "loose_fraction": self.loose_fraction,
+            "loose_probability": self.loose_probability,
+            "loose_std": self.loose_std,
+            "clip_input_to_U": self.clip_input,
+            "max_failure_fraction": self.max_failure_fraction,
+            "max_attempts": self.max_attempts,
+            "notes": self.notes,
+        }
+
+
+# ---------------------------------------------------------------------------- tank
+def _tank_reference(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
+    return tank_reference(rng, T=T)
+
+
+def _zero_state(system: System, reference: np.ndarray) -> np.ndarray:
+    return np.zeros(system.n_x)
+
+
+def _tank_pid(system: System, options: Mapping[str, Any]) -> Controller:
+    return PID(kp=4.0, ki=0.6, kd=4.0, state_index=1)
+
+
+_SCENARIOS: dict[str, Scenario] = {
+    "tank": Scenario(
+        system="tank",
+        T=200,
+        split_sizes={"train": 60, "val": 20, "test": 20},
+        reference=_tank_reference,
+        reference_names=TANK_REFERENCE_NAMES,
+        initial_state=_zero_state,
+        controller=_tank_pid,
+        notes=(
+            "Authors' generator: reference through level 0 at sample 0 and 5 uniform levels in "
+            "[0, 5] at samples 40, 80, ..., 200 (cubic, redrawn if negative), x0 = (0, 0), "
+            "PID (4, 0.6, 4) on the true lower level, command not saturated, no excitation."
+        ),
+    ),
+}
+
+
+def register_scenario(scenario: Scenario) -> None:
+    """Add a scenario (raises if its system already has one)."""
+    if scenario.system in _SCENARIOS:
+        raise ValueError(f"system {scenario.system!r} already has a scenario")
+    _SCENARIOS[scenario.system] = scenario
+
+
+def scenario_names() -> list[str]:
+    """Systems that have a generation scenario, in registration order."""
+    return list(_SCENARIOS)
+
+
+def get_scenario(name: str) -> Scenario:
+    """The scenario of system ``name``."""
+    try:
+        return _SCENARIOS[name]
+    except KeyError:
+        raise UnknownSystemError(
+            f"no dataset scenario for system {name!r}; expected one of: "
+            f"{', '.join(scenario_names())}"
+        ) from None

@@ -1,0 +1,83 @@
+"""The job runner: order, retries, reported failures, Dask paths, bad scheduler addresses; and
+generation giving the same bytes serially and on 2 Dask workers."""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import pytest
+
+from canonid.runner import JobsFailedError, RunnerError, run_jobs
+from datagen.generate import GenerationConfig, generate_dataset
+
+
+def test_serial_results_in_job_order_with_callbacks():
+    seen = []
+    out = run_jobs(
+        math.factorial, [5, 3, 0], progress=False, on_result=lambda i, r: seen.append((i, r))
+    )
+    assert out == [120, 6, 1]
+    assert seen == [(0, 120), (1, 6), (2, 1)]
+    assert run_jobs(math.factorial, [], progress=False) == []
+
+
+def test_a_failing_job_is_retried_once_then_reported():
+    attempts: dict[int, int] = {}
+
+    def flaky(x):
+        attempts[x] = attempts.get(x, 0) + 1
+        if x == 1 and attempts[x] == 1:
+            raise RuntimeError("transient")
+        if x == 2:
+            raise ValueError(f"job {x} is broken")
+        return x * 10
+
+    delivered = {}
+    with pytest.raises(JobsFailedError, match=r"1 of 4 jobs failed.*job 2.*broken") as info:
+        run_jobs(flaky, [0, 1, 2, 3], progress=False, on_result=delivered.__setitem__)
+    assert delivered == {0: 0, 1: 10, 3: 30}  # the others still ran and were delivered
+    assert attempts == {0: 1, 1: 2, 2: 2, 3: 1}
+    (failure,) = info.value.failures
+    assert failure.position == 2 and "ValueError" in failure.error and failure.traceback
+    with pytest.raises(JobsFailedError):
+        run_jobs(flaky, [2], progress=False, retries=0)
+    assert attempts[2] == 3
+
+
+def test_bad_arguments_and_unreachable_scheduler_are_clear_errors():
+    with pytest.raises(RunnerError, match="either workers"):
+        run_jobs(abs, [1], workers=2, scheduler="tcp://127.0.0.1:1", progress=False)
+    with pytest.raises(RunnerError, match="workers must be"):
+        run_jobs(abs, [1], workers=-1, progress=False)
+    for address in ("tcp://127.0.0.1:1", "not-an-address"):
+        with pytest.raises(RunnerError, match=r"scheduler at .* did not answer"):
+            run_jobs(abs, [1], scheduler=address, connect_timeout=1.0, progress=False)
+
+
+def test_local_cluster_and_scheduler_address_give_the_same_results():
+    from dask.distributed import LocalCluster
+
+    jobs = list(range(12))
+    assert run_jobs(math.factorial, jobs, workers=2, progress=False) == [
+        math.factorial(j) for j in jobs
+    ]
+    with LocalCluster(n_workers=1, processes=False, dashboard_address=None) as cluster:
+        out = run_jobs(math.factorial, jobs, scheduler=cluster.scheduler_address, progress=False)
+    assert out == [math.factorial(j) for j in jobs]
+    with pytest.raises(JobsFailedError, match="math domain error"):
+        run_jobs(math.sqrt, [4.0, -1.0], workers=1, progress=False)
+
+
+def test_same_seed_same_bytes_serially_and_on_two_dask_workers(tmp_path):
+    """Dask LocalCluster with 2 worker processes (processes=True)."""
+    config = GenerationConfig("tank", seed=11, counts={"train": 6, "val": 2, "test": 2})
+    serial = generate_dataset(config, tmp_path / "serial").path
+    one = functools.partial(run_jobs, workers=1, progress=False)
+    two = functools.partial(run_jobs, workers=2, progress=False)
+    paths = [
+        generate_dataset(config, tmp_path / n, run_jobs=r).path for n, r in (("1", one), ("2", two))
+    ]
+    for path in paths:
+        assert path.read_bytes() == serial.read_bytes()
+        assert path.with_suffix(".json").read_bytes() == serial.with_suffix(".json").read_bytes()
