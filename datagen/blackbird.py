@@ -88,7 +88,6 @@ from typing import Any, Literal
 
 import numpy as np
 import scipy
-from scipy import signal
 
 from datagen.dataset import Dataset, Trajectory
 from models.errors import DataError
@@ -347,6 +346,10 @@ def lowpass(values: np.ndarray, *, fs_hz: float, cutoff_hz: float, order: int) -
         )
     if order < 1:
         raise DataError(f"filter order must be >= 1, got {order}")
+    # imported here: scipy.signal loads scipy.stats (slow, and it probes for torch, which the
+    # datagen layer must import without)
+    from scipy import signal
+
     sos = signal.butter(order, cutoff_hz, btype="low", fs=fs_hz, output="sos")
     return np.asarray(signal.sosfiltfilt(sos, values, axis=0))
 
