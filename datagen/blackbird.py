@@ -89,6 +89,7 @@ from typing import Any, Literal
 import numpy as np
 import scipy
 
+from datagen.chunks import cut_chunks
 from datagen.dataset import Dataset, Trajectory
 from models.errors import DataError
 from models.io import sha256_file
@@ -99,7 +100,6 @@ __all__ = [
     "BlackbirdFlight",
     "FlightSignals",
     "Stream",
-    "chunk_bounds",
     "find_flights",
     "load_blackbird",
     "lowpass",
@@ -411,14 +411,6 @@ def process_flight(
     )
 
 
-def chunk_bounds(n_samples: int, chunk_length: int) -> list[tuple[int, int]]:
-    """``(start, stop)`` of the consecutive non-overlapping chunks: ``[c·L, (c+1)·L)`` for
-    ``c = 0 … ⌊n/L⌋ − 1``; the remainder ``n mod L`` is dropped."""
-    if chunk_length < 1:
-        raise DataError(f"chunk_length must be >= 1, got {chunk_length}")
-    return [(c * chunk_length, (c + 1) * chunk_length) for c in range(n_samples // chunk_length)]
-
-
 # ---------------------------------------------------------------------------- flights, split
 
 
@@ -503,11 +495,12 @@ def load_blackbird(
 ) -> Dataset:
     """Load every Blackbird flight below ``root`` into a :class:`~datagen.dataset.Dataset`.
 
-    Each chunk becomes one :class:`~datagen.dataset.Trajectory` (``info``: flight id, chunk
-    index, start time); all chunks of a flight land in the same split. The metadata marks the
-    data as real (``real_data: True``, ``simulated: False``) and records the processing
-    settings, the split and the SHA-256 of every file read. See the module docstring for the
-    expected files, the processing steps and the split rule.
+    Each chunk becomes one :class:`~datagen.dataset.Trajectory` (``info``: ``flight`` id,
+    ``chunk`` index, ``chunk_start`` sample of the flight's 50 Hz record, ``t0_ns`` start of the
+    record on the bag clock, ``max_gap_s``); all chunks of a flight land in the same split.
+    The metadata marks the data as real (``real_data: True``, ``simulated: False``) and records
+    the processing settings, the split and the SHA-256 of every file read. See the module
+    docstring for the expected files, the processing steps and the split rule.
     """
     flights = find_flights(root)
     processed: dict[str, list[Trajectory]] = {}
@@ -525,27 +518,19 @@ def load_blackbird(
             cutoff_hz=cutoff_hz,
             filter_order=filter_order,
         )
-        bounds = chunk_bounds(len(sig.t_s), chunk_length)
-        if not bounds:
+        record = Trajectory(
+            u=sig.u,
+            y=sig.y,
+            info={"flight": flight.flight_id, "t0_ns": sig.t0_ns, "max_gap_s": sig.max_gap_s},
+        )
+        chunks = cut_chunks(record, chunk_length)
+        if not chunks:
             log.warning(
-                "%s: %d samples, shorter than one chunk; skipped", flight.flight_id, len(sig.t_s)
+                "%s: %d samples, shorter than one chunk; skipped", flight.flight_id, record.T
             )
-            skipped.append({"flight": flight.flight_id, "samples": len(sig.t_s)})
+            skipped.append({"flight": flight.flight_id, "samples": record.T})
             continue
-        processed[flight.flight_id] = [
-            Trajectory(
-                u=sig.u[a:b],
-                y=sig.y[a:b],
-                info={
-                    "flight": flight.flight_id,
-                    "chunk": c,
-                    "t_start_s": float(sig.t_s[a]),
-                    "t0_ns": sig.t0_ns,
-                    "max_gap_s": sig.max_gap_s,
-                },
-            )
-            for c, (a, b) in enumerate(bounds)
-        ]
+        processed[flight.flight_id] = list(chunks)
         files[flight.flight_id] = {
             kind: {"path": path.relative_to(base).as_posix(), "sha256": sha256_file(path)}
             for kind, path in (("imu", flight.imu_path), ("rotor_rpm", flight.rotor_path))

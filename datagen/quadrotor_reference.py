@@ -26,7 +26,10 @@ from scipy.interpolate import CubicSpline
 
 from models.errors import ShapeError
 
-__all__ = ["quadrotor_reference"]
+__all__ = ["QUADROTOR_REFERENCE_NAMES", "quadrotor_initial_state", "quadrotor_reference"]
+
+#: names of a quadrotor reference's columns
+QUADROTOR_REFERENCE_NAMES = ("px_ref", "py_ref", "pz_ref", "vx_ref", "vy_ref", "vz_ref", "yaw_ref")
 
 _DEFAULT_BOX = ((-2.0, 2.0), (-2.0, 2.0), (-1.0, 1.0))
 
@@ -83,3 +86,12 @@ def quadrotor_reference(
         f"quadrotor reference: no spline within |p| <= {position_limit} m and |v| <= "
         f"{speed_limit} m/s in {max_draws} draws; widen the limits or the waypoint spacing"
     )
+
+
+def quadrotor_initial_state(reference: np.ndarray) -> np.ndarray:
+    """Where a flight starts: on the reference's first position and velocity, level, with the
+    reference's first yaw, body rates zero (the 13-state layout of
+    :class:`models.quadrotor.Quadrotor`)."""
+    px, py, pz, vx, vy, vz, yaw = np.asarray(reference, dtype=np.float64)[0, :7]
+    half = 0.5 * yaw
+    return np.array([px, py, pz, vx, vy, vz, math.cos(half), 0.0, 0.0, math.sin(half), 0, 0, 0.0])
