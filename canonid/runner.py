@@ -30,7 +30,9 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures as cf
 import logging
+import signal
 import socket
+import threading
 import traceback
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -131,6 +133,20 @@ def _probe_scheduler(address: str, timeout: float) -> None:
 
 
 @contextmanager
+def _workers_ignore_ctrl_c() -> Iterator[None]:
+    """Start worker processes with SIGINT ignored (Python keeps an inherited "ignore"), so that
+    Ctrl-C interrupts only this process, which then closes the cluster cleanly."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+@contextmanager
 def _executor(
     workers: int, scheduler: str | None, *, connect_timeout: float, processes: bool
 ) -> Iterator[tuple[cf.Executor, int]]:
@@ -146,17 +162,22 @@ def _executor(
             _probe_scheduler(scheduler, connect_timeout)
             client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
         else:
-            cluster = LocalCluster(
-                n_workers=workers,
-                threads_per_worker=1,
-                processes=processes,
-                dashboard_address=None,
-                silence_logs=logging.ERROR,
-            )
+            with _workers_ignore_ctrl_c():
+                cluster = LocalCluster(
+                    n_workers=workers,
+                    threads_per_worker=1,
+                    processes=processes,
+                    dashboard_address=None,
+                    silence_logs=logging.CRITICAL,  # job errors come back through futures
+                )
             client = Client(cluster, set_as_default=False)
         try:
             threads = sum(client.nthreads().values()) or 1
             yield client.get_executor(pure=False), 2 * threads
+        except KeyboardInterrupt:
+            # closing a cluster mid-job makes Dask log cancelled tasks as errors: not news
+            logging.getLogger("distributed").setLevel(logging.CRITICAL)
+            raise
         finally:
             client.close()
             if cluster is not None:

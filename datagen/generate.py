@@ -169,7 +169,9 @@ class GenerationConfig:
                 f"T = {self.steps} samples per flight is shorter than one {self.system} chunk "
                 f"({chunk} samples)"
             )
-        if self.noise is not None and not isinstance(self.noise, (int, float)):
+        if isinstance(self.noise, (int, float, np.number)):
+            object.__setattr__(self, "noise", float(self.noise))
+        elif self.noise is not None:
             object.__setattr__(self, "noise", tuple(float(v) for v in self.noise))
         noise_box(_system(self.system), self.noise)  # raises if outside W
 
@@ -467,6 +469,9 @@ def generate_dataset(
                 finished[job.name] = found
     todo = [job for job in jobs if job.name not in finished]
     resumed = len(finished)
+    # Build the controller here first: bad options fail before any job runs, and a compiled
+    # solver is built once into the cache instead of by every worker at the same time.
+    _controller_for(config)
     prepared = False
 
     def prepare() -> None:

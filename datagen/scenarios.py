@@ -16,6 +16,7 @@ from typing import Any, cast
 import numpy as np
 
 from datagen.controllers.base import Controller
+from datagen.controllers.nmpc import NMPC
 from datagen.controllers.pid import PID
 from datagen.controllers.quadrotor_cascade import QuadrotorCascade
 from datagen.quadrotor_reference import (
@@ -23,8 +24,14 @@ from datagen.quadrotor_reference import (
     quadrotor_initial_state,
     quadrotor_reference,
 )
-from datagen.references import TANK_REFERENCE_NAMES, tank_reference
+from datagen.references import (
+    DRONE2D_REFERENCE_NAMES,
+    TANK_REFERENCE_NAMES,
+    drone2d_reference,
+    tank_reference,
+)
 from models.base import System
+from models.drone2d import Drone2D
 from models.errors import ShapeError, UnknownSystemError
 from models.quadrotor import Quadrotor
 
@@ -129,6 +136,36 @@ def _tank_pid(system: System, options: Mapping[str, Any]) -> Controller:
     return PID(kp=4.0, ki=0.6, kd=4.0, state_index=1)
 
 
+# ---------------------------------------------------------------------------- planar drone
+#: the authors' tracking weights on (px, pz, θ, ṗx, ṗz, θ̇)
+DRONE2D_STATE_WEIGHTS = (5.0, 5.0, 0.0, 1.0, 1.0, 0.01)
+#: weight on each rotor's deviation from hover, (rad/s)⁻²
+DRONE2D_INPUT_WEIGHTS = (1e-3, 1e-3)
+
+
+def _drone2d_reference(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
+    return drone2d_reference(rng, T=T, dt=system.dt)
+
+
+def _reference_start(system: System, reference: np.ndarray) -> np.ndarray:
+    """Start on the reference: its first row is a full target state (angle and rate 0)."""
+    return np.array(reference[0], dtype=np.float64)
+
+
+def _drone2d_nmpc(system: System, options: Mapping[str, Any]) -> Controller:
+    if not isinstance(system, Drone2D):
+        raise ShapeError(f"the planar-drone NMPC needs a Drone2D, got {system!r}")
+    hover = system.hover_speed
+    return NMPC(
+        system,
+        u_eq=(hover, hover),
+        horizon=int(options.get("horizon", 20)),
+        state_weights=DRONE2D_STATE_WEIGHTS,
+        input_weights=DRONE2D_INPUT_WEIGHTS,
+        terminal="lqr",
+    )
+
+
 # ---------------------------------------------------------------------------- quadrotor
 def _quadrotor_reference(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
     return quadrotor_reference(rng, steps=T, dt=system.dt)
@@ -178,6 +215,30 @@ _SCENARIOS: dict[str, Scenario] = {
             "Authors' generator: reference through level 0 at sample 0 and 5 uniform levels in "
             "[0, 5] at samples 40, 80, ..., 200 (cubic, redrawn if negative), x0 = (0, 0), "
             "PID (4, 0.6, 4) on the true lower level, command not saturated, no excitation."
+        ),
+    ),
+    "drone2d": Scenario(
+        system="drone2d",
+        T=600,
+        split_sizes={"train": 500, "val": 20, "test": 20},
+        reference=_drone2d_reference,
+        reference_names=DRONE2D_REFERENCE_NAMES,
+        initial_state=_reference_start,
+        controller=_drone2d_nmpc,
+        controller_options=("horizon",),
+        excitation_std=1.0,
+        loose_fraction=0.2,
+        loose_probability=0.1,
+        loose_std=10.0,
+        clip_input=True,
+        notes=(
+            "Authors' generator: 5-10 waypoints in [-2, 2]^2 evenly spread over 20 s, cubic "
+            "spline, velocities from its derivative, angle target 0; each flight starts on the "
+            "reference's initial state. Nonlinear MPC (fatrop) with the authors' tracking weights "
+            "(5, 5, 0, 1, 1, 0.01); Gaussian excitation sigma = 1 rad/s on the applied rotor "
+            "speeds; every fifth training flight is loose (each step, with probability 0.1, the "
+            "previous input plus N(0, 10^2) replaces the controller's). Applied inputs are "
+            "clipped to U = [0, 250] rad/s (the authors' rotors allowed about 733 rad/s)."
         ),
     ),
     "quadrotor": _QUADROTOR,

@@ -204,6 +204,7 @@ def test_config_validation():
     with pytest.raises(ShapeError, match="nothing to generate"):
         GenerationConfig("tank", counts={"train": 0, "val": 0, "test": 0})
     assert GenerationConfig("tank").counts == {"train": 60, "val": 20, "test": 20}
+    assert GenerationConfig("tank", noise=0).to_json()["noise"] == 0.0
 
 
 def test_loose_flights_are_every_fifth_training_flight():
@@ -229,6 +230,32 @@ def test_a_flight_is_a_function_of_its_seed_and_position_only():
 def _small(tmp_path, name, **kwargs):
     config = GenerationConfig("tank", seed=7, counts={"train": 4, "val": 2, "test": 2})
     return generate_dataset(config, tmp_path / name, **kwargs)
+
+
+def test_generated_drone_dataset(tmp_path, monkeypatch):
+    monkeypatch.setenv("CANONID_CACHE_DIR", str(tmp_path / "cache"))
+    config = GenerationConfig(
+        "drone2d",
+        seed=1,
+        counts={"train": 5, "val": 1, "test": 0},
+        T=90,
+        controller_options={"horizon": 10},
+        noise=0.005,
+    )
+    ds = Dataset.load(generate_dataset(config, tmp_path / "d").path)
+    assert ds.counts() == {"train": 5, "val": 1, "test": 0}
+    drone = get_system("drone2d")
+    for tr in ds.split("train") + ds.split("val"):
+        assert tr.x.shape == (90, 6) and tr.u.shape == (90, 2) and tr.reference.shape == (90, 6)
+        np.testing.assert_array_equal(tr.x[0], tr.reference[0])  # starts on the reference
+        assert drone.U.contains(tr.u)
+        assert np.all(np.abs(tr.y - tr.y_clean) <= 0.005)
+        assert tr.info["solver_failures"] == 0
+        assert tr.info["loose"] == (tr.info["index"] == 4 and tr.info["split"] == "train")
+        assert (tr.info["loose_steps"] > 0) == tr.info["loose"]
+    meta = ds.metadata
+    assert meta["controller"]["horizon"] == 10 and meta["scenario"]["excitation_std"] == 1.0
+    assert meta["noise"]["box"]["upper"] == [0.005] * 3
 
 
 def test_generated_tank_dataset(tmp_path):

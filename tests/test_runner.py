@@ -69,9 +69,26 @@ def test_local_cluster_and_scheduler_address_give_the_same_results():
         run_jobs(math.sqrt, [4.0, -1.0], workers=1, progress=False)
 
 
-def test_same_seed_same_bytes_serially_and_on_two_dask_workers(tmp_path):
-    """Dask LocalCluster with 2 worker processes (processes=True)."""
-    config = GenerationConfig("tank", seed=11, counts={"train": 6, "val": 2, "test": 2})
+@pytest.mark.parametrize(
+    "config",
+    [
+        GenerationConfig("tank", seed=11, counts={"train": 6, "val": 2, "test": 2}),
+        pytest.param(
+            GenerationConfig(
+                "drone2d",
+                seed=2,
+                counts={"train": 5, "val": 1, "test": 1},
+                T=45,
+                controller_options={"horizon": 10},
+            ),
+            marks=pytest.mark.slow,
+        ),
+    ],
+    ids=["tank", "drone2d"],
+)
+def test_same_seed_same_bytes_serially_and_on_two_dask_workers(config, tmp_path, monkeypatch):
+    """Dask LocalCluster with 1 and with 2 worker processes (processes=True)."""
+    monkeypatch.setenv("CANONID_CACHE_DIR", str(tmp_path / "cache"))  # inherited by the workers
     serial = generate_dataset(config, tmp_path / "serial").path
     one = functools.partial(run_jobs, workers=1, progress=False)
     two = functools.partial(run_jobs, workers=2, progress=False)

@@ -29,7 +29,9 @@ def register(sub: Any) -> None:
         "Writes DIR/dataset.npz and DIR/dataset.json.",
     )
     p.add_argument("system", help=f"the system ({', '.join(scenario_names())})")
-    p.add_argument("--out", type=Path, help="output folder (default runs/data/SYSTEM-sSEED)")
+    p.add_argument(
+        "--out", type=Path, metavar="DIR", help="output folder (default runs/data/SYSTEM-sSEED)"
+    )
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     for split in ("train", "val", "test"):
         p.add_argument(

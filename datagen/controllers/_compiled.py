@@ -1,0 +1,104 @@
+"""Turn a CasADi ``Function`` (e.g. a fatrop ``nlpsol``) into compiled C, cached on disk.
+
+The C source CasADi generates for the function is hashed together with the compiler command
+and the CasADi version; the shared library lives at ``<cache_dir>/<name>-<hash>.so`` and is
+built on first use only (in a temporary file renamed into place, so concurrent workers that
+build the same library at once are harmless). The default cache folder is
+``$CANONID_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/canonid`` (``~/.cache/canonid``), never
+the working directory. When no C compiler is found or the build fails, :func:`compile_function`
+returns ``None`` and the caller keeps the pure-CasADi function.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+
+__all__ = ["compile_function", "default_cache_dir"]
+
+log = logging.getLogger(__name__)
+
+_CASADI_DIR = Path(ca.__file__).resolve().parent
+
+
+def default_cache_dir() -> Path:
+    """``$CANONID_CACHE_DIR``, else ``$XDG_CACHE_HOME/canonid``, else ``~/.cache/canonid``."""
+    explicit = os.environ.get("CANONID_CACHE_DIR")
+    if explicit:
+        return Path(explicit).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base).expanduser() / "canonid"
+
+
+def compile_function(
+    function: ca.Function,
+    *,
+    name: str,
+    cache_dir: str | os.PathLike[str] | None = None,
+    libraries: tuple[str, ...] = (),
+    compiler: str = "gcc",
+    flags: tuple[str, ...] = ("-O2",),
+) -> ca.Function | None:
+    """``function`` generated to C, compiled and loaded with ``ca.external``; ``None`` when no
+    compiler is available or the build fails (logged as a warning).
+
+    Args:
+        function: the function to generate (its inputs and outputs are kept).
+        name: file-name prefix of the cached library.
+        cache_dir: where libraries are kept (default :func:`default_cache_dir`).
+        libraries: shared libraries of the CasADi wheel to link (e.g. ``("fatrop", "blasfeo")``);
+            they are found, and found again at run time, in the wheel's own folder.
+        compiler, flags: the C compiler and its optimisation flags.
+    """
+    exe = shutil.which(compiler)
+    if exe is None:
+        log.warning("no C compiler %r found: using the pure-CasADi solver", compiler)
+        return None
+    generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    generator.add(function)
+    source = generator.dump()
+    compile_args = [exe, *flags, "-fPIC", "-shared", f"-I{_CASADI_DIR / 'include'}"]
+    # libraries after the source: linkers that drop unneeded libraries read left to right
+    link_args = [
+        f"-L{_CASADI_DIR}",
+        *(f"-l{lib}" for lib in libraries),
+        f"-Wl,-rpath,{_CASADI_DIR}",
+    ]
+    digest = hashlib.sha256(
+        "\0".join([source, *compile_args, *link_args, ca.CasadiMeta.version()]).encode("utf-8")
+    ).hexdigest()[:20]
+    folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
+    library = folder / f"{name}-{digest}.so"
+    if not library.exists():
+        try:
+            _build(source, compile_args, link_args, folder, library)
+        except (OSError, subprocess.CalledProcessError) as exc:
+            detail = getattr(exc, "stderr", "") or exc
+            log.warning("building %s failed, using the pure-CasADi solver: %s", library, detail)
+            return None
+    return ca.external(function.name(), str(library))
+
+
+def _build(
+    source: str, compile_args: list[str], link_args: list[str], folder: Path, library: Path
+) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=folder, prefix=".build-") as tmp:
+        c_file = Path(tmp) / "solver.c"
+        c_file.write_text(source, encoding="utf-8")
+        target = Path(tmp) / library.name
+        subprocess.run(
+            [*compile_args, str(c_file), "-o", str(target), *link_args],
+            check=True,
+            capture_output=True,
+            text=True,
+        )
+        os.replace(target, library)
+    log.info("compiled %s", library)

@@ -1,0 +1,292 @@
+"""Nonlinear MPC by multiple shooting, solved with fatrop (CasADi), for data generation.
+
+At sample ``t`` with true state ``x[t]`` and reference rows ``r[t], …, r[t+N]`` (rows past the
+end of the reference repeat its last row), the controller solves::
+
+    min   Σ_{k=0}^{N−1} ( ‖x_k − r_{t+k}‖²_Q + ‖u_k − u_eq‖²_R ) + ‖x_N − r_{t+N}‖²_P
+    s.t.  x_0 = x[t],   x_{k+1} − f(x_k, u_k) = 0  (k = 0 … N−1),   u_k ∈ U
+
+and applies ``u_0``. ``f`` is the system's own discrete map; Q and R are diagonal; P is the
+Riccati solution of the LQR of the linearisation at ``(x_eq, u_eq)`` (python-control ``dlqr``)
+with ``terminal="lqr"``, or Q with ``terminal="none"``.
+
+Decision vector and constraint order are the stage order fatrop's structure detection needs:
+``w = (x_0, u_0, x_1, u_1, …, x_{N−1}, u_{N−1}, x_N)``, ``g = (x_0 − x[t], x_1 − f(x_0, u_0), …)``
+(the dynamics as ``x_{k+1} − f`` — the other sign is a "structure mismatch" for fatrop).
+
+Warm start: each solve starts from the previous plan shifted by one stage (last stage
+repeated). A solve that fails (solver status, or a non-finite plan) returns
+``ControlStep(ok=False)`` with the *shifted previous plan*'s next input (``u_eq`` if there is no
+plan yet); the next solve is warm-started from that plan shifted again.
+
+Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver to C, compiles it on
+first use and caches the library (see :mod:`datagen.controllers._compiled`); ``"fatrop"`` is the
+plugin of the CasADi wheel; ``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found
+and the build succeeds, else ``"fatrop"``; ``"ipopt"`` solves the same NLP with IPOPT (for
+comparisons). :meth:`NMPC.settings` names the solver actually used.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from datagen.controllers._compiled import compile_function
+from datagen.controllers.base import Controller, ControlStep
+from models._validate import as_matrix, as_vector
+from models.base import System
+from models.errors import ShapeError
+
+__all__ = ["NMPC", "SOLVERS"]
+
+log = logging.getLogger(__name__)
+
+SOLVERS = ("auto", "fatrop-c", "fatrop", "ipopt")
+
+
+class NMPC(Controller):
+    """Nonlinear MPC tracking a full-state reference (see the module docstring).
+
+    Args:
+        system: the true system (its ``f`` is the prediction model and its U the input bounds).
+        u_eq: the input the ``R`` term pulls towards and the LQR linearises at (e.g. hover).
+        x_eq: the state the LQR linearises at (default 0).
+        horizon: N, the number of predicted inputs.
+        state_weights: diagonal of Q, one per state.
+        input_weights: diagonal of R, one per input.
+        terminal: ``"lqr"`` or ``"none"``.
+        solver: one of :data:`SOLVERS`.
+        tol: solver tolerance. The default 1e-4 was chosen by measurement: on drone flights
+            the applied rotor speeds differed from those of IPOPT at tolerance 1e-10 by at most
+            1.4e-5 rad/s (the excitation is 1 rad/s), with one fewer fatrop iteration per step
+            than at 1e-6.
+        mu_init: initial barrier parameter of fatrop / IPOPT (small suits warm starts).
+        max_iter: iteration limit per solve (a solve that reaches it has failed).
+        cache_dir: where ``"fatrop-c"`` keeps compiled solvers (default: the user's cache
+            folder, see :func:`datagen.controllers._compiled.default_cache_dir`).
+    """
+
+    name = "nmpc"
+
+    def __init__(
+        self,
+        system: System,
+        *,
+        u_eq: Sequence[float],
+        x_eq: Sequence[float] | None = None,
+        horizon: int = 20,
+        state_weights: Sequence[float],
+        input_weights: Sequence[float],
+        terminal: str = "lqr",
+        solver: str = "auto",
+        tol: float = 1e-4,
+        mu_init: float = 1e-3,
+        max_iter: int = 100,
+        cache_dir: str | os.PathLike[str] | None = None,
+    ) -> None:
+        if int(horizon) != horizon or horizon < 1:
+            raise ShapeError(f"NMPC horizon must be an integer >= 1, got {horizon!r}")
+        if solver not in SOLVERS:
+            raise ShapeError(f"NMPC solver must be one of {SOLVERS}, got {solver!r}")
+        if terminal not in ("lqr", "none"):
+            raise ShapeError(f"NMPC terminal must be 'lqr' or 'none', got {terminal!r}")
+        self.system = system
+        self.horizon = N = int(horizon)
+        nx, nu = system.n_x, system.n_u
+        self.u_eq = as_vector(u_eq, nu, "NMPC u_eq")
+        self.x_eq = np.zeros(nx) if x_eq is None else as_vector(x_eq, nx, "NMPC x_eq")
+        q = as_vector(state_weights, nx, "NMPC state_weights")
+        r = as_vector(input_weights, nu, "NMPC input_weights")
+        if np.any(q < 0) or np.any(r <= 0):
+            raise ShapeError("NMPC weights: state weights must be >= 0 and input weights > 0")
+        self.Q, self.R = np.diag(q), np.diag(r)
+        self.terminal = terminal
+        self.P = self._terminal_weight() if terminal == "lqr" else self.Q
+        self.tol, self.mu_init, self.max_iter = float(tol), float(mu_init), int(max_iter)
+
+        self._nw = nx * (N + 1) + nu * N
+        self._u_index = np.concatenate(
+            [np.arange(nu) + k * (nx + nu) + nx for k in range(N)]
+        ).reshape(N, nu)
+        self._lbx = np.full(self._nw, -np.inf)
+        self._ubx = np.full(self._nw, np.inf)
+        self._lbx[self._u_index] = system.U.lo
+        self._ubx[self._u_index] = system.U.hi
+        self._ng = nx * (N + 1)
+        self._zeros_g = np.zeros(self._ng)
+
+        nlp = self._nlp()
+        self.solver_used, self._solve = self._build(nlp, solver, cache_dir)
+        self._reference: np.ndarray | None = None
+        self._guess = np.zeros(self._nw)
+        self._plan: np.ndarray | None = None  # (N, nu) inputs of the last usable plan
+        self._since_plan = 0
+
+    # ------------------------------------------------------------------ construction
+    def _terminal_weight(self) -> np.ndarray:
+        import control
+
+        x = ca.SX.sym("x", self.system.n_x)
+        u = ca.SX.sym("u", self.system.n_u)
+        fx = self.system.f(x, u)
+        linear = ca.Function("linearisation", [x, u], [ca.jacobian(fx, x), ca.jacobian(fx, u)])
+        A, B = (np.asarray(m, dtype=np.float64) for m in linear(self.x_eq, self.u_eq))
+        _, P, _ = control.dlqr(A, B, self.Q, self.R)
+        P = np.asarray(P, dtype=np.float64)
+        return 0.5 * (P + P.T)
+
+    def _nlp(self) -> dict[str, Any]:
+        nx, nu, N = self.system.n_x, self.system.n_u, self.horizon
+        X = [ca.MX.sym(f"x{k}", nx) for k in range(N + 1)]
+        U = [ca.MX.sym(f"u{k}", nu) for k in range(N)]
+        x_now = ca.MX.sym("x_now", nx)
+        ref = ca.MX.sym("ref", nx, N + 1)
+        Q, R, P = ca.DM(self.Q), ca.DM(self.R), ca.DM(self.P)
+        u_eq = ca.DM(self.u_eq)
+        w, g = [], [X[0] - x_now]
+        cost: Any = 0
+        for k in range(N):
+            w += [X[k], U[k]]
+            e, du = X[k] - ref[:, k], U[k] - u_eq
+            cost += ca.bilin(Q, e, e) + ca.bilin(R, du, du)
+            g.append(X[k + 1] - self.system.f(X[k], U[k]))
+        w.append(X[N])
+        e = X[N] - ref[:, N]
+        cost += ca.bilin(P, e, e)
+        return {"x": ca.vcat(w), "f": cost, "g": ca.vcat(g), "p": ca.vertcat(x_now, ca.vec(ref))}
+
+    def _build(
+        self, nlp: dict[str, Any], solver: str, cache_dir: str | os.PathLike[str] | None
+    ) -> tuple[str, ca.Function]:
+        """The step function ``(initial guess, parameters) -> plan`` for ``solver``.
+
+        The bounds are baked in, so a step passes two arrays (fewer conversions than the six
+        inputs of an ``nlpsol``), and ``error_on_fail`` makes a failed solve raise: the generated
+        C has no ``stats()`` to ask.
+        """
+        common: dict[str, Any] = {"expand": True, "print_time": False, "error_on_fail": True}
+        if solver == "ipopt":
+            opts: dict[str, Any] = {
+                **common,
+                "ipopt": {
+                    "print_level": 0,
+                    "sb": "yes",
+                    "tol": self.tol,
+                    "mu_init": self.mu_init,
+                    "max_iter": self.max_iter,
+                },
+            }
+            return "ipopt", self._step_function(ca.nlpsol("nmpc", "ipopt", nlp, opts))
+        fatrop_opts: dict[str, Any] = {
+            **common,
+            "structure_detection": "auto",
+            "equality": [True] * self._ng,
+            "fatrop": {
+                "print_level": 0,
+                "tol": self.tol,
+                "mu_init": self.mu_init,
+                "max_iter": self.max_iter,
+            },
+        }
+        step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
+        if solver in ("auto", "fatrop-c"):
+            compiled = compile_function(
+                step,
+                name=f"nmpc_{self.system.name}_N{self.horizon}",
+                cache_dir=cache_dir,
+                libraries=("fatrop", "blasfeo"),
+            )
+            if compiled is not None:
+                return "fatrop-c", compiled
+            if solver == "fatrop-c":
+                raise ShapeError(
+                    "solver 'fatrop-c' needs a working C compiler (gcc); use solver='fatrop'"
+                )
+        return "fatrop", step
+
+    def _step_function(self, nlpsol: ca.Function) -> ca.Function:
+        guess = ca.MX.sym("guess", self._nw)
+        params = ca.MX.sym("params", nlpsol.size1_in("p"))
+        plan = nlpsol(
+            x0=guess, p=params, lbx=self._lbx, ubx=self._ubx, lbg=self._zeros_g, ubg=self._zeros_g
+        )["x"]
+        return ca.Function("nmpc_step", [guess, params], [plan], ["guess", "params"], ["plan"])
+
+    # ------------------------------------------------------------------ the controller
+    def reset(self, reference: np.ndarray, x0: np.ndarray) -> None:
+        nx, N = self.system.n_x, self.horizon
+        self._reference = as_matrix(reference, nx, "NMPC reference (one target per state)")
+        x = as_vector(x0, nx, "NMPC x0")
+        stage = np.concatenate([x, self.u_eq])
+        self._guess = np.concatenate([np.tile(stage, N), x])
+        self._plan = None
+        self._since_plan = 0
+
+    def __call__(self, t: int, x: np.ndarray) -> ControlStep:
+        if self._reference is None:
+            raise ShapeError("NMPC called before reset(reference, x0)")
+        T, N = self._reference.shape[0], self.horizon
+        rows = np.minimum(np.arange(t, t + N + 1), T - 1)
+        params = np.concatenate([x, self._reference[rows].ravel()])
+        self._guess[: self.system.n_x] = x
+        start = time.perf_counter()
+        status, w = self._solve_once(params)
+        elapsed = time.perf_counter() - start
+        if w is not None:
+            self._plan = w[self._u_index]
+            self._since_plan = 0
+            self._guess = self._shifted(w)
+            return ControlStep(
+                u=self._plan[0].copy(), info={"status": status, "solve_time": elapsed}
+            )
+        # fall back on the previous plan, shifted
+        if self._plan is None:
+            u = self.u_eq.copy()
+        else:
+            self._since_plan += 1
+            u = self._plan[min(self._since_plan, N - 1)].copy()
+            self._guess = self._shifted(self._guess)
+        return ControlStep(u=u, ok=False, info={"status": status, "solve_time": elapsed})
+
+    def _solve_once(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
+        try:
+            plan = self._solve(self._guess, params)
+        except RuntimeError as exc:  # error_on_fail: failed or non-converged
+            log.debug("NMPC solve failed: %s", exc)
+            return f"{self.solver_used} failed", None
+        w = np.asarray(plan, dtype=np.float64).ravel()
+        if not np.all(np.isfinite(w)):
+            return "non-finite plan", None
+        return "ok", w
+
+    def _shifted(self, w: np.ndarray) -> np.ndarray:
+        """Drop stage 0 of a plan and repeat the last stage: ``(x1,u1,…,x_{N-1},u_{N-1},x_N,
+        u_{N-1},x_N)``."""
+        nx, nu = self.system.n_x, self.system.n_u
+        last_u = w[self._u_index[-1]]
+        return np.concatenate([w[nx + nu :], last_u, w[-nx:]])
+
+    def settings(self) -> dict[str, Any]:
+        return {
+            "type": self.name,
+            "solver": self.solver_used,
+            "horizon": self.horizon,
+            "state_weights": np.diag(self.Q).tolist(),
+            "input_weights": np.diag(self.R).tolist(),
+            "u_eq": self.u_eq.tolist(),
+            "x_eq": self.x_eq.tolist(),
+            "terminal": self.terminal,
+            "terminal_weight": self.P.tolist(),
+            "input_bounds": self.system.U.to_dict(),
+            "tol": self.tol,
+            "mu_init": self.mu_init,
+            "max_iter": self.max_iter,
+            "formulation": "multiple shooting, x_{k+1} - f(x_k, u_k) = 0, warm start by shift",
+            "fallback": "failed solve: next input of the shifted previous plan (u_eq if none)",
+        }

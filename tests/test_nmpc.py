@@ -1,0 +1,142 @@
+"""The planar-drone NMPC: hover, tracking, fallback on failure, compiled = plugin, no compiler."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+import datagen.controllers._compiled as compiled
+from datagen.controllers.nmpc import NMPC
+from datagen.references import drone2d_reference
+from datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS
+from datagen.simulate import Excitation, simulate_closed_loop
+from models.drone2d import Drone2D
+from models.errors import ShapeError
+
+HORIZON = 10  # short: compiling the solver is the slow part of these tests
+
+
+@pytest.fixture(scope="module")
+def drone():
+    return Drone2D()
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("nmpc-cache")
+
+
+def _nmpc(drone, cache, **kwargs):
+    h = drone.hover_speed
+    options = {
+        "u_eq": (h, h),
+        "horizon": HORIZON,
+        "state_weights": DRONE2D_STATE_WEIGHTS,
+        "input_weights": DRONE2D_INPUT_WEIGHTS,
+        "cache_dir": cache,
+        **kwargs,
+    }
+    return NMPC(drone, **options)
+
+
+@pytest.fixture(scope="module")
+def plugin(drone, cache):
+    return _nmpc(drone, cache, solver="fatrop")
+
+
+def test_keeps_the_drone_at_hover(drone, plugin):
+    loop = simulate_closed_loop(
+        drone, plugin, np.zeros((90, 6)), x0=np.zeros(6), rng=np.random.default_rng(0)
+    )
+    assert loop.failures == 0
+    assert np.abs(loop.x).max() < 1e-6
+    np.testing.assert_allclose(loop.u, drone.hover_speed, rtol=1e-6)
+
+
+def test_tracks_a_slow_reference_with_small_error(drone, plugin):
+    """A 20 s spline through 5 waypoints, stretched to 40 s, with σ = 1 rad/s excitation."""
+    ref = drone2d_reference(np.random.default_rng(3), T=1200, dt=drone.dt, n_waypoints=(5, 5))
+    loop = simulate_closed_loop(
+        drone,
+        plugin,
+        ref,
+        x0=ref[0],
+        rng=np.random.default_rng(1),
+        excitation=Excitation(std=1.0),
+        clip_input=True,
+    )
+    assert loop.failures == 0
+    position_error = np.linalg.norm(loop.x[:, :2] - ref[:, :2], axis=1)
+    assert np.sqrt(np.mean(position_error**2)) < 0.01  # m, on a path spanning metres
+    assert position_error.max() < 0.03
+    assert np.abs(loop.x[:, 2]).max() < 0.2  # rad
+    assert drone.U.contains(loop.u)
+
+
+def test_failed_solve_falls_back_on_the_shifted_plan(drone, cache, monkeypatch):
+    ctrl = _nmpc(drone, cache, solver="fatrop")
+    ref = drone2d_reference(np.random.default_rng(0), T=50, dt=drone.dt)
+    ctrl.reset(ref, ref[0])
+    first = ctrl(0, ref[0])
+    assert first.ok
+    plan = ctrl._plan.copy()
+    monkeypatch.setattr(ctrl, "_solve_once", lambda params: ("forced failure", None))
+    second, third = ctrl(1, ref[1]), ctrl(2, ref[2])
+    assert not second.ok and second.info["status"] == "forced failure"
+    np.testing.assert_array_equal(second.u, plan[1])
+    np.testing.assert_array_equal(third.u, plan[2])
+    ctrl.reset(ref, ref[0])  # no plan yet: the equilibrium input
+    np.testing.assert_array_equal(ctrl(0, ref[0]).u, [drone.hover_speed] * 2)
+
+
+def test_solver_that_cannot_converge_reports_failures(drone, cache):
+    ctrl = _nmpc(drone, cache, solver="fatrop", max_iter=1)
+    ref = drone2d_reference(np.random.default_rng(0), T=5, dt=drone.dt)
+    loop = simulate_closed_loop(drone, ctrl, ref, x0=ref[0], rng=np.random.default_rng(0))
+    assert loop.failures == 5 and all("fatrop failed" in k for k in loop.failure_reasons)
+
+
+def test_compiled_solver_equals_the_plugin_and_is_cached(drone, cache, plugin):
+    ctrl = _nmpc(drone, cache, solver="fatrop-c")
+    assert ctrl.solver_used == "fatrop-c"
+    libraries = sorted(cache.glob("*.so"))
+    assert len(libraries) == 1
+    built = libraries[0].stat().st_mtime_ns
+    again = _nmpc(drone, cache, solver="auto")  # same problem: the cached library is reused
+    assert again.solver_used == "fatrop-c" and libraries[0].stat().st_mtime_ns == built
+    ref = drone2d_reference(np.random.default_rng(5), T=150, dt=drone.dt)
+    runs = [
+        simulate_closed_loop(
+            drone, c, ref, x0=ref[0], rng=np.random.default_rng(2), excitation=Excitation(1.0)
+        )
+        for c in (ctrl, plugin)
+    ]
+    np.testing.assert_array_equal(runs[0].x, runs[1].x)  # the same algorithm, bit for bit
+    failing = _nmpc(drone, cache, solver="fatrop-c", max_iter=1)
+    step = (failing.reset(ref, ref[0]), failing(0, ref[0]))[1]
+    assert not step.ok and step.info["status"] == "fatrop-c failed"
+
+
+def test_without_a_compiler_auto_uses_the_plugin(drone, tmp_path, monkeypatch):
+    monkeypatch.setattr(compiled.shutil, "which", lambda name: None)
+    assert _nmpc(drone, tmp_path, solver="auto").solver_used == "fatrop"
+    assert not list(tmp_path.iterdir())
+    with pytest.raises(ShapeError, match="needs a working C compiler"):
+        _nmpc(drone, tmp_path, solver="fatrop-c")
+
+
+def test_settings_and_bad_arguments(drone, plugin):
+    settings = json.loads(json.dumps(plugin.settings()))
+    assert settings["horizon"] == HORIZON and settings["solver"] == "fatrop"
+    P = np.array(settings["terminal_weight"])
+    assert np.allclose(P, P.T) and np.all(np.linalg.eigvalsh(P) > 0)
+    with pytest.raises(ShapeError, match="horizon"):
+        _nmpc(drone, None, horizon=0)
+    with pytest.raises(ShapeError, match="solver"):
+        _nmpc(drone, None, solver="snopt")
+    with pytest.raises(ShapeError, match="state_weights"):
+        _nmpc(drone, None, state_weights=(1.0, 1.0))
+    with pytest.raises(ShapeError, match="before reset"):
+        _nmpc(drone, None, solver="fatrop")(0, np.zeros(6))
