@@ -195,6 +195,11 @@ class Quadrotor(System):
                 f"quadrotor: omega_max = {omega_max} rad/s cannot lift the vehicle (hover needs "
                 f"{self.hover_speed:.1f} rad/s)"
             )
+        if len(noise) != 2 or any(not (n >= 0) for n in noise):
+            raise SetError(
+                "quadrotor: noise must be two half-widths >= 0 (accelerometer [m/s^2], "
+                f"gyroscope [rad/s]), got {noise}"
+            )
         p, v, r = position_box, velocity_box, rate_box
         acc_noise, gyro_noise = noise
         super().__init__(

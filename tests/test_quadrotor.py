@@ -71,6 +71,8 @@ def test_bad_parameters_are_refused():
         Quadrotor(J=(1e-3, 0.0, 1e-3))
     with pytest.raises(SetError, match="m must be"):
         Quadrotor(m=-1.0)
+    with pytest.raises(SetError, match="noise must be two half-widths"):
+        Quadrotor(noise=(0.1,))  # type: ignore[arg-type]
 
 
 # ---------------------------------------------------------------- closed forms
