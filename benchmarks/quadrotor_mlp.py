@@ -24,6 +24,7 @@ import json
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -45,6 +46,37 @@ def hold_last_mse(trajectories, window: int, horizon: int) -> tuple[float, int]:
         for s in range(window, tr.T - horizon + 1)
     ]
     return float(np.mean(errors)), len(errors)
+
+
+def _section(
+    args: argparse.Namespace, dataset: Dataset, rows: list[str], results: dict[int, Any]
+) -> str:
+    counts = dataset.counts()
+    test_y = np.concatenate([tr.y for tr in dataset.split("test")])
+    variance = float(np.mean(test_y.var(axis=0)))
+    body = (
+        "Ours (MLP), 2 × 2048 ReLU hidden units, feedthrough, trained by output error with the "
+        f"`quick` profile's options but {args.epochs} epochs, Adam from lr {args.lr:g} (cosine "
+        f"to 1e-5), rollout curriculum 1 → {args.horizon} steps over the first "
+        f"{max(1, 3 * args.epochs // 4)} epochs, CPU, {args.threads} thread(s). "
+        "Data: **SIMULATED stand-in** "
+        f"(`canonid generate quadrotor`, {counts['train']} / {counts['val']} / {counts['test']} "
+        "chunks of 200 samples). Metric: MSE of 100-step open-loop rollouts after the ℓ-step "
+        "burn-in, physical units (m/s² and rad/s mixed), averaged over the 6 IMU outputs, all "
+        "start times of every test chunk. The paper's column is **real Blackbird data** with "
+        "10,000 epochs: a reference point, not a like-for-like comparison.\n\n"
+        "| ℓ | simulated stand-in, vs measured y (×1e-2) | vs noise-free y (×1e-2) | "
+        "hold-last baseline, same rollouts (×1e-2) | paper, real Blackbird (×1e-2) | epochs | "
+        "training time |\n|---|---|---|---|---|---|---|\n"
+        + "\n".join(rows)
+        + f"\n\nFor scale: the test outputs' variance, averaged over the 6 outputs, is "
+        f"{100 * variance:.2f} ×1e-2. Per-output MSE (measured y): `"
+        + json.dumps({w: r["per_output"] for w, r in results.items()})
+        + "` (order "
+        + ", ".join(dataset.output_names)
+        + ").\n"
+    )
+    return body
 
 
 def main() -> int:
@@ -121,32 +153,9 @@ def main() -> int:
             f"(best {result.best_epoch}) | {seconds / 60:.1f} min |"
         )
         print(rows[-1], flush=True)
-    counts = dataset.counts()
-    test_y = np.concatenate([tr.y for tr in dataset.split("test")])
-    variance = float(np.mean(test_y.var(axis=0)))
-    body = (
-        "Ours (MLP), 2 × 2048 ReLU hidden units, feedthrough, trained by output error with the "
-        f"`quick` profile's options but {args.epochs} epochs, Adam from lr {args.lr:g} (cosine "
-        f"to 1e-5), rollout curriculum 1 → {args.horizon} steps over the first "
-        f"{max(1, 3 * args.epochs // 4)} epochs, CPU, {args.threads} thread(s). "
-        "Data: **SIMULATED stand-in** "
-        f"(`canonid generate quadrotor`, {counts['train']} / {counts['val']} / {counts['test']} "
-        "chunks of 200 samples). Metric: MSE of 100-step open-loop rollouts after the ℓ-step "
-        "burn-in, physical units (m/s² and rad/s mixed), averaged over the 6 IMU outputs, all "
-        "start times of every test chunk. The paper's column is **real Blackbird data** with "
-        "10,000 epochs: a reference point, not a like-for-like comparison.\n\n"
-        "| ℓ | simulated stand-in, vs measured y (×1e-2) | vs noise-free y (×1e-2) | "
-        "hold-last baseline, same rollouts (×1e-2) | paper, real Blackbird (×1e-2) | epochs | "
-        "training time |\n|---|---|---|---|---|---|---|\n"
-        + "\n".join(rows)
-        + f"\n\nFor scale: the test outputs' variance, averaged over the 6 outputs, is "
-        f"{100 * variance:.2f} ×1e-2. Per-output MSE (measured y): `"
-        + json.dumps({w: r["per_output"] for w, r in results.items()})
-        + "` (order "
-        + ", ".join(dataset.output_names)
-        + ").\n"
-    )
-    write_section("Quadrotor Ours (MLP), simulated stand-in", body)
+        # written after every window, so the finished ones survive an interrupted run
+        body = _section(args, dataset, rows, results)
+        write_section("Quadrotor Ours (MLP), simulated stand-in", body)
     print(body)
     return 0
 
