@@ -1,2 +1,39 @@
-"""Identification with torch: canonical state, regressors H, baselines, output-error training,
-the auto-encoder. Never imports CasADi; exports plain numpy callables for ``analysis``."""
+"""Identification with torch: canonical state, the four models, output-error training,
+evaluation and the numpy export. Never imports CasADi or datagen.
+
+Typical use (``train``, ``val``, ``test``: sequences of objects with ``.u``, ``.y``)::
+
+    from learning import TrainOptions, evaluate, fit
+
+    result = fit(train, val, model="mlp", window=10, options=TrainOptions(epochs=200))
+    scores = evaluate(result.model, test, horizon=100)
+    H = result.model.export()          # numpy: H.H(z, u), H.simulate(u, y_burn_in)
+"""
+
+from learning.data import Normalisation, Series, as_series
+from learning.evaluate import Evaluation, Scores, evaluate
+from learning.export import NumpyModel
+from learning.model import Model
+from learning.nets import NETS, SequenceModel, UnknownModelError, build_net, model_names
+from learning.training import EpochReport, FitResult, OptionError, TrainOptions, fit
+
+__all__ = [
+    "NETS",
+    "EpochReport",
+    "Evaluation",
+    "FitResult",
+    "Model",
+    "Normalisation",
+    "NumpyModel",
+    "OptionError",
+    "Scores",
+    "SequenceModel",
+    "Series",
+    "TrainOptions",
+    "UnknownModelError",
+    "as_series",
+    "build_net",
+    "evaluate",
+    "fit",
+    "model_names",
+]

@@ -1,41 +1,48 @@
 """The true systems: CasADi definitions of f, h, their sets X, U, W, and one registry.
 
 This package is the root of canonid's dependency graph (``canonid → {datagen, learning,
-analysis} → models``); it needs only numpy and CasADi.
+analysis} → models``); it needs only numpy and CasADi. The names below are imported lazily
+(PEP 562), so that ``learning`` can use the CasADi-free modules (``models.errors``,
+``models.canonical``, ``models.io``, ``models._validate``) without importing CasADi.
 """
 
-from models.base import SimResult, System
-from models.drone2d import Drone2D
-from models.errors import (
-    CanonidError,
-    CheckpointError,
-    DataError,
-    NotImplementedYetError,
-    SetError,
-    ShapeError,
-    UnknownSystemError,
-)
-from models.linear import LinearSystem, linear_example
-from models.registry import get_system, register_system, system_names
-from models.sets import Box
-from models.tank import Tank
+from __future__ import annotations
 
-__all__ = [
-    "Box",
-    "CanonidError",
-    "CheckpointError",
-    "DataError",
-    "Drone2D",
-    "LinearSystem",
-    "NotImplementedYetError",
-    "SetError",
-    "ShapeError",
-    "SimResult",
-    "System",
-    "Tank",
-    "UnknownSystemError",
-    "get_system",
-    "linear_example",
-    "register_system",
-    "system_names",
-]
+import importlib
+from typing import Any
+
+_EXPORTS = {
+    "SimResult": "models.base",
+    "System": "models.base",
+    "Drone2D": "models.drone2d",
+    "CanonidError": "models.errors",
+    "CheckpointError": "models.errors",
+    "DataError": "models.errors",
+    "NotImplementedYetError": "models.errors",
+    "SetError": "models.errors",
+    "ShapeError": "models.errors",
+    "UnknownSystemError": "models.errors",
+    "LinearSystem": "models.linear",
+    "linear_example": "models.linear",
+    "get_system": "models.registry",
+    "register_system": "models.registry",
+    "system_names": "models.registry",
+    "Box": "models.sets",
+    "Tank": "models.tank",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        module = _EXPORTS[name]
+    except KeyError:
+        raise AttributeError(f"module 'models' has no attribute {name!r}") from None
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_EXPORTS))

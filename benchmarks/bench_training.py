@@ -1,0 +1,203 @@
+"""Training throughput of the four models on CPU, the effect of the accelerations tried, and the
+time the quick profile takes to reach a target on the tank.
+
+Writes the section "Training throughput" of benchmarks/RESULTS.md.
+
+* Throughput: the training step of each model (loss of an open-loop rollout + backward + Adam)
+  on sub-windows of the tank dataset, ℓ = 10, H = 50, batch 16, one thread: batches/s, windows/s
+  and window-steps/s (a window-step is one predicted sample of one sub-window), and epochs/s
+  for the quick profile's epoch (4 windows per training trajectory).
+* Accelerations (Ours (MLP), against the one-thread eager batch-16 baseline of the same run):
+  two threads, larger batches (more window-steps per second, fewer optimiser steps per epoch),
+  ``torch.compile`` of the regressor.
+* Time to target: Ours (MLP) with the quick profile on the tank; the wall time and epoch at
+  which the validation rollout MSE (physical units, against the measured outputs) first falls
+  below ``noise variance + 1e-4`` (the noise is uniform in ±0.02, variance 1.33e-4).
+
+Usage: python benchmarks/bench_training.py [--size quick|full] [--data DIR]
+(``--data``: a tank dataset from ``canonid generate tank``; default runs/data/tank-s0).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from _results import write_section  # noqa: E402
+
+from canonid.profiles import train_options  # noqa: E402
+from datagen.dataset import Dataset  # noqa: E402
+from learning import build_net, fit, model_names  # noqa: E402
+from learning.data import Normalisation, WindowBank, as_series  # noqa: E402
+
+WINDOW, HORIZON = 10, 50
+
+
+def steps_per_second(net, bank, *, batch: int, seconds: float, threads: int) -> float:
+    """Training steps per second on random sub-windows of ``bank``."""
+    torch.set_num_threads(threads)
+    rng = np.random.default_rng(0)
+    starts = bank.starts(WINDOW + HORIZON)
+    opt = torch.optim.Adam(net.parameters(), lr=1e-4)
+
+    def step() -> None:
+        idx = starts[rng.integers(0, len(starts), size=batch)]
+        u, y = bank.gather(idx, WINDOW + HORIZON)
+        loss, _ = net.training_loss(u, y, alpha_first=10.0)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+
+    for _ in range(3):  # warm-up (and compilation, if any)
+        step()
+    n, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        step()
+        n += 1
+    return n / (time.perf_counter() - t0)
+
+
+def throughput(bank, n_train: int, seconds: float) -> str:
+    windows_per_epoch = 4 * n_train
+    rows = [
+        "| model | parameters | batches/s | windows/s | window-steps/s | quick epochs/s |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
+    for name in model_names():
+        torch.manual_seed(0)
+        net = build_net(name, window=WINDOW, n_u=1, n_y=1, residual=True)
+        rate = steps_per_second(net, bank, batch=16, seconds=seconds, threads=1)
+        params = sum(p.numel() for p in net.parameters())
+        windows = 16 * rate
+        rows.append(
+            f"| {name} | {params:,} | {rate:.1f} | {windows:.0f} | {windows * HORIZON:,.0f} | "
+            f"{windows / windows_per_epoch:.2f} |"
+        )
+    return "\n".join(rows)
+
+
+def accelerations(bank, seconds: float) -> str:
+    def mlp():
+        torch.manual_seed(0)
+        return build_net("mlp", window=WINDOW, n_u=1, n_y=1, residual=True)
+
+    base = steps_per_second(mlp(), bank, batch=16, seconds=seconds, threads=1) * 16
+    rows = [
+        "| variant (Ours (MLP)) | window-steps/s | vs baseline |",
+        "|---|---:|---:|",
+        f"| baseline: 1 thread, eager, batch 16 | {base * HORIZON:,.0f} | 1.00 |",
+    ]
+
+    def add(label: str, windows: float) -> None:
+        rows.append(f"| {label} | {windows * HORIZON:,.0f} | {windows / base:.2f} |")
+
+    add(
+        "2 threads, batch 16",
+        steps_per_second(mlp(), bank, batch=16, seconds=seconds, threads=2) * 16,
+    )
+    for b in (64, 256):
+        add(
+            f"1 thread, batch {b}",
+            steps_per_second(mlp(), bank, batch=b, seconds=seconds, threads=1) * b,
+        )
+    try:
+        net = mlp()
+        net.net = torch.compile(net.net)  # type: ignore[assignment]
+        add(
+            "torch.compile(regressor), batch 16",
+            steps_per_second(net, bank, batch=16, seconds=seconds, threads=1) * 16,
+        )
+    except Exception as exc:  # compilation needs a working C++ toolchain
+        rows.append(f"| torch.compile(regressor) | failed: {type(exc).__name__} | — |")
+    torch.set_num_threads(1)
+    return "\n".join(rows)
+
+
+def time_to_target(ds: Dataset, epochs: int) -> str:
+    torch.set_num_threads(1)
+    train, val = ds.split("train"), ds.split("val")
+    y_var = float(np.concatenate([t.y for t in train]).var(axis=0).mean())
+    noise = ds.metadata.get("noise", {}).get("box", {}).get("upper", [0.02])[0]
+    target = noise**2 / 3 + 1e-4
+    hit: dict[str, float] = {}
+    t0 = time.perf_counter()
+
+    def watch(report) -> None:
+        if report.val_loss is not None and "epoch" not in hit:
+            # normalised → physical: the tank has one output, scaled by its training std
+            if report.val_loss * y_var <= target:
+                hit.update(epoch=report.epoch, seconds=time.perf_counter() - t0)
+
+    opts = train_options("quick", epochs=epochs, device="cpu")
+    res = fit(
+        train,
+        val,
+        model="mlp",
+        window=WINDOW,
+        options=opts,
+        net_options={"residual": True},
+        callback=watch,
+    )
+    total = time.perf_counter() - t0
+    best = res.best_val_loss * y_var
+    reached = (
+        f"reached at epoch {hit['epoch']} after {hit['seconds']:.0f} s" if hit else "not reached"
+    )
+    return (
+        f"Ours (MLP), ℓ = {WINDOW}, residual, quick profile ({epochs} epochs), 1 thread: "
+        f"target validation MSE ≤ noise variance + 1e-4 = {target:.3g} (physical units, "
+        f"measured outputs): **{reached}**; the run took {total:.0f} s "
+        f"({res.epochs_run / total:.2f} epochs/s including validation), best validation MSE "
+        f"{best:.3g} at epoch {res.best_epoch}."
+    )
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", choices=("quick", "full"), default="quick")
+    parser.add_argument("--data", type=Path, default=ROOT / "runs" / "data" / "tank-s0")
+    args = parser.parse_args()
+    seconds = 3.0 if args.size == "quick" else 15.0
+    if not (args.data / "dataset.npz").is_file():
+        print(
+            f"no tank dataset at {args.data}; run `canonid generate tank --out {args.data}`",
+            file=sys.stderr,
+        )
+        return 1
+    ds = Dataset.load(args.data)
+    train = as_series(ds.split("train"))
+    bank = WindowBank(train, Normalisation.fit(train))
+    parts = [
+        f"Tank dataset `{args.data.name}` ({len(train)} training trajectories), "
+        f"ℓ = {WINDOW}, rollout H = {HORIZON}, residual outputs, float32, CPU. "
+        f"Each rate is measured for {seconds:.0f} s after 3 warm-up steps.",
+        "### Throughput per model (1 thread, batch 16)",
+        throughput(bank, len(train), seconds),
+        "### Accelerations tried",
+        accelerations(bank, seconds),
+        "### Time to target on the tank",
+        time_to_target(
+            ds,
+            train_options("quick").epochs
+            if args.size == "full"
+            else math.ceil(train_options("quick").epochs / 2),
+        ),
+    ]
+    body = "\n\n".join(parts)
+    write_section("Training throughput", body)
+    print(body)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

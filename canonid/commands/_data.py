@@ -1,0 +1,58 @@
+"""Options and loading shared by the commands that read identification data (train, evaluate)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from datagen.dataset import Dataset, Trajectory
+from datagen.loaders import load_data
+from models.errors import DataError
+
+__all__ = ["add_data_options", "data_options", "load", "pick_split"]
+
+
+def _columns(text: str) -> list[str]:
+    cols = [c.strip() for c in text.split(",") if c.strip()]
+    if not cols:
+        raise argparse.ArgumentTypeError("expected COL[,COL...]")
+    return cols
+
+
+def add_data_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("CSV data (a .csv file, or a folder of them: one experiment each)")
+    g.add_argument("--inputs", type=_columns, metavar="COL,...", help="input columns")
+    g.add_argument("--outputs", type=_columns, metavar="COL,...", help="output columns")
+    g.add_argument(
+        "--experiment-column", metavar="COL", help="column whose value names the experiment"
+    )
+    g.add_argument("--dt", type=float, metavar="SECONDS", help="sampling time (CSV, .npz)")
+
+
+def data_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The loader options given on the command line (JSON-ready, for the run's recipe)."""
+    return {
+        "inputs": args.inputs,
+        "outputs": args.outputs,
+        "experiment_column": args.experiment_column,
+        "dt": args.dt,
+    }
+
+
+def load(path: str | Path, options: dict[str, Any]) -> Dataset:
+    return load_data(path, **options)
+
+
+def pick_split(dataset: Dataset, name: str | None, *, where: str) -> tuple[str, list[Trajectory]]:
+    """Split ``name``; by default ``test`` if present, else the only split there is."""
+    if name is None:
+        if "test" in dataset.splits:
+            name = "test"
+        elif len(dataset.splits) == 1:
+            name = next(iter(dataset.splits))
+        else:
+            raise DataError(
+                f"{where}: no 'test' split; choose one of {sorted(dataset.splits)} with --split"
+            )
+    return name, list(dataset.split(name))

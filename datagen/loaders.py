@@ -1,0 +1,385 @@
+"""User data → :class:`datagen.dataset.Dataset`: CSV files, ``.npz`` arrays and objects shaped like
+``nonlinear_benchmarks.Input_output_data``.
+
+Every loader reads the project's time convention (see :mod:`datagen.dataset`): row ``t`` holds
+``u[t]`` and ``y[t]``, where ``u[t]`` acts after ``y[t]`` is measured. Loaded data go into one
+split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
+
+* :func:`load_csv` — one file or several. Columns are named; ``inputs`` and ``outputs`` pick
+  them. Either every file is one experiment, or ``experiment_column`` names a column whose value
+  identifies the experiment of each row (experiments in order of first appearance, rows in file
+  order). ``dt`` (seconds) is required: CSV files carry no sampling time.
+* :func:`load_npz` — arrays ``u`` and ``y``, each ``(T, n)`` for one experiment or ``(N, T, n)``
+  for ``N`` of equal length, or pairs ``u_0, y_0, u_1, y_1, …`` for experiments of any length;
+  optional ``y_clean`` (same layout) and a scalar ``dt`` (else the ``dt`` argument).
+* :func:`from_io_data` — one object or a sequence with attributes ``u``, ``y``,
+  ``sampling_time`` and optionally ``state_initialization_window_length`` (kept in the
+  metadata as ``n_init``, the samples a score must skip).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import re
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from datagen.dataset import Dataset, Trajectory
+from models.errors import DataError, ShapeError
+from models.io import read_npz
+
+__all__ = ["from_io_data", "load_csv", "load_data", "load_npz", "split_train_val"]
+
+PathLike = str | os.PathLike[str]
+
+
+def _check_dt(dt: Any, where: str) -> float:
+    try:
+        value = float(dt)
+    except (TypeError, ValueError):
+        raise DataError(
+            f"{where}: sampling time dt must be a number of seconds, got {dt!r}"
+        ) from None
+    if not (math.isfinite(value) and value > 0):
+        raise DataError(f"{where}: sampling time dt must be positive and finite, got {dt!r}")
+    return value
+
+
+def _trajectory(u: Any, y: Any, where: str, y_clean: Any = None) -> Trajectory:
+    try:
+        ua, ya = np.asarray(u, dtype=np.float64), np.asarray(y, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{where}: u and y must be numeric arrays ({exc})") from None
+    ua = ua[:, None] if ua.ndim == 1 else ua
+    ya = ya[:, None] if ya.ndim == 1 else ya
+    if ua.ndim != 2 or ya.ndim != 2:
+        raise DataError(f"{where}: u and y must be (T, n) arrays, got {ua.shape} and {ya.shape}")
+    if ua.shape[0] != ya.shape[0]:
+        raise DataError(f"{where}: u has {ua.shape[0]} samples but y has {ya.shape[0]}")
+    try:
+        return Trajectory(u=ua, y=ya, y_clean=y_clean)
+    except ShapeError as exc:
+        raise DataError(f"{where}: {exc}") from None
+
+
+def _dataset(
+    trajs: Sequence[Trajectory],
+    *,
+    dt: float,
+    input_names: Sequence[str] | None,
+    output_names: Sequence[str] | None,
+    metadata: dict[str, Any],
+    where: str,
+) -> Dataset:
+    if not trajs:
+        raise DataError(f"{where}: no experiments found")
+    n_u, n_y = trajs[0].n_u, trajs[0].n_y
+    names_u = tuple(input_names or (f"u{i + 1}" for i in range(n_u)))
+    names_y = tuple(output_names or (f"y{i + 1}" for i in range(n_y)))
+    if len(names_u) != n_u or len(names_y) != n_y:
+        raise DataError(
+            f"{where}: {len(names_u)} input and {len(names_y)} output name(s) for data with "
+            f"n_u={n_u}, n_y={n_y}"
+        )
+    try:
+        return Dataset(
+            splits={"train": tuple(trajs)},
+            dt=dt,
+            input_names=names_u,
+            output_names=names_y,
+            metadata=metadata,
+        )
+    except ShapeError as exc:
+        raise DataError(f"{where}: {exc}") from None
+
+
+# ---------------------------------------------------------------------------------------- CSV
+def _read_csv(
+    path: Path, columns: Sequence[str], experiment_column: str | None
+) -> tuple[list[str], np.ndarray]:
+    if not path.is_file():
+        raise DataError(f"CSV file not found: {path}")
+    with path.open(newline="", encoding="utf-8") as fh:
+        reader = csv.reader(fh)
+        try:
+            header = [h.strip() for h in next(reader)]
+        except StopIteration:
+            raise DataError(f"{path}: empty file (expected a header row)") from None
+        wanted = [*columns, *([experiment_column] if experiment_column else [])]
+        missing = [c for c in wanted if c not in header]
+        if missing:
+            raise DataError(f"{path}: no column(s) {missing}; the header has {header}")
+        index = [header.index(c) for c in columns]
+        exp_index = header.index(experiment_column) if experiment_column else None
+        ids: list[str] = []
+        rows: list[list[float]] = []
+        for line, row in enumerate(reader, start=2):
+            if not row or all(not cell.strip() for cell in row):
+                continue
+            if len(row) != len(header):
+                raise DataError(
+                    f"{path}, line {line}: {len(row)} fields, the header has {len(header)}"
+                )
+            values = []
+            for col, j in zip(columns, index):
+                cell = row[j].strip()
+                try:
+                    value = float(cell)
+                except ValueError:
+                    raise DataError(
+                        f"{path}, line {line}, column {col!r}: {cell!r} is not a number"
+                    ) from None
+                if not math.isfinite(value):
+                    raise DataError(f"{path}, line {line}, column {col!r}: {cell!r} is not finite")
+                values.append(value)
+            rows.append(values)
+            ids.append(row[exp_index].strip() if exp_index is not None else "")
+    if not rows:
+        raise DataError(f"{path}: no data rows under the header")
+    return ids, np.asarray(rows, dtype=np.float64)
+
+
+def load_csv(
+    paths: PathLike | Sequence[PathLike],
+    *,
+    inputs: Sequence[str],
+    outputs: Sequence[str],
+    dt: float,
+    experiment_column: str | None = None,
+) -> Dataset:
+    """Read experiments from CSV (see the module docstring); one ``"train"`` split."""
+    files = [Path(paths)] if isinstance(paths, (str, os.PathLike)) else [Path(p) for p in paths]
+    where = ", ".join(str(f) for f in files)
+    if not files:
+        raise DataError("load_csv: no files given")
+    inputs, outputs = [str(c) for c in inputs], [str(c) for c in outputs]
+    if not inputs or not outputs:
+        raise DataError(f"{where}: name at least one input and one output column")
+    overlap = sorted(set(inputs) & set(outputs))
+    if overlap:
+        raise DataError(f"{where}: column(s) {overlap} given as both input and output")
+    dt = _check_dt(dt, where)
+    n_u = len(inputs)
+    trajs: list[Trajectory] = []
+    labels: list[str] = []
+    for path in files:
+        ids, table = _read_csv(path, [*inputs, *outputs], experiment_column)
+        groups: dict[str, list[int]] = {}
+        for k, key in enumerate(ids if experiment_column else [path.name] * len(ids)):
+            groups.setdefault(key, []).append(k)
+        for key, rows in groups.items():
+            sub = table[np.asarray(rows)]
+            label = key if experiment_column is None else f"{path.name}:{experiment_column}={key}"
+            trajs.append(_trajectory(sub[:, :n_u], sub[:, n_u:], f"{path}, experiment {key!r}"))
+            labels.append(label)
+    metadata = {
+        "source": "csv",
+        "files": [str(f) for f in files],
+        "experiment_column": experiment_column,
+        "experiments": labels,
+    }
+    return _dataset(
+        trajs, dt=dt, input_names=inputs, output_names=outputs, metadata=metadata, where=where
+    )
+
+
+# ---------------------------------------------------------------------------------------- npz
+def load_npz(
+    path: PathLike,
+    *,
+    dt: float | None = None,
+    input_names: Sequence[str] | None = None,
+    output_names: Sequence[str] | None = None,
+) -> Dataset:
+    """Read experiments from an ``.npz`` of arrays (see the module docstring)."""
+    p = Path(path)
+    arrays = read_npz(p, what="array file")
+    if "dt" in arrays:
+        file_dt = _check_dt(np.asarray(arrays.pop("dt")).reshape(-1)[0], str(p))
+        if dt is not None and not math.isclose(_check_dt(dt, str(p)), file_dt):
+            raise DataError(f"{p}: holds dt = {file_dt} but dt = {dt} was given")
+        dt = file_dt
+    if dt is None:
+        raise DataError(f"{p}: no array 'dt' in the file; give the sampling time (dt)")
+    dt = _check_dt(dt, str(p))
+    trajs: list[Trajectory] = []
+    if "u" in arrays or "y" in arrays:
+        if "u" not in arrays or "y" not in arrays:
+            raise DataError(f"{p}: needs both arrays 'u' and 'y'; it has {sorted(arrays)}")
+        u, y, yc = arrays["u"], arrays["y"], arrays.get("y_clean")
+        if u.ndim == 3 or y.ndim == 3:
+            if u.ndim != 3 or y.ndim != 3 or u.shape[0] != y.shape[0]:
+                raise DataError(
+                    f"{p}: 'u' {u.shape} and 'y' {y.shape} must both be (N, T, n) with equal N"
+                )
+            for i in range(u.shape[0]):
+                trajs.append(
+                    _trajectory(u[i], y[i], f"{p}, experiment {i}", None if yc is None else yc[i])
+                )
+        else:
+            trajs.append(_trajectory(u, y, str(p), yc))
+    else:
+        keys = sorted(
+            (int(m.group(1)) for k in arrays if (m := re.fullmatch(r"u_(\d+)", k))),
+        )
+        if not keys:
+            raise DataError(
+                f"{p}: expected arrays 'u' and 'y', or 'u_0', 'y_0', 'u_1', …; found "
+                f"{sorted(arrays)}"
+            )
+        for i in keys:
+            if f"y_{i}" not in arrays:
+                raise DataError(f"{p}: has 'u_{i}' but no 'y_{i}'")
+            trajs.append(
+                _trajectory(
+                    arrays[f"u_{i}"],
+                    arrays[f"y_{i}"],
+                    f"{p}, experiment {i}",
+                    arrays.get(f"y_clean_{i}"),
+                )
+            )
+    return _dataset(
+        trajs,
+        dt=dt,
+        input_names=input_names,
+        output_names=output_names,
+        metadata={"source": "npz", "file": str(p)},
+        where=str(p),
+    )
+
+
+# --------------------------------------------------------------------- Input_output_data-like
+def from_io_data(
+    data: Any,
+    *,
+    input_names: Sequence[str] | None = None,
+    output_names: Sequence[str] | None = None,
+) -> Dataset:
+    """Experiments from objects shaped like ``nonlinear_benchmarks.Input_output_data``
+    (attributes ``u``, ``y``, ``sampling_time``, optionally
+    ``state_initialization_window_length``); one object or a sequence of them."""
+    items = [data] if hasattr(data, "u") else list(data)
+    if not items:
+        raise DataError("from_io_data: no experiments given")
+    trajs, dts, n_inits = [], [], []
+    for i, item in enumerate(items):
+        where = f"input/output data object {i}"
+        for attr in ("u", "y", "sampling_time"):
+            if not hasattr(item, attr):
+                raise DataError(f"{where}: has no attribute {attr!r}")
+        trajs.append(_trajectory(item.u, item.y, where))
+        dts.append(_check_dt(item.sampling_time, where))
+        n_init = getattr(item, "state_initialization_window_length", None)
+        if n_init is not None:
+            n_inits.append(int(n_init))
+    if any(not math.isclose(d, dts[0]) for d in dts):
+        raise DataError(f"from_io_data: the experiments have different sampling times {dts}")
+    metadata: dict[str, Any] = {"source": "Input_output_data"}
+    if n_inits:
+        metadata["n_init"] = max(n_inits)
+    return _dataset(
+        trajs,
+        dt=dts[0],
+        input_names=input_names,
+        output_names=output_names,
+        metadata=metadata,
+        where="from_io_data",
+    )
+
+
+# ---------------------------------------------------------------------------------- dispatch
+def load_data(
+    path: PathLike,
+    *,
+    inputs: Sequence[str] | None = None,
+    outputs: Sequence[str] | None = None,
+    dt: float | None = None,
+    experiment_column: str | None = None,
+) -> Dataset:
+    """Read ``path`` by its kind: a canonid dataset (``.npz`` with its ``.json`` sidecar, or a
+    folder holding ``dataset.npz``), a CSV file or a folder of CSV files (one experiment each,
+    in name order), or an ``.npz`` of arrays."""
+    p = Path(path)
+    if p.is_dir():
+        if (p / "dataset.npz").is_file():
+            return Dataset.load(p)
+        files = sorted(p.glob("*.csv"))
+        if not files:
+            raise DataError(f"{p}: a folder without dataset.npz or CSV files")
+        return _csv(files, inputs, outputs, dt, experiment_column)
+    if not p.exists():
+        raise DataError(f"data file not found: {p}")
+    if p.suffix.lower() == ".csv":
+        return _csv([p], inputs, outputs, dt, experiment_column)
+    if p.suffix.lower() in (".npz", ".json"):
+        if p.with_suffix(".json").is_file():
+            return Dataset.load(p)
+        return load_npz(p, dt=dt)
+    raise DataError(f"{p}: unknown data format (expected a dataset, .csv or .npz)")
+
+
+def _csv(
+    files: list[Path],
+    inputs: Sequence[str] | None,
+    outputs: Sequence[str] | None,
+    dt: float | None,
+    experiment_column: str | None,
+) -> Dataset:
+    where = ", ".join(str(f) for f in files)
+    if not inputs or not outputs:
+        raise DataError(f"{where}: CSV data need the input and output column names")
+    if dt is None:
+        raise DataError(f"{where}: CSV data need the sampling time dt (seconds)")
+    return load_csv(
+        files, inputs=inputs, outputs=outputs, dt=dt, experiment_column=experiment_column
+    )
+
+
+# ---------------------------------------------------------------------------------- splits
+def split_train_val(dataset: Dataset, *, val_fraction: float = 0.2) -> Dataset:
+    """Cut a ``"val"`` split off the ``"train"`` split.
+
+    Several experiments: the last ``⌈val_fraction · N⌉`` (in order) become validation, at least
+    one stays for training. One experiment: its first ``⌊(1 − val_fraction) T⌋`` samples stay
+    training data and the rest become validation. Other splits are kept as they are.
+    """
+    if not 0 < val_fraction < 1:
+        raise DataError(f"val_fraction must be in (0, 1), got {val_fraction}")
+    train = dataset.split("train")
+    if "val" in dataset.splits:
+        raise DataError("the dataset already has a 'val' split")
+    if len(train) >= 2:
+        n_val = min(max(1, math.ceil(val_fraction * len(train))), len(train) - 1)
+        new_train, new_val = train[: len(train) - n_val], train[len(train) - n_val :]
+        how = f"last {n_val} of {len(train)} experiments"
+    else:
+        tr = train[0]
+        cut = int((1 - val_fraction) * tr.T)
+        if cut < 2 or tr.T - cut < 2:
+            raise DataError(f"one record of {tr.T} samples is too short to split")
+
+        def part(sl: slice) -> Trajectory:
+            return Trajectory(
+                **{k: v[sl] for k, v in tr.arrays().items()},
+                info={
+                    **tr.info,
+                    "samples": [sl.start or 0, sl.stop if sl.stop is not None else tr.T],
+                },
+            )
+
+        new_train, new_val = (part(slice(0, cut)),), (part(slice(cut, None)),)
+        how = f"samples {cut}…{tr.T - 1} of the single record"
+    splits = {**dataset.splits, "train": new_train, "val": new_val}
+    return Dataset(
+        splits=splits,
+        dt=dataset.dt,
+        input_names=dataset.input_names,
+        output_names=dataset.output_names,
+        state_names=dataset.state_names,
+        metadata={**dataset.metadata, "validation_split": how},
+    )

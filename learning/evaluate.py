@@ -1,0 +1,233 @@
+"""Scores of a trained model on test trajectories, in physical units.
+
+Two families, both against the measured outputs ``y`` and, when the trajectories carry them,
+also against the noise-free ``y_clean`` (the burn-in always uses the measured ``y``: it is what
+a model sees in use).
+
+**Paper metric** (Table 1), :attr:`Evaluation.rollout_mse`: from every start ``s = 0, stride,
+2·stride, …`` with ``s + ℓ + H ≤ T`` of every test trajectory, burn in on the measured samples
+``s … s+ℓ−1`` and predict samples ``s+ℓ … s+ℓ+H−1`` in open loop; the mean squared error over all
+those rollouts, their ``H`` steps and the outputs (per output too). The same rollouts give the
+**k-step NRMSE**: for ``k = 1 … H``, the RMSE of the k-th predicted step over all rollouts divided
+by the standard deviation of the target over all samples of the test trajectories.
+
+**Simulation scores** (the ``nonlinear_benchmarks`` rule): each test record is simulated in open
+loop once, from a burn-in on the measured samples ``n_init−ℓ … n_init−1`` to its end; the scores
+use samples ``n_init … T−1`` of every record (concatenated), which the model never saw measured.
+Per output: ``RMSE``, ``NRMSE = RMSE / std(target)`` and ``fit% = 100 (1 − ‖e‖ / ‖target −
+mean(target)‖)`` over those samples; overall: ``rmse`` = square root of the mean over outputs of
+the per-output MSE, ``nrmse`` and ``fit_percent`` = means of the per-output values.
+``n_init`` defaults to ``max(ℓ, 50)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from learning.data import Series, as_series
+from learning.model import Model
+from models.errors import ShapeError
+
+__all__ = ["Evaluation", "Scores", "evaluate", "simulate_records"]
+
+
+@dataclass(frozen=True)
+class Scores:
+    """The metrics against one target (``y`` or ``y_clean``); lists are per output."""
+
+    rollout_mse: float
+    rollout_mse_per_output: list[float]
+    kstep_nrmse: list[float]
+    kstep_nrmse_per_output: list[list[float]]
+    rmse: float
+    rmse_per_output: list[float]
+    nrmse: float
+    nrmse_per_output: list[float]
+    fit_percent: float
+    fit_percent_per_output: list[float]
+
+    def to_dict(self) -> dict[str, Any]:
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """All scores of one model on one set of test trajectories.
+
+    Attributes:
+        measured: scores against the measured outputs ``y``.
+        clean: scores against ``y_clean`` (``None`` when the data do not carry it).
+        rollout_horizon, rollout_stride, n_rollouts: the paper metric's rollouts.
+        n_init, n_records, n_scored_samples: the simulation scores' records and samples.
+        output_names: names of the outputs (order of the per-output lists).
+    """
+
+    measured: Scores
+    clean: Scores | None
+    rollout_horizon: int
+    rollout_stride: int
+    n_rollouts: int
+    n_init: int
+    n_records: int
+    n_scored_samples: int
+    window: int
+    model: str
+    output_names: list[str]
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``metrics.json`` body: top-level scores are against the measured ``y``; the
+        same keys against ``y_clean`` sit under ``"clean"`` (``null`` without it)."""
+        return {
+            "model": self.model,
+            "window": self.window,
+            "targets": {
+                "top_level": "y (measured outputs, with noise)",
+                "clean": "y_clean (noise-free outputs)" if self.clean else None,
+            },
+            **self.measured.to_dict(),
+            "clean": self.clean.to_dict() if self.clean else None,
+            "rollout_horizon": self.rollout_horizon,
+            "rollout_stride": self.rollout_stride,
+            "n_rollouts": self.n_rollouts,
+            "n_init": self.n_init,
+            "n_records": self.n_records,
+            "n_scored_samples": self.n_scored_samples,
+            "output_names": self.output_names,
+            "units": "physical (the data's units); rollout_mse in units², rmse in units",
+        }
+
+
+def _rollouts(
+    model: Model, series: Sequence[Series], horizon: int, stride: int
+) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    ell = model.window
+    span = ell + horizon
+    starts = [(i, s) for i, tr in enumerate(series) for s in range(0, tr.T - span + 1, stride)]
+    if not starts:
+        raise ShapeError(
+            f"no test trajectory holds window ℓ = {ell} plus horizon {horizon} = {span} samples "
+            f"(longest has {max(tr.T for tr in series)}); lower the horizon"
+        )
+    u = np.stack([series[i].u[s : s + span] for i, s in starts])
+    y0 = np.stack([series[i].y[s : s + ell] for i, s in starts])
+    return model.predict(u, y0), starts
+
+
+def simulate_records(model: Model, series: Sequence[Series], n_init: int) -> list[np.ndarray]:
+    """Open-loop simulation of each record from its samples ``n_init−ℓ … n_init−1``; returns the
+    predictions of samples ``n_init … T−1`` per record (empty for records of ≤ n_init samples)."""
+    ell = model.window
+    out: list[np.ndarray] = [np.zeros((0, model.n_y)) for _ in series]
+    by_length: dict[int, list[int]] = {}
+    for i, tr in enumerate(series):
+        if tr.T > n_init:
+            by_length.setdefault(tr.T, []).append(i)
+    for T, idx in by_length.items():
+        u = np.stack([series[i].u[n_init - ell : T] for i in idx])
+        y0 = np.stack([series[i].y[n_init - ell : n_init] for i in idx])
+        pred = model.predict(u, y0)
+        for j, i in enumerate(idx):
+            out[i] = pred[j]
+    return out
+
+
+def _scores(
+    pred_roll: np.ndarray,
+    starts: list[tuple[int, int]],
+    sims: list[np.ndarray],
+    targets: Sequence[np.ndarray],
+    ell: int,
+    n_init: int,
+) -> Scores:
+    horizon = pred_roll.shape[1]
+    true_roll = np.stack([targets[i][s + ell : s + ell + horizon] for i, s in starts])
+    err2 = (pred_roll - true_roll) ** 2  # (N, H, n_y)
+    mse_out = err2.mean(axis=(0, 1))
+    sd_all = np.concatenate(list(targets)).std(axis=0)
+    sd_all = np.where(sd_all > 0, sd_all, 1.0)
+    kstep = np.sqrt(err2.mean(axis=0)) / sd_all  # (H, n_y)
+    scored = np.concatenate([targets[i][n_init:] for i in range(len(targets))])
+    sim = np.concatenate(sims)
+    e = sim - scored
+    rmse_out = np.sqrt((e**2).mean(axis=0))
+    sd = scored.std(axis=0)
+    sd = np.where(sd > 0, sd, 1.0)
+    centred = np.linalg.norm(scored - scored.mean(axis=0), axis=0)
+    centred = np.where(centred > 0, centred, 1.0)
+    fit_out = 100.0 * (1.0 - np.linalg.norm(e, axis=0) / centred)
+    return Scores(
+        rollout_mse=float(mse_out.mean()),
+        rollout_mse_per_output=mse_out.tolist(),
+        kstep_nrmse=kstep.mean(axis=1).tolist(),
+        kstep_nrmse_per_output=kstep.T.tolist(),
+        rmse=float(np.sqrt((rmse_out**2).mean())),
+        rmse_per_output=rmse_out.tolist(),
+        nrmse=float((rmse_out / sd).mean()),
+        nrmse_per_output=(rmse_out / sd).tolist(),
+        fit_percent=float(fit_out.mean()),
+        fit_percent_per_output=fit_out.tolist(),
+    )
+
+
+def evaluate(
+    model: Model,
+    data: Any,
+    *,
+    horizon: int = 100,
+    stride: int = 1,
+    n_init: int | None = None,
+    output_names: Sequence[str] | None = None,
+) -> Evaluation:
+    """Score ``model`` on the trajectories ``data`` (see the module docstring).
+
+    Args:
+        model: a trained :class:`learning.model.Model`.
+        data: test trajectories (objects with ``.u``, ``.y`` and optionally ``.y_clean``).
+        horizon: ``H`` of the paper metric (paper: 100).
+        stride: stride of the rollout start times.
+        n_init: samples reserved for initialisation in the simulation scores (default
+            ``max(ℓ, 50)``; must be ≥ ℓ).
+        output_names: labels for the per-output lists (default ``y1, y2, …``).
+    """
+    series = as_series(data, what="test data")
+    ell = model.window
+    if (series[0].u.shape[1], series[0].y.shape[1]) != (model.n_u, model.n_y):
+        raise ShapeError(
+            f"test data have n_u={series[0].u.shape[1]}, n_y={series[0].y.shape[1]}; the model "
+            f"has n_u={model.n_u}, n_y={model.n_y}"
+        )
+    if isinstance(horizon, bool) or horizon < 1 or stride < 1:
+        raise ShapeError(f"horizon and stride must be >= 1, got {horizon} and {stride}")
+    n_init = max(ell, 50) if n_init is None else int(n_init)
+    if n_init < ell:
+        raise ShapeError(f"n_init = {n_init} must be at least the window ℓ = {ell}")
+    records = [tr for tr in series if tr.T > n_init]
+    if not records:
+        raise ShapeError(
+            f"no test trajectory is longer than n_init = {n_init} samples "
+            f"(longest has {max(tr.T for tr in series)}); lower n_init"
+        )
+    pred_roll, starts = _rollouts(model, series, horizon, stride)
+    sims = simulate_records(model, series, n_init)
+    measured = _scores(pred_roll, starts, sims, [tr.y for tr in series], ell, n_init)
+    clean = None
+    if all(tr.y_clean is not None for tr in series):
+        targets = [tr.y_clean for tr in series if tr.y_clean is not None]
+        clean = _scores(pred_roll, starts, sims, targets, ell, n_init)
+    return Evaluation(
+        measured=measured,
+        clean=clean,
+        rollout_horizon=horizon,
+        rollout_stride=stride,
+        n_rollouts=len(starts),
+        n_init=n_init,
+        n_records=len(records),
+        n_scored_samples=sum(tr.T - n_init for tr in records),
+        window=ell,
+        model=model.name,
+        output_names=list(output_names or (f"y{i + 1}" for i in range(model.n_y))),
+    )

@@ -1,0 +1,266 @@
+"""A trained model in physical units: network + normalisation; simulate, save, load, export.
+
+Folder layout written by :meth:`Model.save` (a run folder holds these plus training artefacts):
+
+* ``config.json`` — ``{"format": "canonid-model", "format_version", "model": name,
+  "net": constructor arguments, "info": free JSON (training options, data description)}``;
+* ``weights.pt`` — ``torch.save(state_dict)`` of the network (CPU tensors), read back with
+  ``torch.load(..., weights_only=True)``;
+* ``normalisation.json`` — :class:`learning.data.Normalisation` (training statistics).
+
+Simulation convention (:meth:`Model.simulate`): ``u`` holds samples ``0 … T−1``, ``y_burn_in``
+the measured outputs of samples ``0 … ℓ−1``; the result holds the open-loop predictions of
+samples ``ℓ … T−1`` (``T − ℓ`` rows).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from learning.data import Normalisation
+from learning.nets import NETS, SequenceModel, build_net
+from models.errors import CheckpointError, DataError, ShapeError
+from models.io import atomic_write_bytes, atomic_write_json, read_json
+
+__all__ = ["MODEL_FORMAT_VERSION", "Model", "check_same", "load_state", "rollout_physical"]
+
+MODEL_FORMAT_VERSION = 1
+CONFIG_FILE, WEIGHTS_FILE, NORM_FILE = "config.json", "weights.pt", "normalisation.json"
+
+
+def check_same(found: Mapping[str, Any], expected: Mapping[str, Any], *, what: str) -> None:
+    """Raise :class:`CheckpointError` naming every key whose value differs."""
+    diffs = [
+        f"{key}: {found.get(key)!r} there, {value!r} here"
+        for key, value in expected.items()
+        if found.get(key) != value
+    ]
+    if diffs:
+        raise CheckpointError(f"{what} does not match: " + "; ".join(diffs))
+
+
+def _as_batch(value: Any, cols: int, name: str) -> tuple[np.ndarray, bool]:
+    """``(N, T, cols)`` float64 from ``(T, cols)`` or ``(N, T, cols)`` (1-D: SISO ``(T,)``)."""
+    arr = np.asarray(value, dtype=np.float64)
+    if arr.ndim == 1 and cols == 1:
+        arr = arr[:, None]
+    single = arr.ndim == 2
+    if single:
+        arr = arr[None]
+    if arr.ndim != 3 or arr.shape[2] != cols:
+        raise ShapeError(f"{name} must have shape (T, {cols}) or (N, T, {cols}), got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ShapeError(f"{name} contains NaN or Inf")
+    return arr, single
+
+
+class Model:
+    """A network of the registry with the normalisation it was trained under.
+
+    Args:
+        net: the network (normalised units).
+        norm: training statistics.
+        info: JSON-ready facts saved in ``config.json`` (training options, data, ...).
+    """
+
+    def __init__(
+        self, net: SequenceModel, norm: Normalisation, *, info: Mapping[str, Any] | None = None
+    ) -> None:
+        if (norm.n_u, norm.n_y) != (net.n_u, net.n_y):
+            raise ShapeError(
+                f"normalisation is for n_u={norm.n_u}, n_y={norm.n_y}; the network has "
+                f"n_u={net.n_u}, n_y={net.n_y}"
+            )
+        self.net, self.norm, self.info = net, norm, dict(info or {})
+
+    # ------------------------------------------------------------------ description
+    @property
+    def name(self) -> str:
+        return self.net.name
+
+    @property
+    def window(self) -> int:
+        return self.net.window
+
+    @property
+    def n_u(self) -> int:
+        return self.net.n_u
+
+    @property
+    def n_y(self) -> int:
+        return self.net.n_y
+
+    def __repr__(self) -> str:
+        return f"Model({self.name!r}, window={self.window}, n_u={self.n_u}, n_y={self.n_y})"
+
+    # ------------------------------------------------------------------ prediction
+    def predict(self, u: np.ndarray, y_burn_in: np.ndarray) -> np.ndarray:
+        """Batched open-loop predictions, physical units: ``u`` ``(N, T, n_u)`` and ``y_burn_in``
+        ``(N, ℓ, n_y)`` → ``(N, T − ℓ, n_y)`` (no validation; see :meth:`simulate`)."""
+        return rollout_physical(self.net, self.norm, u, y_burn_in)
+
+    def simulate(self, u: Any, y_burn_in: Any) -> np.ndarray:
+        """Open-loop simulation in physical units (see the module docstring).
+
+        ``u`` is ``(T, n_u)`` and ``y_burn_in`` ``(ℓ, n_y)`` → ``(T − ℓ, n_y)``; or batched,
+        ``(N, T, n_u)`` and ``(N, ℓ, n_y)`` → ``(N, T − ℓ, n_y)``.
+        """
+        ua, single = _as_batch(u, self.n_u, "u")
+        ya, _ = _as_batch(y_burn_in, self.n_y, "y_burn_in")
+        if ya.shape[0] != ua.shape[0] or ya.shape[1] != self.window:
+            raise ShapeError(
+                f"y_burn_in must hold the ℓ = {self.window} measured outputs of each of the "
+                f"{ua.shape[0]} sequence(s), shape ({ua.shape[0]}, {self.window}, {self.n_y}); "
+                f"got {ya.shape}"
+            )
+        if ua.shape[1] < self.window:
+            raise ShapeError(
+                f"u has {ua.shape[1]} samples, fewer than the window ℓ = {self.window}"
+            )
+        out = self.predict(ua, ya)
+        return out[0] if single else out
+
+    def export(self) -> Any:
+        """A plain numpy object for the analysis layer (see :mod:`learning.export`)."""
+        from learning.export import NumpyModel
+
+        return NumpyModel(self)
+
+    # ------------------------------------------------------------------ storage
+    def save(self, folder: str | os.PathLike[str]) -> Path:
+        """Write ``config.json``, ``weights.pt`` and ``normalisation.json`` into ``folder``."""
+        import io
+
+        out = Path(folder)
+        out.mkdir(parents=True, exist_ok=True)
+        buf = io.BytesIO()
+        torch.save({k: v.detach().cpu() for k, v in self.net.state_dict().items()}, buf)
+        atomic_write_bytes(out / WEIGHTS_FILE, buf.getvalue())
+        atomic_write_json(out / NORM_FILE, self.norm.to_dict())
+        atomic_write_json(
+            out / CONFIG_FILE,
+            {
+                "format": "canonid-model",
+                "format_version": MODEL_FORMAT_VERSION,
+                "model": self.name,
+                "net": self.net.config(),
+                "info": self.info,
+            },
+        )
+        return out
+
+    @classmethod
+    def load(
+        cls,
+        folder: str | os.PathLike[str],
+        *,
+        expect: Mapping[str, Any] | None = None,
+        map_location: str | torch.device = "cpu",
+    ) -> Model:
+        """Read a model written by :meth:`save`.
+
+        ``expect`` (e.g. ``{"model": "mlp", "window": 10}``; keys ``model`` or any network
+        argument) is compared with what was saved; every difference is named in a
+        :class:`CheckpointError`, as is any weight whose name or shape does not fit.
+        """
+        folder = Path(folder)
+        config = read_json(folder / CONFIG_FILE, what="model configuration")
+        if not isinstance(config, dict) or config.get("format") != "canonid-model":
+            raise CheckpointError(f"{folder / CONFIG_FILE} is not a canonid model configuration")
+        name, net_config = config.get("model"), config.get("net")
+        if name not in NETS or not isinstance(net_config, dict):
+            raise CheckpointError(
+                f"{folder / CONFIG_FILE}: field 'model' must be one of {sorted(NETS)} and 'net' "
+                f"an object; got model={name!r}"
+            )
+        if expect:
+            check_same({"model": name, **net_config}, expect, what=f"saved model in {folder}")
+        try:
+            norm = Normalisation.from_dict(
+                read_json(folder / NORM_FILE, what="normalisation"), where=str(folder / NORM_FILE)
+            )
+        except DataError as exc:
+            raise CheckpointError(str(exc)) from exc
+        net = build_net(name, **net_config)
+        load_weights(net, folder / WEIGHTS_FILE, map_location=map_location)
+        return cls(net, norm, info=config.get("info", {}))
+
+
+def rollout_physical(
+    net: SequenceModel,
+    norm: Normalisation,
+    u: np.ndarray,
+    y_burn_in: np.ndarray,
+    *,
+    batch_size: int = 4096,
+) -> np.ndarray:
+    """Run ``net.rollout`` on physical-unit arrays in batches, in the network's own dtype and
+    device, without gradients: ``u`` ``(N, T, n_u)``, ``y_burn_in`` ``(N, ℓ, n_y)`` →
+    ``(N, T − ℓ, n_y)`` float64."""
+    ell = net.window
+    param = next(net.parameters())
+    out = np.empty((u.shape[0], u.shape[1] - ell, net.n_y))
+    if out.shape[1] == 0:
+        return out
+    was_training = net.training
+    net.eval()
+    try:
+        with torch.no_grad():
+            for lo in range(0, u.shape[0], batch_size):
+                sl = slice(lo, lo + batch_size)
+                un = torch.as_tensor(norm.norm_u(u[sl]), dtype=param.dtype, device=param.device)
+                yn = torch.as_tensor(
+                    norm.norm_y(y_burn_in[sl]), dtype=param.dtype, device=param.device
+                )
+                pred = net.rollout(un[:, :ell], yn, un[:, ell:])
+                out[sl] = pred.cpu().double().numpy()
+    finally:
+        net.train(was_training)
+    return norm.denorm_y(out)
+
+
+def load_weights(
+    net: SequenceModel, path: Path, *, map_location: str | torch.device = "cpu"
+) -> None:
+    """Load a ``state_dict`` file into ``net`` (``weights_only=True``), naming any mismatch."""
+    if not path.is_file():
+        raise CheckpointError(f"weights file not found: {path}")
+    try:
+        state = torch.load(path, map_location=map_location, weights_only=True)
+    except Exception as exc:  # torch raises several types for corrupt or unsafe files
+        raise CheckpointError(f"cannot read weights {path}: {exc}") from exc
+    load_state(net, state, where=str(path))
+
+
+def load_state(net: SequenceModel, state: Any, *, where: str) -> None:
+    """``net.load_state_dict(state)``, strict, with a :class:`CheckpointError` that names the
+    missing, unexpected and mis-shaped tensors."""
+    if not isinstance(state, Mapping):
+        raise CheckpointError(f"{where}: expected a state_dict, got {type(state).__name__}")
+    own = net.state_dict()
+    missing = sorted(set(own) - set(state))
+    extra = sorted(set(state) - set(own))
+    shapes = [
+        f"{k} {tuple(state[k].shape)} vs {tuple(own[k].shape)}"
+        for k in sorted(set(own) & set(state))
+        if not isinstance(state[k], torch.Tensor) or state[k].shape != own[k].shape
+    ]
+    if missing or extra or shapes:
+        parts = []
+        if missing:
+            parts.append(f"missing {missing}")
+        if extra:
+            parts.append(f"unexpected {extra}")
+        if shapes:
+            parts.append("shape differs: " + ", ".join(shapes))
+        raise CheckpointError(
+            f"{where}: weights do not fit model {net.name!r} (window {net.window}, "
+            f"n_u={net.n_u}, n_y={net.n_y}): " + "; ".join(parts)
+        )
+    net.load_state_dict(state)

@@ -1,0 +1,64 @@
+"""The identification networks, one module each, behind :class:`SequenceModel`; one registry.
+
+========================  =================================================================
+name                      model
+========================  =================================================================
+``mlp``                   Ours (MLP): canonical state, MLP regressor Ĥ
+``gru``                   Ours (GRU): canonical state, GRU regressor reading z pair by pair
+``classic-gru``           Classic GRU: recurrent state, warm-up on the burn-in window
+``masti``                 Masti et al.: encoder → latent dynamics → output, with auto-encoder
+========================  =================================================================
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from learning.nets.base import CanonicalModel, SequenceModel
+from learning.nets.classic_gru import ClassicGRU
+from learning.nets.masti import Masti
+from learning.nets.ours_gru import OursGRU
+from learning.nets.ours_mlp import OursMLP
+from models.errors import CanonidError
+
+__all__ = [
+    "NETS",
+    "CanonicalModel",
+    "ClassicGRU",
+    "Masti",
+    "OursGRU",
+    "OursMLP",
+    "SequenceModel",
+    "UnknownModelError",
+    "build_net",
+    "model_names",
+]
+
+
+class UnknownModelError(CanonidError, ValueError):
+    """A model name that is not in the registry, or a configuration its class refuses."""
+
+
+#: the registry: name → class (tests are parametrised over it)
+NETS: dict[str, type[SequenceModel]] = {
+    cls.name: cls for cls in (OursMLP, OursGRU, ClassicGRU, Masti)
+}
+
+
+def model_names() -> list[str]:
+    """Registered model names, in table order."""
+    return list(NETS)
+
+
+def build_net(name: str, **config: Any) -> SequenceModel:
+    """Build network ``name`` from its constructor arguments (as :meth:`SequenceModel.config`)."""
+    try:
+        cls = NETS[name]
+    except KeyError:
+        raise UnknownModelError(
+            f"unknown model {name!r}; expected one of {model_names()}"
+        ) from None
+    try:
+        return cls(**config)
+    except TypeError as exc:
+        raise UnknownModelError(f"model {name!r}: bad configuration {config}: {exc}") from None

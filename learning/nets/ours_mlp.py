@@ -1,0 +1,42 @@
+"""Ours (MLP): the canonical model with an MLP regressor ``Ĥ(z_t, u_t)`` (paper §III, appendix)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import torch
+
+from learning.nets.base import CanonicalModel, mlp
+
+__all__ = ["OursMLP"]
+
+
+class OursMLP(CanonicalModel):
+    """``Ĥ`` = ReLU MLP on ``[z_t; u_t]`` (``z_t`` alone without feedthrough).
+
+    Args:
+        hidden: hidden layer widths; the paper uses 3 × 256 on the simulated systems and
+            2 × 2048 on the quadrotor.
+        common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
+            :class:`learning.nets.base.SequenceModel`).
+    """
+
+    name = "mlp"
+    label = "Ours (MLP)"
+
+    def __init__(
+        self,
+        *,
+        hidden: Sequence[int] = (256, 256, 256),
+        **common: Any,
+    ) -> None:
+        super().__init__(**common)
+        self.hidden = tuple(int(h) for h in hidden)
+        self.net = mlp(self._head_width(self.state_dim), self.hidden, self.n_y)
+
+    def options(self) -> dict[str, Any]:
+        return {"hidden": list(self.hidden)}
+
+    def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        return self.net(self._head_input(z, u))

@@ -1,0 +1,614 @@
+"""Output-error training (SPEC §5, paper eq. J(H)), with curriculum, early stopping, resume.
+
+One *epoch* draws ``windows_per_trajectory`` random sub-windows from every training trajectory
+long enough for the current span ``ℓ + H`` (start uniform over ``0 … T − ℓ − H``), shuffles them and
+splits them into batches of ``batch_size``. On each sub-window the first ℓ measured samples are the
+burn-in (``ẑ = z``) and the model predicts the next ``H`` outputs in open loop; the loss is
+
+    (1/H) Σ_{k=0}^{H−1} α_k ‖y_k − ŷ_k‖²   (normalised units, α_0 = alpha_first = 10, α_k = 1),
+
+averaged over the batch (Masti et al. add their terms). Adam with learning rate ``lr``
+(paper: 1e-4), optionally cosine-decayed to ``lr_final`` over the epochs.
+
+Curriculum: the rollout length grows linearly from 1 at epoch 1 to ``horizon`` at epoch
+``curriculum_epochs`` (*authors' code*), then stays there.
+
+Validation: the mean squared error (normalised units, averaged over outputs and steps) of
+``val_horizon``-step open-loop rollouts after an ℓ-sample measured burn-in, from every
+``val_stride``-th start of every validation trajectory. The model kept is the best one on it.
+Epoch 0 is the untrained network. Early stopping: once the curriculum is complete, training stops
+when the best validation loss is ``patience`` epochs old.
+
+Checkpoints (``run_dir/checkpoint.pt``, every ``checkpoint_every`` epochs and at the end) hold the
+network, the optimiser, the best weights, the history and the states of the torch and numpy
+random generators, so a resumed run ends exactly where an uninterrupted one would (same options,
+same data, same device). A non-finite loss stops training and keeps the best model.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import hashlib
+import io
+import logging
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from learning.data import Normalisation, Series, WindowBank, as_series
+from learning.model import Model, check_same, load_state
+from learning.nets import SequenceModel, build_net
+from models.errors import CanonidError, CheckpointError, ShapeError
+from models.io import atomic_write_bytes
+
+__all__ = [
+    "CHECKPOINT_FILE",
+    "EpochReport",
+    "FitResult",
+    "OptionError",
+    "TrainOptions",
+    "fit",
+    "resolve_device",
+    "validation_loss",
+]
+
+log = logging.getLogger(__name__)
+
+CHECKPOINT_FILE = "checkpoint.pt"
+CHECKPOINT_VERSION = 1
+#: options that may change when a run is resumed (the others must match the checkpoint)
+RESUMABLE_CHANGES = frozenset({"epochs", "patience", "checkpoint_every", "device"})
+
+
+class OptionError(CanonidError, ValueError):
+    """A training option is out of range, or the requested device is not available."""
+
+
+@dataclass(frozen=True)
+class TrainOptions:
+    """Options of :func:`fit` (see the module docstring for their meaning).
+
+    Attributes:
+        epochs: number of epochs (paper: 10,000).
+        batch_size: sub-windows per batch.
+        lr: Adam learning rate (paper: 1e-4).
+        lr_final: if set, the learning rate follows a cosine from ``lr`` to ``lr_final``.
+        weight_decay: Adam weight decay.
+        horizon: final rollout length ``H`` of the training sub-windows.
+        curriculum_epochs: epochs over which ``H`` grows from 1 to ``horizon`` (0 or 1: none).
+        windows_per_trajectory: sub-windows drawn from each training trajectory per epoch.
+        alpha_first: weight α of the first predicted step (paper: 10).
+        grad_clip: clip the gradient's global norm to this value (``None``: no clipping).
+        patience: early-stopping patience in epochs (``None``: never stop early).
+        val_every: validate every this many epochs (and at the last epoch).
+        val_stride: stride of the validation start times.
+        val_horizon: validation rollout length (default ``horizon``).
+        checkpoint_every: write ``checkpoint.pt`` every this many epochs (needs ``run_dir``).
+        seed: seeds the initial weights and the sub-window draws.
+        device: ``"auto"`` (CUDA when present), ``"cpu"`` or ``"cuda"``.
+    """
+
+    epochs: int = 100
+    batch_size: int = 64
+    lr: float = 1e-4
+    lr_final: float | None = None
+    weight_decay: float = 0.0
+    horizon: int = 100
+    curriculum_epochs: int = 0
+    windows_per_trajectory: int = 1
+    alpha_first: float = 10.0
+    grad_clip: float | None = None
+    patience: int | None = None
+    val_every: int = 1
+    val_stride: int = 1
+    val_horizon: int | None = None
+    checkpoint_every: int = 10
+    seed: int = 0
+    device: str = "auto"
+
+    def __post_init__(self) -> None:
+        positive_ints = (
+            "epochs",
+            "batch_size",
+            "horizon",
+            "windows_per_trajectory",
+            "val_every",
+            "val_stride",
+            "checkpoint_every",
+        )
+        for key in positive_ints:
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise OptionError(f"training option {key} must be an integer >= 1, got {value!r}")
+        for key in ("curriculum_epochs", "seed"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise OptionError(f"training option {key} must be an integer >= 0, got {value!r}")
+        for key in ("patience", "val_horizon"):
+            value = getattr(self, key)
+            if value is not None and (not isinstance(value, int) or value < 1):
+                raise OptionError(f"training option {key} must be None or an integer >= 1")
+        for key in ("lr", "lr_final", "grad_clip"):
+            value = getattr(self, key)
+            if value is not None and not (math.isfinite(value) and value > 0):
+                raise OptionError(f"training option {key} must be a positive number, got {value}")
+        for key in ("weight_decay", "alpha_first"):
+            value = getattr(self, key)
+            if not (math.isfinite(value) and value >= 0):
+                raise OptionError(f"training option {key} must be >= 0, got {value}")
+        if self.device not in ("auto", "cpu", "cuda") and not self.device.startswith("cuda:"):
+            raise OptionError(f"device must be auto, cpu or cuda, got {self.device!r}")
+
+    @property
+    def rollout_horizon(self) -> int:
+        """The validation rollout length."""
+        return self.val_horizon or self.horizon
+
+    def horizon_at(self, epoch: int) -> int:
+        """Training rollout length at ``epoch`` (1-based): the curriculum."""
+        c = self.curriculum_epochs
+        if c <= 1 or epoch >= c:
+            return self.horizon
+        return 1 + (self.horizon - 1) * (max(epoch, 1) - 1) // (c - 1)
+
+    def lr_at(self, epoch: int) -> float:
+        """Learning rate at ``epoch`` (1-based)."""
+        if self.lr_final is None or self.epochs <= 1:
+            return self.lr
+        frac = (epoch - 1) / (self.epochs - 1)
+        return self.lr_final + (self.lr - self.lr_final) * 0.5 * (1 + math.cos(math.pi * frac))
+
+    def to_dict(self) -> dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> TrainOptions:
+        """Build from a mapping; unknown keys raise :class:`OptionError` naming them."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known)
+        if unknown:
+            raise OptionError(f"unknown training option(s) {unknown}; known: {sorted(known)}")
+        return cls(**data)
+
+
+@dataclass(frozen=True)
+class EpochReport:
+    """What :func:`fit` passes to its callback after each epoch (losses in normalised units)."""
+
+    epoch: int
+    epochs: int
+    horizon: int
+    lr: float
+    train_loss: float
+    val_loss: float | None
+    best_val_loss: float
+    best_epoch: int
+    seconds: float
+    parts: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """The outcome of :func:`fit`.
+
+    Attributes:
+        model: the model with the best validation weights.
+        history: one row per epoch (epoch 0 = untrained): ``epoch``, ``horizon``, ``lr``,
+            ``train_loss``, ``val_loss`` (``None`` when not validated), ``seconds`` and any
+            extra loss terms.
+        best_epoch, best_val_loss: where the kept weights come from.
+        epochs_run: the last epoch trained.
+        stopped: ``"completed"``, ``"early_stopping"`` or ``"diverged"``.
+    """
+
+    model: Model
+    history: list[dict[str, Any]]
+    best_epoch: int
+    best_val_loss: float
+    epochs_run: int
+    stopped: str
+
+
+def resolve_device(name: str) -> torch.device:
+    """``auto`` → CUDA when available, else CPU; ``cuda`` without a GPU raises OptionError."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    if name.startswith("cuda") and not torch.cuda.is_available():
+        raise OptionError(f"device {name!r} requested but CUDA is not available here")
+    return torch.device(name)
+
+
+def data_fingerprint(*groups: Sequence[Series]) -> str:
+    """SHA-256 of the float64 bytes of every ``u`` and ``y`` (to match a run with its data)."""
+    h = hashlib.sha256()
+    for group in groups:
+        h.update(f"group:{len(group)}".encode())
+        for s in group:
+            for arr in (s.u, s.y):
+                h.update(str(arr.shape).encode())
+                h.update(np.ascontiguousarray(arr).tobytes())
+    return h.hexdigest()
+
+
+def validation_loss(
+    net: SequenceModel, bank: WindowBank, starts: np.ndarray, horizon: int, *, batch: int = 2048
+) -> float:
+    """Mean squared rollout error (normalised, over windows, steps and outputs)."""
+    ell = net.window
+    total, count = 0.0, 0
+    was_training = net.training
+    net.eval()
+    try:
+        with torch.no_grad():
+            for lo in range(0, len(starts), batch):
+                u, y = bank.gather(starts[lo : lo + batch], ell + horizon)
+                pred = net.rollout(u[:, :ell], y[:, :ell], u[:, ell:])
+                total += float((pred - y[:, ell:]).pow(2).sum())
+                count += pred.numel()
+    finally:
+        net.train(was_training)
+    return total / count
+
+
+def _check_lengths(series: Sequence[Series], window: int, what: str) -> None:
+    for i, s in enumerate(series):
+        if s.T < window + 1:
+            raise ShapeError(
+                f"{what}, trajectory {i}: has {s.T} samples; window ℓ = {window} needs at least "
+                f"ℓ + 1 = {window + 1} (ℓ to burn in, one to predict)"
+            )
+
+
+def _draw_windows(
+    rng: np.random.Generator, lengths: Sequence[int], span: int, k: int
+) -> np.ndarray:
+    fits = np.array([i for i, T in enumerate(lengths) if T >= span], dtype=np.int64)
+    highs = np.array([lengths[i] - span + 1 for i in fits], dtype=np.int64)
+    traj = np.repeat(fits, k)
+    starts = rng.integers(0, np.repeat(highs, k))
+    order = rng.permutation(len(traj))
+    return np.stack([traj, starts], axis=1)[order]
+
+
+class _Run:
+    """The mutable state of one training run and its steps (used by :func:`fit` only)."""
+
+    def __init__(
+        self,
+        net: SequenceModel,
+        opts: TrainOptions,
+        train_bank: WindowBank,
+        val_bank: WindowBank,
+        identity: dict[str, Any],
+    ) -> None:
+        self.net, self.opts, self.identity = net, opts, identity
+        self.train_bank, self.val_bank = train_bank, val_bank
+        self.val_horizon = opts.rollout_horizon
+        self.val_starts = val_bank.starts(net.window + self.val_horizon, stride=opts.val_stride)
+        self.optimiser = torch.optim.Adam(
+            net.parameters(), lr=opts.lr, weight_decay=opts.weight_decay
+        )
+        self.rng = np.random.default_rng(opts.seed)
+        self.history: list[dict[str, Any]] = []
+        self.best: dict[str, torch.Tensor] = {}
+        self.best_val, self.best_epoch, self.epoch = math.inf, 0, 0
+
+    # ---------------------------------------------------------------- state
+    def start(self) -> None:
+        """Epoch 0: the untrained network is the first candidate."""
+        v0 = self.validate()
+        self.history = [
+            {
+                "epoch": 0,
+                "horizon": 0,
+                "lr": 0.0,
+                "train_loss": None,
+                "val_loss": v0,
+                "seconds": 0.0,
+            }
+        ]
+        self.best = copy.deepcopy(self.net.state_dict())
+        self.best_val, self.best_epoch, self.epoch = v0, 0, 0
+
+    def save(self, path: Path) -> None:
+        payload = {
+            "version": CHECKPOINT_VERSION,
+            "identity": self.identity,
+            "epoch": self.epoch,
+            "net": _to_cpu(self.net.state_dict()),
+            "optimiser": _to_cpu(self.optimiser.state_dict()),
+            "best_state": _to_cpu(self.best),
+            "best_val": self.best_val,
+            "best_epoch": self.best_epoch,
+            "history": self.history,
+            "numpy_rng": _rng_state(self.rng.bit_generator.state, encode=True),
+            "torch_rng": torch.get_rng_state(),
+        }
+        buf = io.BytesIO()
+        torch.save(payload, buf)
+        atomic_write_bytes(path, buf.getvalue())
+
+    def restore(self, path: Path) -> None:
+        state = _load_checkpoint(path, self.identity)
+        device = next(self.net.parameters()).device
+        load_state(self.net, state["net"], where=str(path))
+        self.optimiser.load_state_dict(state["optimiser"])
+        self.rng.bit_generator.state = _rng_state(state["numpy_rng"], encode=False)
+        torch.set_rng_state(state["torch_rng"])
+        self.history = list(state["history"])
+        self.best = {k: v.to(device) for k, v in state["best_state"].items()}
+        self.best_val, self.best_epoch = state["best_val"], state["best_epoch"]
+        self.epoch = state["epoch"]
+
+    # ---------------------------------------------------------------- steps
+    def validate(self) -> float:
+        return validation_loss(self.net, self.val_bank, self.val_starts, self.val_horizon)
+
+    def train_epoch(self, epoch: int) -> dict[str, Any] | None:
+        """One epoch; its history row, or ``None`` if a loss was not finite (nothing stepped
+        on that batch)."""
+        opts, net, ell = self.opts, self.net, self.net.window
+        t0 = time.perf_counter()
+        horizon, lr = opts.horizon_at(epoch), opts.lr_at(epoch)
+        for group in self.optimiser.param_groups:
+            group["lr"] = lr
+        draws = _draw_windows(
+            self.rng, self.train_bank.lengths, ell + horizon, opts.windows_per_trajectory
+        )
+        losses: list[float] = []
+        parts_sum: dict[str, float] = {}
+        net.train()
+        for lo in range(0, len(draws), opts.batch_size):
+            u, y = self.train_bank.gather(draws[lo : lo + opts.batch_size], ell + horizon)
+            loss, parts = net.training_loss(u, y, alpha_first=opts.alpha_first)
+            if not torch.isfinite(loss):
+                return None
+            self.optimiser.zero_grad(set_to_none=True)
+            loss.backward()
+            if opts.grad_clip is not None:
+                torch.nn.utils.clip_grad_norm_(net.parameters(), opts.grad_clip)
+            self.optimiser.step()
+            losses.append(float(loss.detach()))
+            for key, value in parts.items():
+                parts_sum[key] = parts_sum.get(key, 0.0) + value
+        val_loss = None
+        if epoch % opts.val_every == 0 or epoch == opts.epochs:
+            val_loss = self.validate()
+            if not math.isfinite(val_loss):
+                val_loss = None
+            elif val_loss < self.best_val:
+                self.best_val, self.best_epoch = val_loss, epoch
+                self.best = copy.deepcopy(net.state_dict())
+        self.epoch = epoch
+        row = {
+            "epoch": epoch,
+            "horizon": horizon,
+            "lr": lr,
+            "train_loss": float(np.mean(losses)),
+            "val_loss": val_loss,
+            "seconds": time.perf_counter() - t0,
+            **{f"train_{k}": v / len(losses) for k, v in parts_sum.items() if k != "output_error"},
+        }
+        self.history.append(row)
+        return row
+
+    def report(self, row: Mapping[str, Any]) -> EpochReport:
+        return EpochReport(
+            epoch=row["epoch"],
+            epochs=self.opts.epochs,
+            horizon=row["horizon"],
+            lr=row["lr"],
+            train_loss=row["train_loss"],
+            val_loss=row["val_loss"],
+            best_val_loss=self.best_val,
+            best_epoch=self.best_epoch,
+            seconds=row["seconds"],
+            parts={
+                k[len("train_") :]: v
+                for k, v in row.items()
+                if k.startswith("train_") and k != "train_loss"
+            },
+        )
+
+    def should_stop_early(self) -> bool:
+        opts, epoch = self.opts, self.epoch
+        return (
+            opts.patience is not None
+            and epoch >= max(opts.curriculum_epochs, 1)
+            and epoch - max(self.best_epoch, opts.curriculum_epochs) >= opts.patience
+        )
+
+
+def fit(
+    train: Any,
+    val: Any,
+    *,
+    model: str = "mlp",
+    window: int,
+    options: TrainOptions | None = None,
+    net_options: Mapping[str, Any] | None = None,
+    run_dir: str | Path | None = None,
+    resume: bool = False,
+    callback: Callable[[EpochReport], None] | None = None,
+    info: Mapping[str, Any] | None = None,
+) -> FitResult:
+    """Train model ``model`` with window ``window`` by output error.
+
+    Args:
+        train, val: trajectories (objects with ``.u``, ``.y``; see :mod:`learning.data`), in
+            physical units. Normalisation statistics come from ``train`` only.
+        model: a registry name (:func:`learning.nets.model_names`).
+        window: ℓ.
+        options: :class:`TrainOptions` (defaults if ``None``).
+        net_options: extra constructor arguments of the network (sizes, ``feedthrough``,
+            ``residual``).
+        run_dir: where the model and ``checkpoint.pt`` are written (nothing is written if
+            ``None``).
+        resume: continue from ``run_dir/checkpoint.pt``; the model, its configuration, the
+            data and the options (but ``epochs``, ``patience``, ``checkpoint_every``,
+            ``device``) must match, or :class:`CheckpointError` names what differs.
+        callback: called with an :class:`EpochReport` after every epoch.
+        info: extra JSON facts saved in the model's ``config.json``.
+
+    If training is interrupted (an exception, Ctrl-C), the best model so far is still written
+    to ``run_dir`` before the exception propagates.
+    """
+    opts = options or TrainOptions()
+    train_s = as_series(train, what="training data")
+    val_s = as_series(val, what="validation data")
+    n_u, n_y = train_s[0].u.shape[1], train_s[0].y.shape[1]
+    if (val_s[0].u.shape[1], val_s[0].y.shape[1]) != (n_u, n_y):
+        raise ShapeError(
+            f"validation data have n_u={val_s[0].u.shape[1]}, n_y={val_s[0].y.shape[1]}; "
+            f"training data have n_u={n_u}, n_y={n_y}"
+        )
+    _check_lengths(train_s, window, "training data")
+    _check_lengths(val_s, window, "validation data")
+    for what, series, span in (
+        ("training", train_s, window + opts.horizon),
+        ("validation", val_s, window + opts.rollout_horizon),
+    ):
+        longest = max(s.T for s in series)
+        if longest < span:
+            raise ShapeError(
+                f"window ℓ = {window} plus {what} rollout horizon {span - window} needs "
+                f"trajectories of at least {span} samples; the longest {what} trajectory has "
+                f"{longest} (lower the horizon)"
+            )
+    run_path = Path(run_dir) if run_dir is not None else None
+    if resume and run_path is None:
+        raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")
+    device = resolve_device(opts.device)
+    norm = Normalisation.fit(train_s)
+    fingerprint = data_fingerprint(train_s, val_s)
+
+    with torch.random.fork_rng(devices=[device.index or 0] if device.type == "cuda" else []):
+        torch.manual_seed(opts.seed)
+        net = build_net(model, window=window, n_u=n_u, n_y=n_y, **dict(net_options or {}))
+        net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
+        net.to(device)
+        identity = {
+            "model": model,
+            "net": net.config(),
+            "data": fingerprint,
+            "options": {k: v for k, v in opts.to_dict().items() if k not in RESUMABLE_CHANGES},
+        }
+        state = _Run(
+            net,
+            opts,
+            WindowBank(train_s, norm, device=device),
+            WindowBank(val_s, norm, device=device),
+            identity,
+        )
+        if resume:
+            assert run_path is not None
+            state.restore(run_path / CHECKPOINT_FILE)
+        else:
+            state.start()
+        stopped = "completed"
+        try:
+            for epoch in range(state.epoch + 1, opts.epochs + 1):
+                row = state.train_epoch(epoch)
+                if row is None:
+                    stopped = "diverged"
+                    log.warning(
+                        "epoch %d: the training loss is not finite; stopping and keeping the "
+                        "best model (epoch %d)",
+                        epoch,
+                        state.best_epoch,
+                    )
+                    break
+                if callback is not None:
+                    callback(state.report(row))
+                if state.should_stop_early():
+                    stopped = "early_stopping"
+                if run_path is not None and (
+                    stopped != "completed"
+                    or epoch % opts.checkpoint_every == 0
+                    or epoch == opts.epochs
+                ):
+                    state.save(run_path / CHECKPOINT_FILE)
+                if stopped != "completed":
+                    break
+        finally:
+            # interrupted or not, the model kept is the best one seen
+            load_state(net, state.best, where="best weights")
+            net.to("cpu").eval()
+            result = Model(
+                net,
+                norm,
+                info={
+                    **dict(info or {}),
+                    "training": {
+                        "options": opts.to_dict(),
+                        "best_epoch": state.best_epoch,
+                        "best_val_loss": state.best_val,
+                        "data_sha256": fingerprint,
+                    },
+                },
+            )
+            if run_path is not None:
+                result.save(run_path)
+    return FitResult(
+        model=result,
+        history=state.history,
+        best_epoch=state.best_epoch,
+        best_val_loss=state.best_val,
+        epochs_run=state.epoch,
+        stopped=stopped,
+    )
+
+
+def _to_cpu(obj: Any) -> Any:
+    if isinstance(obj, torch.Tensor):
+        return obj.detach().cpu()
+    if isinstance(obj, dict):
+        return {k: _to_cpu(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_to_cpu(v) for v in obj]
+    return obj
+
+
+def _rng_state(state: Mapping[str, Any], *, encode: bool) -> dict[str, Any]:
+    """numpy's bit-generator state with its 128-bit integers as decimal strings (``encode``),
+    so that ``torch.load(weights_only=True)`` reads it back, or the reverse."""
+
+    def convert(value: Any) -> Any:
+        if isinstance(value, Mapping):
+            return _rng_state(value, encode=encode)
+        if encode and isinstance(value, int):
+            return str(value)
+        if not encode and isinstance(value, str) and value.lstrip("-").isdigit():
+            return int(value)
+        return value
+
+    return {k: convert(v) for k, v in state.items()}
+
+
+def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
+    if not path.is_file():
+        raise CheckpointError(f"no checkpoint to resume from: {path} does not exist")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as exc:  # torch raises several types for corrupt or unsafe files
+        raise CheckpointError(f"cannot read checkpoint {path}: {exc}") from exc
+    if not isinstance(state, dict) or state.get("version") != CHECKPOINT_VERSION:
+        raise CheckpointError(f"{path} is not a canonid training checkpoint (version)")
+    found = state["identity"]
+    check_same(
+        {"model": found.get("model"), "data": found.get("data")},
+        {"model": identity["model"], "data": identity["data"]},
+        what=f"checkpoint {path} (model / training data)",
+    )
+    check_same(found.get("net", {}), identity["net"], what=f"checkpoint {path} (network)")
+    check_same(
+        found.get("options", {}), identity["options"], what=f"checkpoint {path} (training options)"
+    )
+    return state

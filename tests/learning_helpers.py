@@ -1,0 +1,29 @@
+"""Small data sets for the learning tests: linear systems under piecewise-constant inputs."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+
+from models.linear import LinearSystem
+
+
+def damped_siso() -> LinearSystem:
+    """Poles 0.8 ± 0.2j, x⁺ = A x + B u, y = x1: well damped, so rollouts forget the burn-in."""
+    A = np.array([[0.8, 0.2], [-0.2, 0.8]])
+    return LinearSystem(A, [[0.5], [1.0]], [[1.0, 0.0]], name="damped")
+
+
+def trajectories(system, n: int, T: int, *, noise: float, seed: int, hold: int = 6):
+    """``n`` trajectories of ``T`` samples: inputs held for ``hold`` samples, uniform in
+    [−1, 1]; outputs with uniform noise in [−noise, noise] (``y_clean`` kept)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        levels = rng.uniform(-1, 1, size=(T // hold + 1, system.n_u))
+        u = np.repeat(levels, hold, axis=0)[:T]
+        y_clean = system.simulate(rng.uniform(-1, 1, system.n_x), u).y
+        y = y_clean + rng.uniform(-noise, noise, size=y_clean.shape)
+        out.append(SimpleNamespace(u=u, y=y, y_clean=y_clean))
+    return out

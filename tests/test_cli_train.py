@@ -1,0 +1,193 @@
+"""`canonid train` and `canonid evaluate` end to end on tiny data (real training, few epochs)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from learning_helpers import damped_siso, trajectories
+
+from canonid.cli import main
+from datagen.dataset import Dataset, Trajectory
+
+KEYS = ("rollout_mse", "rmse", "nrmse", "fit_percent")
+
+
+@pytest.fixture(scope="module")
+def dataset_path(tmp_path_factory):
+    system = damped_siso()
+    make = lambda n, seed: tuple(  # noqa: E731
+        Trajectory(u=t.u, y=t.y, y_clean=t.y_clean)
+        for t in trajectories(system, n, 110, noise=0.01, seed=seed)
+    )
+    ds = Dataset(
+        splits={"train": make(3, 1), "val": make(1, 2), "test": make(2, 3)},
+        dt=1.0,
+        input_names=("u",),
+        output_names=("y",),
+    )
+    return ds.save(tmp_path_factory.mktemp("data") / "dataset.npz")
+
+
+def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
+    dataset_path, tmp_path, capsys
+):
+    run = tmp_path / "run"
+    argv = [
+        "train",
+        str(dataset_path),
+        "--model",
+        "mlp",
+        "--window",
+        "3",
+        "--epochs",
+        "2",
+        "--out",
+        str(run),
+        "--no-progress",
+        "--device",
+        "cpu",
+        "--residual",
+    ]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert "rollout_mse" in out and "y_clean" in out
+    for name in (
+        "run.json",
+        "config.json",
+        "weights.pt",
+        "normalisation.json",
+        "checkpoint.pt",
+        "history.csv",
+        "training_curve.png",
+        "metrics.json",
+        "rollouts.png",
+    ):
+        assert (run / name).is_file(), name
+    metrics = json.loads((run / "metrics.json").read_text())
+    for key in KEYS:
+        assert np.isfinite(metrics[key]) and len(metrics[f"{key}_per_output"]) == 1
+        assert np.isfinite(metrics["clean"][key])
+    assert metrics["rollout_horizon"] == 100 and metrics["data"]["split"] == "test"
+    assert metrics["n_rollouts"] == 2 * (110 - 3 - 100 + 1)
+    assert metrics["n_init"] == 50 and metrics["n_scored_samples"] == 2 * 60
+    assert len(metrics["kstep_nrmse"]) == 100
+    history = (run / "history.csv").read_text().splitlines()
+    assert history[0].startswith("epoch,horizon,lr,train_loss,val_loss") and len(history) == 4
+    config = json.loads((run / "config.json").read_text())
+    assert config["model"] == "mlp" and config["net"]["residual"] is True
+
+    (run / "metrics.json").unlink()
+    assert main(["evaluate", str(run), "--horizon", "20", "--stride", "5", "--n-init", "10"]) == 0
+    assert "rollout_mse" in capsys.readouterr().out
+    again = json.loads((run / "metrics.json").read_text())
+    assert again["rollout_horizon"] == 20 and again["n_init"] == 10
+    assert again["n_rollouts"] == 2 * len(range(0, 110 - 3 - 20 + 1, 5))
+
+    # resume with more epochs continues the same run
+    assert (
+        main(["train", "--resume", str(run), "--epochs", "3", "--no-progress", "--device", "cpu"])
+        == 0
+    )
+    assert len((run / "history.csv").read_text().splitlines()) == 5
+    capsys.readouterr()
+    # a new run into a used folder, or a resume under another model, is refused in one line
+    assert main(argv) == 1
+    assert "already holds a training run" in capsys.readouterr().err
+    assert main(["train", "--resume", str(run), "--model", "gru", "--no-progress"]) == 1
+    err = capsys.readouterr().err
+    assert "model: 'mlp' there, 'gru' here" in err and "Traceback" not in err
+    assert main(["train", "--resume", str(run), "--lr", "0.1", "--no-progress"]) == 1
+    assert "--lr cannot change when resuming" in capsys.readouterr().err
+
+
+def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys):
+    data = trajectories(damped_siso(), 4, 110, noise=0.01, seed=9)
+    folder = tmp_path / "csv"
+    folder.mkdir()
+    for k, tr in enumerate(data):
+        rows = ["time,pump,level"] + [
+            f"{t},{float(tr.u[t, 0])!r},{float(tr.y[t, 0])!r}" for t in range(110)
+        ]
+        (folder / f"exp{k}.csv").write_text("\n".join(rows) + "\n")
+    run = tmp_path / "run"
+    assert (
+        main(
+            [
+                "train",
+                str(folder),
+                "--inputs",
+                "pump",
+                "--outputs",
+                "level",
+                "--dt",
+                "0.5",
+                "--model",
+                "classic-gru",
+                "--window",
+                "3",
+                "--epochs",
+                "1",
+                "--out",
+                str(run),
+                "--no-progress",
+                "--device",
+                "cpu",
+            ]
+        )
+        == 0
+    )
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["data"]["split"] == "val" and metrics["data"]["n_trajectories"] == 1
+    assert metrics["clean"] is None and metrics["output_names"] == ["level"]
+    capsys.readouterr()
+    assert (
+        main(
+            [
+                "train",
+                str(folder),
+                "--inputs",
+                "pump",
+                "--outputs",
+                "level",
+                "--model",
+                "mlp",
+                "--window",
+                "3",
+                "--no-progress",
+            ]
+        )
+        == 1
+    )
+    assert "need the sampling time" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--window", "200"], "window ℓ = 200 needs at least"),
+        (["--window", "3", "--device", "cuda"], "CUDA is not available"),
+    ],
+)
+def test_bad_training_requests_fail_in_one_line(dataset_path, tmp_path, capsys, extra, message):
+    import torch
+
+    if "cuda" in extra and torch.cuda.is_available():
+        pytest.skip("a GPU is present")
+    code = main(
+        [
+            "train",
+            str(dataset_path),
+            "--model",
+            "mlp",
+            "--epochs",
+            "1",
+            "--out",
+            str(tmp_path / "r"),
+            "--no-progress",
+            *extra,
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 1 and message in err and len(err.strip().splitlines()) == 1

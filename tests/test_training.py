@@ -1,0 +1,284 @@
+"""Output-error training: options, determinism, resume, divergence, bad input, linear oracle."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+from learning_helpers import damped_siso, trajectories
+
+from learning import Model, TrainOptions, evaluate, fit
+from learning.training import CHECKPOINT_FILE, OptionError
+from models.errors import CheckpointError, DataError, ShapeError
+
+TINY = {"hidden": [16, 16]}
+
+
+@pytest.fixture(scope="module")
+def data():
+    system = damped_siso()
+    return (
+        trajectories(system, 6, 40, noise=0.01, seed=10),
+        trajectories(system, 2, 40, noise=0.01, seed=11),
+    )
+
+
+def tiny_options(**kw) -> TrainOptions:
+    base = {
+        "epochs": 4,
+        "batch_size": 8,
+        "lr": 1e-3,
+        "horizon": 8,
+        "curriculum_epochs": 3,
+        "windows_per_trajectory": 2,
+        "checkpoint_every": 2,
+        "seed": 7,
+        "device": "cpu",
+    }
+    return TrainOptions(**{**base, **kw})
+
+
+def weights(model: Model) -> dict[str, np.ndarray]:
+    return {k: v.numpy().copy() for k, v in model.net.state_dict().items()}
+
+
+def test_curriculum_grows_the_horizon_from_one_to_its_final_value():
+    opts = TrainOptions(horizon=10, curriculum_epochs=5, epochs=8)
+    assert [opts.horizon_at(e) for e in range(1, 9)] == [1, 3, 5, 7, 10, 10, 10, 10]
+    assert TrainOptions(horizon=10).horizon_at(1) == 10  # no curriculum
+    cosine = TrainOptions(lr=1e-3, lr_final=1e-5, epochs=11)
+    assert cosine.lr_at(1) == pytest.approx(1e-3) and cosine.lr_at(11) == pytest.approx(1e-5)
+    assert cosine.lr_at(6) == pytest.approx((1e-3 + 1e-5) / 2)
+
+
+def test_bad_options_are_named():
+    with pytest.raises(OptionError, match="batch_size must be an integer >= 1"):
+        TrainOptions(batch_size=0)
+    with pytest.raises(OptionError, match="lr must be a positive number"):
+        TrainOptions(lr=-1.0)
+    with pytest.raises(OptionError, match=r"unknown training option\(s\) \['epoch'\]"):
+        TrainOptions.from_dict({"epoch": 3})
+    with pytest.raises(OptionError, match="device must be"):
+        TrainOptions(device="tpu")
+
+
+def test_same_seed_same_weights_other_seed_other_weights(data):
+    train, val = data
+    a = fit(train, val, model="mlp", window=3, options=tiny_options(), net_options=TINY)
+    b = fit(train, val, model="mlp", window=3, options=tiny_options(), net_options=TINY)
+    c = fit(train, val, model="mlp", window=3, options=tiny_options(seed=8), net_options=TINY)
+    wa, wb, wc = weights(a.model), weights(b.model), weights(c.model)
+    assert all(np.array_equal(wa[k], wb[k]) for k in wa)
+    assert not all(np.array_equal(wa[k], wc[k]) for k in wa)
+    assert [row["epoch"] for row in a.history] == [0, 1, 2, 3, 4]
+    assert [row["horizon"] for row in a.history[1:]] == [1, 4, 8, 8]
+    assert [r["val_loss"] for r in a.history] == [r["val_loss"] for r in b.history]
+
+
+def test_best_on_validation_is_kept(data):
+    train, val = data
+    res = fit(train, val, model="mlp", window=3, options=tiny_options(epochs=6), net_options=TINY)
+    vals = [row["val_loss"] for row in res.history]
+    assert res.best_val_loss == min(vals)
+    assert res.best_epoch == int(np.argmin(vals))
+    from learning.data import WindowBank, as_series
+    from learning.training import validation_loss  # the kept weights reproduce it
+
+    bank = WindowBank(as_series(val), res.model.norm)
+    again = validation_loss(res.model.net, bank, bank.starts(3 + 8), 8)
+    assert again == pytest.approx(res.best_val_loss, rel=1e-5)
+
+
+class _Interrupt(Exception):
+    pass
+
+
+@pytest.mark.parametrize("name", ["mlp", "masti"])
+def test_resume_ends_where_an_uninterrupted_run_ends(name, data, tmp_path):
+    train, val = data
+    net_options = TINY if name == "mlp" else {"hidden": [8]}
+    opts = tiny_options(epochs=6)
+    full = fit(
+        train,
+        val,
+        model=name,
+        window=3,
+        options=opts,
+        net_options=net_options,
+        run_dir=tmp_path / "full",
+    )
+
+    def stop_at_5(report):
+        if report.epoch == 5:
+            raise _Interrupt
+
+    with pytest.raises(_Interrupt):
+        fit(
+            train,
+            val,
+            model=name,
+            window=3,
+            options=opts,
+            net_options=net_options,
+            run_dir=tmp_path / "cut",
+            callback=stop_at_5,
+        )
+    # the checkpoint of epoch 4 is there; the best model so far was saved too
+    assert (tmp_path / "cut" / CHECKPOINT_FILE).is_file()
+    Model.load(tmp_path / "cut")
+    resumed = fit(
+        train,
+        val,
+        model=name,
+        window=3,
+        options=opts,
+        net_options=net_options,
+        run_dir=tmp_path / "cut",
+        resume=True,
+    )
+    wf, wr = weights(full.model), weights(resumed.model)
+    assert all(np.array_equal(wf[k], wr[k]) for k in wf)
+    assert [r["val_loss"] for r in full.history] == [r["val_loss"] for r in resumed.history]
+    assert resumed.epochs_run == 6
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"model": "masti", "net_options": {}}, r"model: 'mlp' there, 'masti' here"),
+        ({"window": 4}, r"window: 3 there, 4 here"),
+        ({"train_slice": slice(0, -1)}, "data"),
+        ({"options": tiny_options(lr=1e-2)}, r"lr: 0\.001 there, 0\.01 here"),
+        ({"run_sub": "empty"}, "no checkpoint to resume from"),
+    ],
+)
+def test_resume_refuses_another_model_window_data_or_options(data, tmp_path, change, message):
+    train, val = data
+    fit(
+        train,
+        val,
+        model="mlp",
+        window=3,
+        options=tiny_options(),
+        net_options=TINY,
+        run_dir=tmp_path,
+    )
+    kwargs = {"model": "mlp", "window": 3, "options": tiny_options(), "net_options": TINY}
+    kwargs.update({k: v for k, v in change.items() if k not in ("train_slice", "run_sub")})
+    run_dir = tmp_path / change.get("run_sub", "")
+    with pytest.raises(CheckpointError, match=message):
+        fit(
+            train[change.get("train_slice", slice(None))],
+            val,
+            run_dir=run_dir,
+            resume=True,
+            **kwargs,
+        )
+
+
+def test_resume_with_more_epochs_continues_the_run(data, tmp_path):
+    train, val = data
+    fit(
+        train,
+        val,
+        model="mlp",
+        window=3,
+        options=tiny_options(),
+        net_options=TINY,
+        run_dir=tmp_path,
+    )
+    longer = fit(
+        train,
+        val,
+        model="mlp",
+        window=3,
+        options=tiny_options(epochs=5),
+        net_options=TINY,
+        run_dir=tmp_path,
+        resume=True,
+    )
+    assert longer.epochs_run == 5 and len(longer.history) == 6
+
+
+def test_a_diverging_run_stops_and_keeps_the_best_model(data, monkeypatch, caplog):
+    from learning.nets.ours_mlp import OursMLP
+
+    train, val = data
+    calls = {"n": 0}
+    original = OursMLP.training_loss
+
+    def poisoned(self, u, y, *, alpha_first):
+        calls["n"] += 1
+        loss, parts = original(self, u, y, alpha_first=alpha_first)
+        return (loss * math.nan if calls["n"] > 4 else loss), parts
+
+    monkeypatch.setattr(OursMLP, "training_loss", poisoned)
+    res = fit(train, val, model="mlp", window=3, options=tiny_options(epochs=10), net_options=TINY)
+    assert res.stopped == "diverged"
+    assert res.epochs_run < 10
+    assert math.isfinite(res.best_val_loss)
+    assert all(torch.isfinite(p).all() for p in res.model.net.parameters())
+    assert "not finite" in caplog.text
+
+
+def test_early_stopping_after_the_curriculum(data):
+    train, val = data
+    res = fit(
+        train,
+        val,
+        model="mlp",
+        window=3,
+        options=tiny_options(epochs=200, lr=1e-9, patience=3, curriculum_epochs=2),
+        net_options=TINY,
+    )
+    assert res.stopped == "early_stopping"
+    assert res.epochs_run < 200
+
+
+def test_bad_input_is_refused_with_a_clear_error(data):
+    train, val = data
+    opts = tiny_options()
+    short = [type(train[0])(u=train[0].u[:3], y=train[0].y[:3])]
+    with pytest.raises(ShapeError, match=r"trajectory 0: has 3 samples; window ℓ = 3"):
+        fit(short, val, window=3, options=opts, net_options=TINY)
+    mismatched = [type(train[0])(u=train[0].u, y=train[0].y[:-1])]
+    with pytest.raises(ShapeError, match="u has 40 samples but y has 39"):
+        fit(mismatched, val, window=3, options=opts, net_options=TINY)
+    nan = [type(train[0])(u=train[0].u, y=train[0].y.copy())]
+    nan[0].y[5, 0] = np.nan
+    with pytest.raises(ShapeError, match=r"training data, trajectory 0: y contains 1 non-finite"):
+        fit(nan, val, window=3, options=opts, net_options=TINY)
+    with pytest.raises(ShapeError, match="needs trajectories of at least 103"):
+        fit(train, val, window=3, options=tiny_options(horizon=100), net_options=TINY)
+    with pytest.raises(
+        ShapeError, match="validation rollout horizon 39 needs trajectories of at least 42"
+    ):
+        fit(train, val, window=3, options=tiny_options(val_horizon=39), net_options=TINY)
+    with pytest.raises(DataError, match="no trajectories"):
+        fit([], val, window=3, options=opts)
+    with pytest.raises(OptionError, match="CUDA is not available"):
+        if torch.cuda.is_available():
+            raise OptionError("CUDA is not available (skipped: a GPU is present)")
+        fit(train, val, window=3, options=tiny_options(device="cuda"), net_options=TINY)
+
+
+@pytest.mark.slow
+def test_mlp_on_a_linear_system_reaches_the_noise_level():
+    """Ours (MLP), quick profile shortened to 100 epochs of 30-step rollouts, on a damped
+    linear system: the 100-step rollout MSE is within 2× the noise variance of the measured
+    outputs, and below it against the noise-free outputs."""
+    from canonid.profiles import train_options
+
+    system = damped_siso()
+    noise = 0.05  # uniform in [−noise, noise]: variance noise²/3
+    train = trajectories(system, 20, 200, noise=noise, seed=1)
+    val = trajectories(system, 5, 200, noise=noise, seed=2)
+    test = trajectories(system, 5, 200, noise=noise, seed=3)
+    opts = train_options("quick", epochs=100, horizon=30, val_horizon=100, device="cpu")
+    res = fit(train, val, model="mlp", window=4, options=opts, net_options={"residual": True})
+    scores = evaluate(res.model, test, horizon=100)
+    noise_var = noise**2 / 3
+    assert scores.measured.rollout_mse < 2 * noise_var
+    assert scores.clean is not None and scores.clean.rollout_mse < noise_var
