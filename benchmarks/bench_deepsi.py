@@ -235,18 +235,22 @@ def train_deepsi(ds: Dataset, turns: TakeTurns, budget: float, curve: Curve) -> 
 
     turns.begin("deepsi")
     t_cpu = time.thread_time()
+    home_dir = deepSI.fitting.get_checkpoint_dir
     with tempfile.TemporaryDirectory() as tmp, open(os.devnull, "w") as quiet:
         # deepSI writes a checkpoint per validation under the home folder; keep it in tmp
         deepSI.fitting.get_checkpoint_dir = lambda: tmp
-        with redirect_stdout(quiet):
-            deepSI.fit(
-                net,
-                train,
-                records("val"),
-                n_its=10**8,
-                val_freq=DEEPSI_VAL_FREQ,
-                val_fun=val_fun,
-            )
+        try:
+            with redirect_stdout(quiet):
+                deepSI.fit(
+                    net,
+                    train,
+                    records("val"),
+                    n_its=10**8,
+                    val_freq=DEEPSI_VAL_FREQ,
+                    val_fun=val_fun,
+                )
+        finally:
+            deepSI.fitting.get_checkpoint_dir = home_dir
     net.load_state_dict(best["state"])
     curve.cpu_seconds = time.thread_time() - t_cpu
     turns.end("deepsi")
