@@ -159,6 +159,11 @@ class Curve:
         self.seconds.append(seconds)
         self.val.append(val)
 
+    @property
+    def best(self) -> float:
+        """The lowest validation MSE (infinite before the first validation)."""
+        return min(self.val, default=float("inf"))
+
     def time_to(self, level: float) -> float | None:
         return next((t for t, v in zip(self.seconds, self.val) if v <= level), None)
 
@@ -291,7 +296,7 @@ def compare(name: str, ds: Dataset, budget: float, slice_s: float) -> str:
 
     floor = noise_floor(ds)
     # the level both reached: the worse of the two best validation MSEs
-    both = max(min(c.val) for c in curves.values())
+    both = max(c.best for c in curves.values())
     test = ds.split("test")
     labels = {"ours": "Ours (MLP)", "deepsi": "deepSI SUBNET"}
     rows = [
@@ -310,7 +315,7 @@ def compare(name: str, ds: Dataset, budget: float, slice_s: float) -> str:
         hits = [curve.time_to(m * floor) for m in TARGETS] + [curve.time_to(both)]
         rows.append(
             f"| {labels[key]} | {params:,} | {turns.used[key]:.0f} ({curve.cpu_seconds:.0f}) | "
-            f"{curve.steps:,} | {min(curve.val):.3g} | {ev.measured.rollout_mse:.3g} | "
+            f"{curve.steps:,} | {curve.best:.3g} | {ev.measured.rollout_mse:.3g} | "
             f"{clean.rollout_mse if clean else float('nan'):.3g} | {ev.measured.rmse:.3g} | "
             f"{clean.rmse if clean else float('nan'):.3g} | "
             + " | ".join("not reached" if h is None else f"{h:.0f} s" for h in hits)
