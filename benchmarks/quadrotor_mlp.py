@@ -93,10 +93,10 @@ def main() -> int:
     args = parser.parse_args()
     try:
         import torch
-        from canonid.profiles import train_options
-        from learning.evaluate import evaluate
 
+        from canonid.profiles import train_options
         from learning import fit
+        from learning.evaluate import evaluate
     except ImportError as exc:
         print(f"this script needs the identification layer (issue 4): {exc}", file=sys.stderr)
         return 2
