@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -81,7 +80,8 @@ def rate_label(rate: float) -> str:
 class ReductionJob:
     """One reduction: the run folder of a trained canonical model, the rate, the seed and where
     to write the reduced run. ``epochs`` overrides the profile's; ``threads`` sets torch's CPU
-    threads for the job (then restores them); ``resume`` continues from ``out/checkpoint.pt``."""
+    threads for the job (then restores them); ``resume`` continues from ``out/checkpoint.pt``;
+    ``command`` is recorded in the run's ``run.json`` (the command line that asked for it)."""
 
     source: str
     compression: float
@@ -92,6 +92,7 @@ class ReductionJob:
     device: str = "cpu"
     threads: int | None = 1
     resume: bool = False
+    command: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:
@@ -210,7 +211,7 @@ def reduce_run(
         **job.recipe_key(),
         "train_options": train_opts.to_dict(),
         "reduction_options": red_opts.to_dict(),
-        "command": ["canonid", *sys.argv[1:]],
+        "command": list(job.command),
     }
     atomic_write_json(out / RUN_FILE, run_recipe)
     t0 = time.perf_counter()
@@ -363,7 +364,7 @@ class SweepPlan:
         out: folder of the study (one sub-folder per job, ``sweep.json`` and the figures).
         rates: compression rates in (0, 1) (default 15 %, 30 %, …, 90 %).
         seeds: auto-encoder seeds.
-        profile, epochs, device, threads: of every job (see :class:`ReductionJob`).
+        profile, epochs, device, threads, command: of every job (see :class:`ReductionJob`).
     """
 
     runs: tuple[str, ...]
@@ -374,6 +375,7 @@ class SweepPlan:
     epochs: int | None = None
     device: str = "cpu"
     threads: int | None = 1
+    command: tuple[str, ...] = ()
 
     def jobs(self) -> list[ReductionJob]:
         """The jobs, in (run, rate, seed) order; bad rates, repeated values and runs that are
@@ -402,6 +404,7 @@ class SweepPlan:
                 epochs=self.epochs,
                 device=self.device,
                 threads=self.threads,
+                command=self.command,
             )
             for source in sources
             for rate in rates

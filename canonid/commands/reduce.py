@@ -107,6 +107,7 @@ def _one(args: argparse.Namespace) -> int:
         device=args.device,
         threads=None,
         resume=args.resume,
+        command=("canonid", *sys.argv[1:]),
     )
     train_opts, red_opts = reduce_options(args.profile, epochs=args.epochs)
     frozen = red_opts.frozen_epochs(train_opts.epochs)
@@ -163,6 +164,7 @@ def _sweep(args: argparse.Namespace) -> int:
         epochs=args.epochs,
         device=args.device,
         threads=args.threads if args.threads is not None else 1,
+        command=("canonid", *sys.argv[1:]),
     )
     sweep = compression_sweep(
         plan,
