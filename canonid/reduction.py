@@ -79,7 +79,8 @@ def rate_label(rate: float) -> str:
 @dataclass(frozen=True)
 class ReductionJob:
     """One reduction: the run folder of a trained canonical model, the rate, the seed and where
-    to write the reduced run. ``epochs`` overrides the profile's; ``threads`` sets torch's CPU
+    to write the reduced run. ``epochs`` and ``linear_skip`` override the profile's (``None``:
+    keep it); ``threads`` sets torch's CPU
     threads for the job (then restores them); ``resume`` continues from ``out/checkpoint.pt``;
     ``command`` is recorded in the run's ``run.json`` (the command line that asked for it)."""
 
@@ -89,6 +90,7 @@ class ReductionJob:
     profile: str = "quick"
     seed: int = 0
     epochs: int | None = None
+    linear_skip: bool | None = None
     device: str = "cpu"
     threads: int | None = 1
     resume: bool = False
@@ -106,6 +108,7 @@ class ReductionJob:
             "seed": self.seed,
             "profile": self.profile,
             "epochs": self.epochs,
+            "linear_skip": self.linear_skip,
         }
 
 
@@ -186,7 +189,11 @@ def reduce_run(
     model, recipe = _load_source(source)
     latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early
     train_opts, red_opts = reduce_options(
-        job.profile, epochs=job.epochs, seed=job.seed, device=job.device
+        job.profile,
+        epochs=job.epochs,
+        linear_skip=job.linear_skip,
+        seed=job.seed,
+        device=job.device,
     )
     if job.resume:
         if not (out / CHECKPOINT_FILE).is_file():
@@ -364,7 +371,8 @@ class SweepPlan:
         out: folder of the study (one sub-folder per job, ``sweep.json`` and the figures).
         rates: compression rates in (0, 1) (default 15 %, 30 %, …, 90 %).
         seeds: auto-encoder seeds.
-        profile, epochs, device, threads, command: of every job (see :class:`ReductionJob`).
+        profile, epochs, linear_skip, device, threads, command: of every job (see
+            :class:`ReductionJob`).
     """
 
     runs: tuple[str, ...]
@@ -373,6 +381,7 @@ class SweepPlan:
     seeds: tuple[int, ...] = (0, 1, 2)
     profile: str = "quick"
     epochs: int | None = None
+    linear_skip: bool | None = None
     device: str = "cpu"
     threads: int | None = 1
     command: tuple[str, ...] = ()
@@ -402,6 +411,7 @@ class SweepPlan:
                 profile=self.profile,
                 seed=int(seed),
                 epochs=self.epochs,
+                linear_skip=self.linear_skip,
                 device=self.device,
                 threads=self.threads,
                 command=self.command,
