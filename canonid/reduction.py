@@ -257,7 +257,13 @@ def reduce_run(
     _, trajs = _data.pick_split(dataset, test_name, where=data_path)
     full = evaluate(model, trajs, horizon=EVAL_HORIZON, stride=1, n_init=metrics["n_init"])
     _plot_reduced_vs_full(
-        model, reduced, trajs, out / "reduced_vs_full.png", n_init=metrics["n_init"], dt=dataset.dt
+        model,
+        reduced,
+        trajs,
+        out / "reduced_vs_full.png",
+        n_init=metrics["n_init"],
+        dt=dataset.dt,
+        output_names=dataset.output_names,
     )
     result = ReductionResult(
         source=str(source),
@@ -570,6 +576,7 @@ def _plot_reduced_vs_full(
     *,
     n_init: int,
     dt: float,
+    output_names: Sequence[str],
     count: int = 3,
 ) -> Path:
     """Open-loop simulations of the full and the reduced model from sample ``n_init`` on the
@@ -600,8 +607,12 @@ def _plot_reduced_vs_full(
                 t[n_init:], yr[:, i], color="C3", lw=1.2, ls="--", label=f"reduced (n̄ = {latent})"
             )
             ax.axvline(t[n_init], color="0.3", ls=":", lw=0.8)
+            if j == 0:
+                ax.set_ylabel(output_names[i])
             if i == n_y - 1:
                 ax.set_xlabel("time [s]")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"{full.name}, ℓ = {full.window}: full vs reduced model, open loop", fontsize=10)
+    fig.suptitle(
+        f"{type(full.net).label}, ℓ = {full.window}: full vs reduced model, open loop", fontsize=10
+    )
     return _save(fig, path)
