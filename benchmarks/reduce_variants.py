@@ -21,12 +21,13 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-PLAIN = {"linear_skip": False}
+PLAIN = {"linear_skip": False, "lr": 1e-3}
 W256 = {"encoder_hidden": [256, 256], "decoder_hidden": [256, 256]}
 
 #: key → (description, overrides of the quick ``reduce`` stage)
 VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
-    "quick": ("quick profile: 2 × 128 + PCA-started affine path", {}),
+    "quick": ("quick profile: 2 × 128 + PCA-started affine path, lr 3e-4", {}),
+    "quick-lr1e-3": ("2 × 128 + PCA-started affine path, lr 1e-3", {"lr": 1e-3}),
     "plain-128": ("plain MLPs 2 × 128", PLAIN),
     "plain-256": ("plain MLPs 2 × 256", {**PLAIN, **W256}),
     "plain-512": (

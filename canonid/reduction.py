@@ -46,8 +46,8 @@ from learning.data import as_series
 from learning.evaluate import simulate_records
 from learning.model import check_same
 from learning.nets import ReducedNet, check_reducible
-from learning.reduction import latent_size, reconstruction_mse, reduce_model
-from learning.training import CHECKPOINT_FILE
+from learning.reduction import ReductionOptions, latent_size, reconstruction_mse, reduce_model
+from learning.training import CHECKPOINT_FILE, TrainOptions
 from models.errors import CheckpointError, DataError
 from models.io import atomic_write_json, read_json
 
@@ -100,15 +100,29 @@ class ReductionJob:
     def name(self) -> str:
         return f"{self.source} at r = {self.compression:g}, seed {self.seed}"
 
+    def options(self) -> tuple[TrainOptions, ReductionOptions]:
+        """The profile's ``reduce`` stage with this job's overrides."""
+        return reduce_options(
+            self.profile,
+            epochs=self.epochs,
+            linear_skip=self.linear_skip,
+            seed=self.seed,
+            device=self.device,
+        )
+
     def recipe_key(self) -> dict[str, Any]:
-        """What a finished run must match to be reused by a sweep."""
+        """What a finished run must match to be reused by a sweep: the source, the rate and
+        every resolved option (but the device)."""
+        train_opts, red_opts = self.options()
         return {
             "source_run": os.path.abspath(self.source),
             "compression": float(self.compression),
             "seed": self.seed,
             "profile": self.profile,
-            "epochs": self.epochs,
-            "linear_skip": self.linear_skip,
+            "options": {
+                **{k: v for k, v in train_opts.to_dict().items() if k != "device"},
+                **red_opts.to_dict(),
+            },
         }
 
 
@@ -188,18 +202,12 @@ def reduce_run(
     source, out = Path(job.source), Path(job.out)
     model, recipe = _load_source(source)
     latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early
-    train_opts, red_opts = reduce_options(
-        job.profile,
-        epochs=job.epochs,
-        linear_skip=job.linear_skip,
-        seed=job.seed,
-        device=job.device,
-    )
+    train_opts, red_opts = job.options()
     if job.resume:
         if not (out / CHECKPOINT_FILE).is_file():
             raise CheckpointError(f"{out} holds no {CHECKPOINT_FILE} to resume from")
         before = read_json(out / RUN_FILE, what="run recipe")
-        key = {k: v for k, v in job.recipe_key().items() if k != "epochs"}
+        key = {k: v for k, v in job.recipe_key().items() if k != "options"}
         check_same(before if isinstance(before, dict) else {}, key, what=f"run {out}")
     elif (out / CHECKPOINT_FILE).exists():
         raise CheckpointError(
