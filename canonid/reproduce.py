@@ -668,6 +668,7 @@ def compression_study(
             rates=tuple(spec.get("rates", ())) or SweepPlan.rates,
             seeds=tuple(spec.get("seeds", (0,))),
             profile=settings.profile,
+            epochs=spec.get("epochs"),
             device=settings.device,
         )
         sweep = compression_sweep(
