@@ -203,11 +203,11 @@ def reduce_run(
     model, recipe = _load_source(source)
     latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early
     train_opts, red_opts = job.options()
+    key = {k: v for k, v in job.recipe_key().items() if k != "options"}  # in the checkpoint
     if job.resume:
         if not (out / CHECKPOINT_FILE).is_file():
             raise CheckpointError(f"{out} holds no {CHECKPOINT_FILE} to resume from")
         before = read_json(out / RUN_FILE, what="run recipe")
-        key = {k: v for k, v in job.recipe_key().items() if k != "options"}
         check_same(before if isinstance(before, dict) else {}, key, what=f"run {out}")
     elif (out / CHECKPOINT_FILE).exists():
         raise CheckpointError(
@@ -223,7 +223,7 @@ def reduce_run(
         "regressor": model.name,
         "window": model.window,
         "latent_dim": latent,
-        **job.recipe_key(),
+        **key,
         "train_options": train_opts.to_dict(),
         "reduction_options": red_opts.to_dict(),
         "command": list(job.command),
