@@ -363,16 +363,11 @@ def split_train_val(dataset: Dataset, *, val_fraction: float = 0.2) -> Dataset:
         if cut < 2 or tr.T - cut < 2:
             raise DataError(f"one record of {tr.T} samples is too short to split")
 
-        def part(sl: slice) -> Trajectory:
-            return Trajectory(
-                **{k: v[sl] for k, v in tr.arrays().items()},
-                info={
-                    **tr.info,
-                    "samples": [sl.start or 0, sl.stop if sl.stop is not None else tr.T],
-                },
-            )
+        def part(start: int, stop: int) -> Trajectory:
+            arrays = {k: v[start:stop] for k, v in tr.arrays().items()}
+            return Trajectory(**arrays, info={**tr.info, "samples": [start, stop]})
 
-        new_train, new_val = (part(slice(0, cut)),), (part(slice(cut, None)),)
+        new_train, new_val = (part(0, cut),), (part(cut, tr.T),)
         how = f"samples {cut}…{tr.T - 1} of the single record"
     splits = {**dataset.splits, "train": new_train, "val": new_val}
     return Dataset(
