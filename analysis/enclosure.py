@@ -345,7 +345,7 @@ class _Run:
             pos, neg = a.lo > 0, a.hi < 0
             return a.abs(), self.gselect(pos, neg, ga, None if ga is None else -ga)
         if op == ca.OP_NOT:
-            return self._logical(a.lo > 0, (a.lo == 0) & (a.hi == 0), invert=True)
+            return self._logical((a.lo > 0) | (a.hi < 0), (a.lo == 0) & (a.hi == 0), invert=True)
         if op in _ARB_FUN:
             return self._transcendental(op, a, ga)
         b, gb = args[1], gargs[1]

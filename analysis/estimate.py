@@ -64,6 +64,13 @@ class Budget:
             return "time budget exhausted"
         return None
 
+    def used(self, evaluated: int, started: float) -> float:
+        """Fraction of the budget spent (boxes or time, whichever is further), for progress."""
+        spent = evaluated / self.boxes
+        if self.seconds is not None:
+            spent = max(spent, (time.perf_counter() - started) / self.seconds)
+        return min(spent, 1.0)
+
     def to_dict(self) -> dict[str, Any]:
         return {
             "seconds": self.seconds,

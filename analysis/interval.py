@@ -212,23 +212,28 @@ class Interval:
             return Interval.point(np.ones_like(self.lo))
         if p == 1:
             return self
-        m = self.abs()
-        acc = Interval.point(np.ones_like(self.lo))
-        base, k = m, p
-        while k:  # non-negative operands: interval products are monotone, so this is sound
-            if k & 1:
-                acc = acc * base
-            k >>= 1
-            if k:
-                base = base.sq()
         if p % 2 == 0:
-            return acc
-        # odd power is monotone: x**p has the sign of x
-        lo_p = Interval(np.abs(self.lo), np.abs(self.lo)).power(p)
-        hi_p = Interval(np.abs(self.hi), np.abs(self.hi)).power(p)
-        lo = np.where(self.lo >= 0, lo_p.lo, -lo_p.hi)
-        hi = np.where(self.hi >= 0, hi_p.hi, -hi_p.lo)
+            return _power_nonneg(self.abs(), p)
+        # an odd power is increasing: x**p has the sign of x at each end
+        low = _power_nonneg(Interval(np.abs(self.lo), np.abs(self.lo)), p)
+        high = _power_nonneg(Interval(np.abs(self.hi), np.abs(self.hi)), p)
+        lo = np.where(self.lo >= 0, low.lo, -low.hi)
+        hi = np.where(self.hi >= 0, high.hi, -high.lo)
         return Interval(lo, hi)
+
+
+def _power_nonneg(m: Interval, p: int) -> Interval:
+    """``m**p`` for ``m >= 0`` by repeated squaring (products of non-negative intervals are
+    monotone, so each rounded product keeps the enclosure)."""
+    acc = Interval.point(np.ones_like(m.lo))
+    base, k = m, p
+    while k:
+        if k & 1:
+            acc = acc * base
+        k >>= 1
+        if k:
+            base = base.sq()
+    return acc
 
 
 def _nanmin(arrays: list[np.ndarray]) -> np.ndarray:

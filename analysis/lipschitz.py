@@ -276,7 +276,7 @@ def lipschitz_upper(
             gap = (-heap[0][0] - best) / max(best, 1e-300)
             progress(
                 f"{quantity} bracket [{best:.4g}, {-heap[0][0]:.4g}]",
-                min(1.0, tol / max(gap, 1e-300)),
+                max(min(1.0, tol / max(gap, 1e-300)), budget.used(evaluated, t0)),
             )
     upper = max(-heap[0][0], best) if heap else best
     if not np.isfinite(upper):

@@ -431,7 +431,7 @@ def _pairs_branch_and_bound(
         if progress is not None and heap:
             progress(
                 f"α_{ell} bracket [{heap[0][0]:.4g}, {best:.4g}]",
-                min(1.0, evaluated / budget.boxes),
+                budget.used(evaluated, t0),
             )
     lower = min(heap[0][0], best) if heap else best
     return Estimate(

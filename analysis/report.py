@@ -134,13 +134,21 @@ class AnalysisReport:
         lines = [head, "-" * len(head)]
         for r in self.results:
             c = r.check
+            check = (
+                ["-"] * 5
+                if c is None
+                else [
+                    _fmt(c.worst_case_bound),  # None: α_ℓ = 0, the bound is infinite
+                    f"{c.max_error:.4g}",
+                    _fmt(c.max_ratio),
+                    str(c.violations),
+                    str(c.solver_failures),
+                ]
+            )
             lines.append(
                 f"{r.window:>3}  {r.gamma_f.lower.value:>10.4g} {r.gamma_f.upper.value:>10.4g}  "
                 f"{r.alpha.lower.value:>10.4g} {r.alpha.upper.value:>10.4g}  "
-                f"{_fmt(c.worst_case_bound if c else None):>13} "
-                f"{_fmt(c.max_error if c else None):>10} "
-                f"{_fmt(c.max_ratio if c else None):>13} "
-                f"{(c.violations if c else '-')!s:>5} {(c.solver_failures if c else '-')!s:>5}"
+                f"{check[0]:>13} {check[1]:>10} {check[2]:>13} {check[3]:>5} {check[4]:>5}"
             )
         lines.append(
             "γ_f on the reachable hull H_{ℓ−1}×U; α_ℓ lower certified, upper sampled; bound = "

@@ -9,6 +9,9 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from _data import DATASETS, ensure_dataset  # noqa: E402
 
 
 def main() -> int:
@@ -19,6 +22,8 @@ def main() -> int:
     if not scripts:
         print("no benchmark scripts found in", HERE)
         return 0
+    for name in DATASETS:  # the training benchmarks need them
+        ensure_dataset(name)
     failed = []
     for script in scripts:
         print(f"== {script.name} ({args.size})", flush=True)

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import sys
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -47,8 +46,8 @@ from learning.data import as_series
 from learning.evaluate import simulate_records
 from learning.model import check_same
 from learning.nets import ReducedNet, check_reducible
-from learning.reduction import latent_size, reconstruction_mse, reduce_model
-from learning.training import CHECKPOINT_FILE
+from learning.reduction import ReductionOptions, latent_size, reconstruction_mse, reduce_model
+from learning.training import CHECKPOINT_FILE, TrainOptions
 from models.errors import CheckpointError, DataError
 from models.io import atomic_write_json, read_json
 
@@ -80,8 +79,10 @@ def rate_label(rate: float) -> str:
 @dataclass(frozen=True)
 class ReductionJob:
     """One reduction: the run folder of a trained canonical model, the rate, the seed and where
-    to write the reduced run. ``epochs`` overrides the profile's; ``threads`` sets torch's CPU
-    threads for the job (then restores them); ``resume`` continues from ``out/checkpoint.pt``."""
+    to write the reduced run. ``epochs`` and ``linear_skip`` override the profile's (``None``:
+    keep it); ``threads`` sets torch's CPU
+    threads for the job (then restores them); ``resume`` continues from ``out/checkpoint.pt``;
+    ``command`` is recorded in the run's ``run.json`` (the command line that asked for it)."""
 
     source: str
     compression: float
@@ -89,22 +90,39 @@ class ReductionJob:
     profile: str = "quick"
     seed: int = 0
     epochs: int | None = None
+    linear_skip: bool | None = None
     device: str = "cpu"
     threads: int | None = 1
     resume: bool = False
+    command: tuple[str, ...] = ()
 
     @property
     def name(self) -> str:
         return f"{self.source} at r = {self.compression:g}, seed {self.seed}"
 
+    def options(self) -> tuple[TrainOptions, ReductionOptions]:
+        """The profile's ``reduce`` stage with this job's overrides."""
+        return reduce_options(
+            self.profile,
+            epochs=self.epochs,
+            linear_skip=self.linear_skip,
+            seed=self.seed,
+            device=self.device,
+        )
+
     def recipe_key(self) -> dict[str, Any]:
-        """What a finished run must match to be reused by a sweep."""
+        """What a finished run must match to be reused by a sweep: the source, the rate and
+        every resolved option (but the device)."""
+        train_opts, red_opts = self.options()
         return {
             "source_run": os.path.abspath(self.source),
             "compression": float(self.compression),
             "seed": self.seed,
             "profile": self.profile,
-            "epochs": self.epochs,
+            "options": {
+                **{k: v for k, v in train_opts.to_dict().items() if k != "device"},
+                **red_opts.to_dict(),
+            },
         }
 
 
@@ -184,14 +202,12 @@ def reduce_run(
     source, out = Path(job.source), Path(job.out)
     model, recipe = _load_source(source)
     latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early
-    train_opts, red_opts = reduce_options(
-        job.profile, epochs=job.epochs, seed=job.seed, device=job.device
-    )
+    train_opts, red_opts = job.options()
+    key = {k: v for k, v in job.recipe_key().items() if k != "options"}  # in the checkpoint
     if job.resume:
         if not (out / CHECKPOINT_FILE).is_file():
             raise CheckpointError(f"{out} holds no {CHECKPOINT_FILE} to resume from")
         before = read_json(out / RUN_FILE, what="run recipe")
-        key = {k: v for k, v in job.recipe_key().items() if k != "epochs"}
         check_same(before if isinstance(before, dict) else {}, key, what=f"run {out}")
     elif (out / CHECKPOINT_FILE).exists():
         raise CheckpointError(
@@ -207,10 +223,10 @@ def reduce_run(
         "regressor": model.name,
         "window": model.window,
         "latent_dim": latent,
-        **job.recipe_key(),
+        **key,
         "train_options": train_opts.to_dict(),
         "reduction_options": red_opts.to_dict(),
-        "command": ["canonid", *sys.argv[1:]],
+        "command": list(job.command),
     }
     atomic_write_json(out / RUN_FILE, run_recipe)
     t0 = time.perf_counter()
@@ -249,7 +265,13 @@ def reduce_run(
     _, trajs = _data.pick_split(dataset, test_name, where=data_path)
     full = evaluate(model, trajs, horizon=EVAL_HORIZON, stride=1, n_init=metrics["n_init"])
     _plot_reduced_vs_full(
-        model, reduced, trajs, out / "reduced_vs_full.png", n_init=metrics["n_init"], dt=dataset.dt
+        model,
+        reduced,
+        trajs,
+        out / "reduced_vs_full.png",
+        n_init=metrics["n_init"],
+        dt=dataset.dt,
+        output_names=dataset.output_names,
     )
     result = ReductionResult(
         source=str(source),
@@ -363,7 +385,8 @@ class SweepPlan:
         out: folder of the study (one sub-folder per job, ``sweep.json`` and the figures).
         rates: compression rates in (0, 1) (default 15 %, 30 %, …, 90 %).
         seeds: auto-encoder seeds.
-        profile, epochs, device, threads: of every job (see :class:`ReductionJob`).
+        profile, epochs, linear_skip, device, threads, command: of every job (see
+            :class:`ReductionJob`).
     """
 
     runs: tuple[str, ...]
@@ -372,8 +395,10 @@ class SweepPlan:
     seeds: tuple[int, ...] = (0, 1, 2)
     profile: str = "quick"
     epochs: int | None = None
+    linear_skip: bool | None = None
     device: str = "cpu"
     threads: int | None = 1
+    command: tuple[str, ...] = ()
 
     def jobs(self) -> list[ReductionJob]:
         """The jobs, in (run, rate, seed) order; bad rates, repeated values and runs that are
@@ -400,8 +425,10 @@ class SweepPlan:
                 profile=self.profile,
                 seed=int(seed),
                 epochs=self.epochs,
+                linear_skip=self.linear_skip,
                 device=self.device,
                 threads=self.threads,
+                command=self.command,
             )
             for source in sources
             for rate in rates
@@ -557,6 +584,7 @@ def _plot_reduced_vs_full(
     *,
     n_init: int,
     dt: float,
+    output_names: Sequence[str],
     count: int = 3,
 ) -> Path:
     """Open-loop simulations of the full and the reduced model from sample ``n_init`` on the
@@ -587,8 +615,12 @@ def _plot_reduced_vs_full(
                 t[n_init:], yr[:, i], color="C3", lw=1.2, ls="--", label=f"reduced (n̄ = {latent})"
             )
             ax.axvline(t[n_init], color="0.3", ls=":", lw=0.8)
+            if j == 0:
+                ax.set_ylabel(output_names[i])
             if i == n_y - 1:
                 ax.set_xlabel("time [s]")
     axes[0, 0].legend(fontsize=7)
-    fig.suptitle(f"{full.name}, ℓ = {full.window}: full vs reduced model, open loop", fontsize=10)
+    fig.suptitle(
+        f"{type(full.net).label}, ℓ = {full.window}: full vs reduced model, open loop", fontsize=10
+    )
     return _save(fig, path)

@@ -24,6 +24,10 @@ On disk (``out`` is the folder the caller names)::
     out/parts/<split>-<index>.npz/.json    one finished flight each (removed after assembly
                                            unless keep_parts)
 
+When the scenario has a ``chunk_length`` (the quadrotor's 200), the assembled dataset holds each
+flight's consecutive chunks (:func:`datagen.chunks.cut_chunks`) in flight order; parts stay whole
+flights.
+
 Re-running with ``resume=True`` keeps the finished parts of the same configuration and runs
 only the missing flights; the assembled dataset has the same bytes as an uninterrupted run.
 Jobs are run by a ``run_jobs`` callable (serially by default); the application layer passes its
@@ -47,6 +51,7 @@ from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
+from datagen.chunks import cut_chunks
 from datagen.controllers.base import Controller
 from datagen.dataset import Dataset, Trajectory
 from datagen.scenarios import Scenario, get_scenario
@@ -158,6 +163,12 @@ class GenerationConfig:
         object.__setattr__(self, "controller_options", dict(self.controller_options))
         if self.T is not None and not (isinstance(self.T, (int, np.integer)) and self.T >= 2):
             raise ShapeError(f"T (samples per flight) must be an integer >= 2, got {self.T!r}")
+        chunk = scenario.chunk_length
+        if chunk is not None and self.steps < chunk:
+            raise ShapeError(
+                f"T = {self.steps} samples per flight is shorter than one {self.system} chunk "
+                f"({chunk} samples)"
+            )
         if isinstance(self.noise, (int, float, np.number)):
             object.__setattr__(self, "noise", float(self.noise))
         elif self.noise is not None:
@@ -218,6 +229,7 @@ class GenerationResult:
     Attributes:
         path: the dataset file (``out/dataset.npz``).
         counts: flights per split.
+        chunks: trajectories per split when the scenario cuts flights into chunks, else None.
         generated: flights simulated in this call.
         resumed: flights taken from existing parts.
         solver_failures: failed controller steps in the kept flights (all fell back).
@@ -230,6 +242,7 @@ class GenerationResult:
     resumed: int
     solver_failures: int
     replaced: int
+    chunks: dict[str, int] | None = None
 
 
 def plan_flights(config: GenerationConfig) -> list[FlightJob]:
@@ -351,6 +364,8 @@ def _metadata(config: GenerationConfig) -> dict[str, Any]:
     system = _system(config.system)
     return {
         "source": "canonid generate",
+        "simulated": True,
+        "simulated_stand_in_for": system.simulated_stand_in_for,
         "system": system.describe(),
         "units": {
             "inputs": dict(zip(system.input_names, system.input_units)),
@@ -489,6 +504,13 @@ def generate_dataset(
         for split in SPLIT_CODES
     }
     kept = [tr for trs in splits.values() for tr in trs]
+    chunk = config.scenario.chunk_length
+    flights = {split: len(trs) for split, trs in splits.items()}
+    if chunk is not None:
+        splits = {
+            split: tuple(c for tr in trs for c in cut_chunks(tr, chunk))
+            for split, trs in splits.items()
+        }
     dataset = Dataset(
         splits=splits,
         dt=system.dt,
@@ -502,9 +524,10 @@ def generate_dataset(
         shutil.rmtree(parts)
     return GenerationResult(
         path=dataset_path,
-        counts=dataset.counts(),
+        counts=flights,
         generated=len(todo),
         resumed=resumed,
         solver_failures=sum(int(tr.info.get("solver_failures", 0)) for tr in kept),
         replaced=sum(1 for tr in kept if tr.info.get("replaced")),
+        chunks=dataset.counts() if chunk is not None else None,
     )

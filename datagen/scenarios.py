@@ -11,13 +11,19 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from datagen.controllers.base import Controller
 from datagen.controllers.nmpc import NMPC
 from datagen.controllers.pid import PID
+from datagen.controllers.quadrotor_cascade import QuadrotorCascade
+from datagen.quadrotor_reference import (
+    QUADROTOR_REFERENCE_NAMES,
+    quadrotor_initial_state,
+    quadrotor_reference,
+)
 from datagen.references import (
     DRONE2D_REFERENCE_NAMES,
     TANK_REFERENCE_NAMES,
@@ -27,6 +33,7 @@ from datagen.references import (
 from models.base import System
 from models.drone2d import Drone2D
 from models.errors import ShapeError, UnknownSystemError
+from models.quadrotor import Quadrotor
 
 __all__ = ["Scenario", "get_scenario", "register_scenario", "scenario_names"]
 
@@ -58,6 +65,10 @@ class Scenario:
         max_failure_fraction: a flight with more failed controller steps than this fraction of
             ``T`` (or a diverged one) is regenerated with a new derived seed.
         max_attempts: how many seeds a flight may use before generation gives up on it.
+        chunk_length: when set, each flight is cut into consecutive chunks of this many samples
+            when the dataset is assembled (:func:`datagen.chunks.cut_chunks`; the remainder of a
+            flight is dropped): the dataset's trajectories are the chunks, its splits still
+            by flight.
         notes: one paragraph for the dataset metadata (what was chosen and why).
     """
 
@@ -76,6 +87,7 @@ class Scenario:
     clip_input: bool = False
     max_failure_fraction: float = 0.05
     max_attempts: int = 5
+    chunk_length: int | None = None
     notes: str = ""
 
     def __post_init__(self) -> None:
@@ -85,6 +97,11 @@ class Scenario:
             raise ShapeError(
                 f"scenario {self.system}: loose_fraction must be in [0, 1], got "
                 f"{self.loose_fraction}"
+            )
+        if self.chunk_length is not None and not 1 <= self.chunk_length <= self.T:
+            raise ShapeError(
+                f"scenario {self.system}: chunk_length must be in [1, T={self.T}], got "
+                f"{self.chunk_length}"
             )
         object.__setattr__(self, "split_sizes", MappingProxyType(dict(self.split_sizes)))
 
@@ -101,6 +118,7 @@ class Scenario:
             "clip_input_to_U": self.clip_input,
             "max_failure_fraction": self.max_failure_fraction,
             "max_attempts": self.max_attempts,
+            "chunk_length": self.chunk_length,
             "notes": self.notes,
         }
 
@@ -148,6 +166,42 @@ def _drone2d_nmpc(system: System, options: Mapping[str, Any]) -> Controller:
     )
 
 
+# ---------------------------------------------------------------------------- quadrotor
+def _quadrotor_reference(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
+    return quadrotor_reference(rng, steps=T, dt=system.dt)
+
+
+def _quadrotor_start(system: System, reference: np.ndarray) -> np.ndarray:
+    return quadrotor_initial_state(reference)
+
+
+def _quadrotor_cascade(system: System, options: Mapping[str, Any]) -> Controller:
+    return QuadrotorCascade(cast(Quadrotor, system))  # it checks the type itself
+
+
+_QUADROTOR = Scenario(
+    system="quadrotor",
+    T=1000,
+    split_sizes={"train": 146, "val": 20, "test": 10},
+    reference=_quadrotor_reference,
+    reference_names=QUADROTOR_REFERENCE_NAMES,
+    initial_state=_quadrotor_start,
+    controller=_quadrotor_cascade,
+    excitation_std=10.0,
+    clip_input=True,
+    chunk_length=200,
+    notes=(
+        "SIMULATED stand-in for the Blackbird UAV dataset (real flights). Flights of 20 s "
+        "(1000 samples at 50 Hz), cut into 200-sample chunks; 146 / 20 / 10 flights as in "
+        "Blackbird's split. Reference: cubic spline through 5-10 waypoints uniform in "
+        "[-2, 2]^2 x [-1, 1] m with yaws uniform in [-pi, pi] (unwrapped), velocity from the "
+        "spline; the flight starts on it, level, at rest in rotation. Tracked by the cascaded "
+        "position/attitude/rate controller; Gaussian excitation of 10 rad/s (about 1 % of "
+        "hover speed, the planar drone's ratio) on each rotor, applied speeds clipped to U; no "
+        "loose flights (Blackbird has none)."
+    ),
+)
+
 _SCENARIOS: dict[str, Scenario] = {
     "tank": Scenario(
         system="tank",
@@ -187,6 +241,7 @@ _SCENARIOS: dict[str, Scenario] = {
             "clipped to U = [0, 250] rad/s (the authors' rotors allowed about 733 rad/s)."
         ),
     ),
+    "quadrotor": _QUADROTOR,
 }
 
 

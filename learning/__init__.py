@@ -8,6 +8,7 @@ Typical use (``train``, ``val``, ``test``: sequences of objects with ``.u``, ``.
     result = fit(train, val, model="mlp", window=10, options=TrainOptions(epochs=200))
     scores = evaluate(result.model, test, horizon=100)
     H = result.model.export()          # numpy: H.H(z, u), H.simulate(u, y_burn_in)
+    reduced = reduce_model(result.model, train, val, compression=0.6).model   # n̄ states
 """
 
 from learning.data import Normalisation, Series, as_series
@@ -15,6 +16,7 @@ from learning.evaluate import Evaluation, Scores, evaluate
 from learning.export import NumpyModel
 from learning.model import Model
 from learning.nets import NETS, SequenceModel, UnknownModelError, build_net, model_names
+from learning.reduction import ReductionOptions, latent_size, reduce_model
 from learning.training import EpochReport, FitResult, OptionError, TrainOptions, fit
 
 __all__ = [
@@ -26,6 +28,7 @@ __all__ = [
     "Normalisation",
     "NumpyModel",
     "OptionError",
+    "ReductionOptions",
     "Scores",
     "SequenceModel",
     "Series",
@@ -35,5 +38,7 @@ __all__ = [
     "build_net",
     "evaluate",
     "fit",
+    "latent_size",
     "model_names",
+    "reduce_model",
 ]

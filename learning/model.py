@@ -15,6 +15,7 @@ samples ``ℓ … T−1`` (``T − ℓ`` rows).
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -137,8 +138,6 @@ class Model:
     # ------------------------------------------------------------------ storage
     def save(self, folder: str | os.PathLike[str]) -> Path:
         """Write ``config.json``, ``weights.pt`` and ``normalisation.json`` into ``folder``."""
-        import io
-
         out = Path(folder)
         out.mkdir(parents=True, exist_ok=True)
         buf = io.BytesIO()
@@ -208,6 +207,8 @@ def rollout_physical(
     ell = net.window
     param = next(net.parameters())
     out = np.empty((u.shape[0], u.shape[1] - ell, net.n_y))
+    if out.shape[1] == 0:
+        return out
     was_training = net.training
     net.eval()
     try:

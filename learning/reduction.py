@@ -41,6 +41,7 @@ __all__ = [
     "NotReducibleError",
     "ReductionOptions",
     "latent_size",
+    "principal_directions",
     "reconstruction_mse",
     "reduce_model",
 ]
@@ -73,6 +74,10 @@ class ReductionOptions:
         encoder_hidden, decoder_hidden: hidden widths of ``E`` and ``D`` (paper: 2 × 512).
         freeze_fraction: share ``f`` of the epochs during which ``Ĥ`` is frozen (0: fine-tuned
             from the start; 1: never trained).
+        linear_skip: give ``E`` and ``D`` an affine path each, started from the principal
+            components of the training windows (:func:`principal_directions`), the MLPs' output
+            layers from zero: training starts at the linear (PCA) reduction. Off: the paper's
+            plain MLPs, randomly initialised.
         reconstruction_weight, consistency_weight, output_weight: weights of the three loss
             terms (:mod:`learning.nets.reduced`).
     """
@@ -83,6 +88,7 @@ class ReductionOptions:
     reconstruction_weight: float = 1.0
     consistency_weight: float = 1.0
     output_weight: float = 1.0
+    linear_skip: bool = False
 
     def __post_init__(self) -> None:
         for key in ("encoder_hidden", "decoder_hidden"):
@@ -102,6 +108,10 @@ class ReductionOptions:
             value = getattr(self, key)
             if not (math.isfinite(value) and value >= 0):
                 raise OptionError(f"reduction option {key} must be >= 0, got {value}")
+        if not isinstance(self.linear_skip, bool):
+            raise OptionError(
+                f"reduction option linear_skip must be true or false, got {self.linear_skip!r}"
+            )
 
     def frozen_epochs(self, epochs: int) -> int:
         """``⌊f · epochs⌋``: ``Ĥ`` is frozen during epochs ``1 … frozen_epochs(epochs)``."""
@@ -180,8 +190,14 @@ def reduce_model(
     frozen = red.frozen_epochs(opts.epochs)
     full_net = model.net
 
+    start = principal_directions(model, train, latent) if red.linear_skip else None
+
     def build(_norm: Any) -> SequenceModel:
-        return ReducedNet.around(full_net, latent_dim=latent, **red.net_options())
+        net = ReducedNet.around(full_net, latent_dim=latent, **red.net_options())
+        if start is not None:
+            dtype = next(net.parameters()).dtype
+            net.init_linear(*(torch.as_tensor(a, dtype=dtype) for a in start))
+        return net
 
     def freeze(net: SequenceModel, epoch: int) -> None:
         assert isinstance(net, ReducedNet)
@@ -214,6 +230,31 @@ def reduce_model(
     assert isinstance(reduced, ReducedNet)
     reduced.freeze_regressor(False)
     return result
+
+
+def _normalised_windows(model: Model, data: Any) -> np.ndarray:
+    """Every window ``z_t`` (``t = ℓ … T``) of every trajectory, normalised by ``model``."""
+    norm, ell = model.norm, model.window
+    windows = [
+        cut_windows(norm.norm_u(s.u), norm.norm_y(s.y), ell)
+        for s in as_series(data, what="data")
+        if s.T >= ell
+    ]
+    if not windows:
+        raise ShapeError(f"no trajectory holds a window of ℓ = {ell} samples")
+    return np.concatenate(windows)
+
+
+def principal_directions(model: Model, data: Any, count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Mean ``(ℓp,)`` and the ``count`` leading principal directions ``(count, ℓp)``
+    (orthonormal rows, by singular value decomposition) of the normalised windows of ``data``
+    (every ``z_t`` of every trajectory, as :func:`reconstruction_mse` uses)."""
+    z = _normalised_windows(model, data)
+    if count > z.shape[1]:
+        raise ShapeError(f"{count} principal directions asked of windows of size {z.shape[1]}")
+    mean = z.mean(axis=0)
+    _, _, vt = np.linalg.svd(z - mean, full_matrices=False)
+    return mean, vt[:count]
 
 
 def reconstruction_mse(model: Model, data: Any) -> float:

@@ -29,6 +29,7 @@ _EXPORTS = {
     "system_names": "models.registry",
     "Box": "models.sets",
     "Tank": "models.tank",
+    "Quadrotor": "models.quadrotor",
 }
 
 __all__ = sorted(_EXPORTS)

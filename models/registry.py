@@ -13,6 +13,7 @@ from models.base import System
 from models.drone2d import Drone2D
 from models.errors import UnknownSystemError
 from models.linear import LINEAR_EXAMPLES
+from models.quadrotor import Quadrotor
 from models.tank import Tank
 
 __all__ = ["get_system", "register_system", "system_names"]
@@ -20,6 +21,7 @@ __all__ = ["get_system", "register_system", "system_names"]
 _FACTORIES: dict[str, Callable[..., System]] = {
     "tank": Tank,
     "drone2d": Drone2D,
+    "quadrotor": Quadrotor,
     **LINEAR_EXAMPLES,
 }
 

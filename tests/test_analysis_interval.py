@@ -65,6 +65,19 @@ def test_sqrt_and_square_enclose(a, b):
     assert Fraction(sq.hi[0]) >= max(Fraction(a) ** 2, Fraction(b) ** 2)
 
 
+@settings(max_examples=100, deadline=None)
+@given(
+    st.floats(min_value=-50, max_value=50),
+    st.floats(min_value=-50, max_value=50),
+    st.integers(min_value=0, max_value=6),
+)
+def test_integer_powers_enclose(a, b, p):
+    x = _iv(a, b)
+    ends = [Fraction(x.lo[0]), Fraction(x.hi[0])]
+    exact = [e**p for e in ends] + ([Fraction(0)] if ends[0] <= 0 <= ends[1] and p else [])
+    assert _encloses(x.power(p), exact)
+
+
 def test_exact_zeros_stay_exact():
     unit = Interval.from_bounds(0.0, 1.0)
     assert (unit * Interval.point(3.0)).lo == 0.0
@@ -126,6 +139,47 @@ def test_refinement_is_never_wider(rng):
     refined = Enclosure(fun, refine=True)([Interval(xlo, xhi), *ubox]).values[0]
     assert np.all(refined.lo >= plain.lo) and np.all(refined.hi <= plain.hi)
     assert np.any(refined.hi - refined.lo < plain.hi - plain.lo)
+
+
+_X = ca.SX.sym("x")
+_U = ca.SX.sym("u")
+ELEMENTARY = {
+    "sin": ca.sin(_X * _U),
+    "cos": ca.cos(_X + _U),
+    "tan": ca.tan(_X / 4),
+    "atan": ca.atan(_X * _U),
+    "tanh": ca.tanh(_X - _U),
+    "sinh": ca.sinh(_X),
+    "cosh": ca.cosh(_X * _U),
+    "exp": ca.exp(_X / _U),
+    "log": ca.log(_X + _U),
+    "constpow": _X**2.5,
+    "pow": ca.power(_X, _U),
+    "cube": _X**3 - _U,
+    "sqrt": ca.sqrt(_X * _U),
+    "inv": 1 / (_X + _U),
+    "fabs": ca.fabs(_X - 2 * _U),
+    "fmin": ca.fmin(_X, 2 * _U),
+    "fmax": ca.fmax(_X * _X, _U),
+    "twice": 2 * _X + _U,
+    "logic": ca.if_else(ca.logic_or(ca.logic_and(_X > 1, ca.logic_not(_U > 2)), _X == _U), _X, _U),
+}
+
+
+@pytest.mark.parametrize("name", sorted(ELEMENTARY))
+def test_elementary_operations_are_enclosed(name, rng):
+    fun = ca.Function(name, [_X, _U], [ELEMENTARY[name]])
+    lo = rng.uniform(0.2, 2.0, size=(30, 2))
+    hi = lo + rng.uniform(0.0, 1.0, size=(30, 2))
+    res = Enclosure(fun, wrt=0)([Interval(lo[:, :1], hi[:, :1]), Interval(lo[:, 1:], hi[:, 1:])])
+    dfun = ca.Function("d", [_X, _U], [ELEMENTARY[name], ca.jacobian(ELEMENTARY[name], _X)])
+    for b in range(30):
+        for _ in range(30):
+            x, u = rng.uniform(lo[b, 0], hi[b, 0]), rng.uniform(lo[b, 1], hi[b, 1])
+            value, slope = (float(v) for v in dfun(x, u))
+            assert res.values[0].lo[b, 0] <= value <= res.values[0].hi[b, 0]
+            if res.jac_flags[b] == 0:
+                assert res.jacobians[0].lo[b, 0, 0] <= slope <= res.jacobians[0].hi[b, 0, 0]
 
 
 def test_fmax_kink_gives_the_hull_of_the_one_sided_slopes():

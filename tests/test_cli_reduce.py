@@ -63,6 +63,9 @@ def test_reduce_writes_a_run_folder_that_evaluate_reads(runs, tmp_path, capsys):
         assert (out / name).is_file(), name
     result = json.loads((out / "reduction.json").read_text())
     assert (result["latent_dim"], result["state_dim"], result["compression"]) == (4, 6, 0.5)
+    recipe = json.loads((out / "run.json").read_text())
+    assert recipe["reduction_options"]["linear_skip"] is True  # the quick profile's
+    assert Model.load(out).net.linear_skip
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["model"] == "reduced" and metrics["rollout_horizon"] == 100
     assert metrics["rollout_mse"] == pytest.approx(result["rollout_mse"])
@@ -118,6 +121,7 @@ def test_non_canonical_runs_and_bad_arguments_are_refused(runs, tmp_path, capsys
 def test_sweep_writes_results_and_figures_and_reuses_finished_jobs(runs, tmp_path, capsys):
     out = tmp_path / "sweep"
     argv = ["reduce", str(runs / "mlp"), "--sweep", "--rates", "0.3", "0.6", "--seeds", "2"]
+    argv += ["--no-linear-skip"]  # the paper's plain MLPs
     assert main([*argv, "--out", str(out), *COMMON]) == 0
     printed = capsys.readouterr().out
     assert "| mlp | 3 | 30% | 5 / 6 |" in printed and "| mlp | 3 | 60% | 3 / 6 |" in printed
@@ -130,7 +134,8 @@ def test_sweep_writes_results_and_figures_and_reuses_finished_jobs(runs, tmp_pat
         (0.6, 1, 3),
     ]
     for r in results:  # each job is a full reduction run that evaluate can read
-        assert Model.load(r["out"]).net.latent_dim == r["latent_dim"]
+        net = Model.load(r["out"]).net
+        assert net.latent_dim == r["latent_dim"] and not net.linear_skip
     rows = {row["compression"]: row for row in sweep["summary"]}
     recon = [r["reconstruction_mse"] for r in results]
     assert rows[0.3]["reconstruction_mse_mean"] == pytest.approx(np.mean(recon[:2]))

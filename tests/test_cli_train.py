@@ -98,6 +98,8 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
     assert main(["train", "--resume", str(run), "--model", "gru", "--no-progress"]) == 1
     err = capsys.readouterr().err
     assert "model: 'mlp' there, 'gru' here" in err and "Traceback" not in err
+    assert main(["train", "--resume", str(run), "--lr", "0.1", "--no-progress"]) == 1
+    assert "--lr cannot change when resuming" in capsys.readouterr().err
 
 
 def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys):
@@ -110,54 +112,15 @@ def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys
         ]
         (folder / f"exp{k}.csv").write_text("\n".join(rows) + "\n")
     run = tmp_path / "run"
-    assert (
-        main(
-            [
-                "train",
-                str(folder),
-                "--inputs",
-                "pump",
-                "--outputs",
-                "level",
-                "--dt",
-                "0.5",
-                "--model",
-                "classic-gru",
-                "--window",
-                "3",
-                "--epochs",
-                "1",
-                "--out",
-                str(run),
-                "--no-progress",
-                "--device",
-                "cpu",
-            ]
-        )
-        == 0
-    )
+    csv_args = [str(folder), "--inputs", "pump", "--outputs", "level", "--no-progress"]
+    common = "--window 3 --epochs 1 --device cpu".split()
+    argv = ["train", *csv_args, "--dt", "0.5", "--model", "classic-gru", *common]
+    assert main([*argv, "--out", str(run)]) == 0
     metrics = json.loads((run / "metrics.json").read_text())
     assert metrics["data"]["split"] == "val" and metrics["data"]["n_trajectories"] == 1
     assert metrics["clean"] is None and metrics["output_names"] == ["level"]
     capsys.readouterr()
-    assert (
-        main(
-            [
-                "train",
-                str(folder),
-                "--inputs",
-                "pump",
-                "--outputs",
-                "level",
-                "--model",
-                "mlp",
-                "--window",
-                "3",
-                "--no-progress",
-            ]
-        )
-        == 1
-    )
+    assert main(["train", *csv_args, "--model", "mlp", *common]) == 1
     assert "need the sampling time" in capsys.readouterr().err
 
 

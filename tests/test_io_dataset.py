@@ -125,3 +125,16 @@ def test_from_arrays_and_unknown_split():
         ds.split("val")
     with pytest.raises(ShapeError, match="10 samples but y has 9"):
         Dataset.from_arrays(np.zeros(10), np.ones(9), dt=0.5)
+
+
+def test_atomic_writes_get_the_usual_file_mode(tmp_path):
+    import os
+
+    from models.io import atomic_write_text
+
+    mask = os.umask(0o022)
+    try:
+        path = atomic_write_text(tmp_path / "a.txt", "x")
+    finally:
+        os.umask(mask)
+    assert path.stat().st_mode & 0o777 == 0o644

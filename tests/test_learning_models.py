@@ -206,9 +206,25 @@ def test_simulate_refuses_bad_shapes(siso_data):
     tr = siso_data[0]
     with pytest.raises(ShapeError, match="y_burn_in must hold the ℓ = 3"):
         model.simulate(tr.u, tr.y[:2])
+    assert model.simulate(tr.u[:3], tr.y[:3]).shape == (0, 1)  # nothing left to predict
     with pytest.raises(ShapeError, match="fewer than the window"):
         model.simulate(tr.u[:2], tr.y[:3])
     bad = tr.u.copy()
     bad[4, 0] = np.nan
     with pytest.raises(ShapeError, match="NaN"):
         model.simulate(bad, tr.y[:3])
+
+
+def test_normalisation_is_training_statistics_saved_as_json(mimo_data, tmp_path):
+    series = as_series(mimo_data)
+    norm = Normalisation.fit(series)
+    y = np.concatenate([s.y for s in series])
+    np.testing.assert_allclose(norm.y_mean, y.mean(axis=0))
+    np.testing.assert_allclose(norm.y_std, y.std(axis=0))
+    dy = np.concatenate([np.diff(s.y, axis=0) for s in series])
+    np.testing.assert_allclose(norm.dy_std, dy.std(axis=0))
+    small_model("mlp", mimo_data).save(tmp_path / "m")
+    text = (tmp_path / "m" / "normalisation.json").read_text()
+    (tmp_path / "m" / "normalisation.json").write_text(text.replace('"y_std"', '"y_sd"'))
+    with pytest.raises(CheckpointError, match="missing field 'y_std'"):
+        Model.load(tmp_path / "m")

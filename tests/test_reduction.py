@@ -19,6 +19,7 @@ from learning.nets import NotReducibleError, ReducedNet, build_net
 from learning.reduction import (
     ReductionOptions,
     latent_size,
+    principal_directions,
     reconstruction_mse,
     reduce_model,
 )
@@ -151,6 +152,31 @@ def test_identity_autoencoder_gives_the_full_model_exactly(full, data):
     u, y0 = burn_in(data[2])
     np.testing.assert_allclose(reduced.simulate(u, y0), full.simulate(u, y0), rtol=0, atol=1e-5)
     assert reconstruction_mse(reduced, data[2]) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_linear_skip_starts_from_the_principal_components(full, data):
+    """With ``linear_skip`` the untrained reduced model is the PCA reduction of the training
+    windows: exact at n̄ = dim z, and its reconstruction error is the PCA residual otherwise."""
+    train, _, test = data
+    u, y0 = burn_in(test)
+    for n in (6, 4):
+        mean, comps = principal_directions(full, train, n)
+        net = ReducedNet.around(full.net, latent_dim=n, linear_skip=True, **SMALL_AE)
+        net.init_linear(
+            torch.as_tensor(mean, dtype=torch.float32), torch.as_tensor(comps, dtype=torch.float32)
+        )
+        reduced = Model(net, full.norm)
+        z = np.concatenate(
+            [cut_windows(full.norm.norm_u(t.u), full.norm.norm_y(t.y), WINDOW) for t in test]
+        )
+        residual = (z - mean) - (z - mean) @ comps.T @ comps
+        assert reconstruction_mse(reduced, test) == pytest.approx(
+            np.mean(residual**2), rel=1e-4, abs=1e-9
+        )
+        if n == 6:
+            np.testing.assert_allclose(reduced.simulate(u, y0), full.simulate(u, y0), atol=1e-4)
+    with pytest.raises(ShapeError, match="needs a reduced model built with linear_skip=True"):
+        ReducedNet.around(full.net, latent_dim=4).init_linear(torch.zeros(6), torch.zeros(4, 6))
 
 
 @pytest.fixture(scope="module")

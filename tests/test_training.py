@@ -40,6 +40,12 @@ def tiny_options(**kw) -> TrainOptions:
     return TrainOptions(**{**base, **kw})
 
 
+def fit_tiny(train, val, **kw):
+    """``fit`` of the small MLP with :func:`tiny_options` unless overridden."""
+    args = {"model": "mlp", "window": 3, "options": tiny_options(), "net_options": TINY, **kw}
+    return fit(train, val, **args)
+
+
 def weights(model: Model) -> dict[str, np.ndarray]:
     return {k: v.numpy().copy() for k, v in model.net.state_dict().items()}
 
@@ -66,9 +72,9 @@ def test_bad_options_are_named():
 
 def test_same_seed_same_weights_other_seed_other_weights(data):
     train, val = data
-    a = fit(train, val, model="mlp", window=3, options=tiny_options(), net_options=TINY)
-    b = fit(train, val, model="mlp", window=3, options=tiny_options(), net_options=TINY)
-    c = fit(train, val, model="mlp", window=3, options=tiny_options(seed=8), net_options=TINY)
+    a = fit_tiny(train, val)
+    b = fit_tiny(train, val)
+    c = fit_tiny(train, val, options=tiny_options(seed=8))
     wa, wb, wc = weights(a.model), weights(b.model), weights(c.model)
     assert all(np.array_equal(wa[k], wb[k]) for k in wa)
     assert not all(np.array_equal(wa[k], wc[k]) for k in wa)
@@ -79,7 +85,7 @@ def test_same_seed_same_weights_other_seed_other_weights(data):
 
 def test_best_on_validation_is_kept(data):
     train, val = data
-    res = fit(train, val, model="mlp", window=3, options=tiny_options(epochs=6), net_options=TINY)
+    res = fit_tiny(train, val, options=tiny_options(epochs=6))
     vals = [row["val_loss"] for row in res.history]
     assert res.best_val_loss == min(vals)
     assert res.best_epoch == int(np.argmin(vals))
@@ -98,46 +104,23 @@ class _Interrupt(Exception):
 @pytest.mark.parametrize("name", ["mlp", "masti"])
 def test_resume_ends_where_an_uninterrupted_run_ends(name, data, tmp_path):
     train, val = data
-    net_options = TINY if name == "mlp" else {"hidden": [8]}
-    opts = tiny_options(epochs=6)
-    full = fit(
-        train,
-        val,
-        model=name,
-        window=3,
-        options=opts,
-        net_options=net_options,
-        run_dir=tmp_path / "full",
-    )
+    kw = {
+        "model": name,
+        "net_options": TINY if name == "mlp" else {"hidden": [8]},
+        "options": tiny_options(epochs=6),
+    }
+    full = fit_tiny(train, val, run_dir=tmp_path / "full", **kw)
 
     def stop_at_5(report):
         if report.epoch == 5:
             raise _Interrupt
 
     with pytest.raises(_Interrupt):
-        fit(
-            train,
-            val,
-            model=name,
-            window=3,
-            options=opts,
-            net_options=net_options,
-            run_dir=tmp_path / "cut",
-            callback=stop_at_5,
-        )
+        fit_tiny(train, val, run_dir=tmp_path / "cut", callback=stop_at_5, **kw)
     # the checkpoint of epoch 4 is there; the best model so far was saved too
     assert (tmp_path / "cut" / CHECKPOINT_FILE).is_file()
     Model.load(tmp_path / "cut")
-    resumed = fit(
-        train,
-        val,
-        model=name,
-        window=3,
-        options=opts,
-        net_options=net_options,
-        run_dir=tmp_path / "cut",
-        resume=True,
-    )
+    resumed = fit_tiny(train, val, run_dir=tmp_path / "cut", resume=True, **kw)
     wf, wr = weights(full.model), weights(resumed.model)
     assert all(np.array_equal(wf[k], wr[k]) for k in wf)
     assert [r["val_loss"] for r in full.history] == [r["val_loss"] for r in resumed.history]
@@ -156,20 +139,11 @@ def test_resume_ends_where_an_uninterrupted_run_ends(name, data, tmp_path):
 )
 def test_resume_refuses_another_model_window_data_or_options(data, tmp_path, change, message):
     train, val = data
-    fit(
-        train,
-        val,
-        model="mlp",
-        window=3,
-        options=tiny_options(),
-        net_options=TINY,
-        run_dir=tmp_path,
-    )
-    kwargs = {"model": "mlp", "window": 3, "options": tiny_options(), "net_options": TINY}
-    kwargs.update({k: v for k, v in change.items() if k not in ("train_slice", "run_sub")})
+    fit_tiny(train, val, run_dir=tmp_path)
+    kwargs = {k: v for k, v in change.items() if k not in ("train_slice", "run_sub")}
     run_dir = tmp_path / change.get("run_sub", "")
     with pytest.raises(CheckpointError, match=message):
-        fit(
+        fit_tiny(
             train[change.get("train_slice", slice(None))],
             val,
             run_dir=run_dir,
@@ -180,25 +154,8 @@ def test_resume_refuses_another_model_window_data_or_options(data, tmp_path, cha
 
 def test_resume_with_more_epochs_continues_the_run(data, tmp_path):
     train, val = data
-    fit(
-        train,
-        val,
-        model="mlp",
-        window=3,
-        options=tiny_options(),
-        net_options=TINY,
-        run_dir=tmp_path,
-    )
-    longer = fit(
-        train,
-        val,
-        model="mlp",
-        window=3,
-        options=tiny_options(epochs=5),
-        net_options=TINY,
-        run_dir=tmp_path,
-        resume=True,
-    )
+    fit_tiny(train, val, run_dir=tmp_path)
+    longer = fit_tiny(train, val, options=tiny_options(epochs=5), run_dir=tmp_path, resume=True)
     assert longer.epochs_run == 5 and len(longer.history) == 6
 
 
@@ -215,7 +172,7 @@ def test_a_diverging_run_stops_and_keeps_the_best_model(data, monkeypatch, caplo
         return (loss * math.nan if calls["n"] > 4 else loss), parts
 
     monkeypatch.setattr(OursMLP, "training_loss", poisoned)
-    res = fit(train, val, model="mlp", window=3, options=tiny_options(epochs=10), net_options=TINY)
+    res = fit_tiny(train, val, options=tiny_options(epochs=10))
     assert res.stopped == "diverged"
     assert res.epochs_run < 10
     assert math.isfinite(res.best_val_loss)
@@ -239,29 +196,28 @@ def test_early_stopping_after_the_curriculum(data):
 
 def test_bad_input_is_refused_with_a_clear_error(data):
     train, val = data
-    opts = tiny_options()
     short = [type(train[0])(u=train[0].u[:3], y=train[0].y[:3])]
     with pytest.raises(ShapeError, match=r"trajectory 0: has 3 samples; window ℓ = 3"):
-        fit(short, val, window=3, options=opts, net_options=TINY)
+        fit_tiny(short, val)
     mismatched = [type(train[0])(u=train[0].u, y=train[0].y[:-1])]
     with pytest.raises(ShapeError, match="u has 40 samples but y has 39"):
-        fit(mismatched, val, window=3, options=opts, net_options=TINY)
+        fit_tiny(mismatched, val)
     nan = [type(train[0])(u=train[0].u, y=train[0].y.copy())]
     nan[0].y[5, 0] = np.nan
     with pytest.raises(ShapeError, match=r"training data, trajectory 0: y contains 1 non-finite"):
-        fit(nan, val, window=3, options=opts, net_options=TINY)
+        fit_tiny(nan, val)
     with pytest.raises(ShapeError, match="needs trajectories of at least 103"):
-        fit(train, val, window=3, options=tiny_options(horizon=100), net_options=TINY)
+        fit_tiny(train, val, options=tiny_options(horizon=100))
     with pytest.raises(
         ShapeError, match="validation rollout horizon 39 needs trajectories of at least 42"
     ):
-        fit(train, val, window=3, options=tiny_options(val_horizon=39), net_options=TINY)
+        fit_tiny(train, val, options=tiny_options(val_horizon=39))
     with pytest.raises(DataError, match="no trajectories"):
-        fit([], val, window=3, options=opts)
+        fit_tiny([], val)
     with pytest.raises(OptionError, match="CUDA is not available"):
         if torch.cuda.is_available():
             raise OptionError("CUDA is not available (skipped: a GPU is present)")
-        fit(train, val, window=3, options=tiny_options(device="cuda"), net_options=TINY)
+        fit_tiny(train, val, options=tiny_options(device="cuda"))
 
 
 @pytest.mark.slow

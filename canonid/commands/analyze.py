@@ -43,7 +43,9 @@ def register(sub: Any) -> None:
     win.add_argument(
         "--windows", metavar="A-B", help="a range of windows, e.g. 1-10, or a list 2,5,10"
     )
-    p.add_argument("--trials", type=int, default=1000, help="Monte-Carlo trials per window")
+    p.add_argument(
+        "--trials", type=int, default=1000, help="Monte-Carlo trials per window (default 1000)"
+    )
     p.add_argument(
         "--budget",
         type=float,

@@ -17,6 +17,7 @@ from datagen.dataset import Dataset
 from datagen.generate import FlightResult, GenerationConfig, generate_dataset
 from datagen.scenarios import get_scenario, scenario_names
 from models.errors import ShapeError
+from models.registry import get_system
 
 
 def register(sub: Any) -> None:
@@ -116,6 +117,13 @@ def run(args: argparse.Namespace) -> int:
     result = generate_dataset(config, out, run_jobs=runner, resume=args.resume)
     counts_text = ", ".join(f"{k} {v}" for k, v in result.counts.items())
     print(f"dataset written to {result.path.resolve()} ({counts_text} flights)")
+    if result.chunks is not None:
+        chunks_text = ", ".join(f"{k} {v}" for k, v in result.chunks.items())
+        length = get_scenario(args.system).chunk_length
+        print(f"  flights cut into {length}-sample chunks: {chunks_text} chunks")
+    stand_in = get_system(args.system).simulated_stand_in_for
+    if stand_in:
+        print(f"  SIMULATED data: {args.system} is a simulated stand-in for {stand_in}")
     print(
         f"  generated {result.generated}, resumed {result.resumed}; solver failures (fell back) "
         f"{result.solver_failures}; flights regenerated with a new seed {result.replaced}"

@@ -67,6 +67,15 @@ def register(sub: Any) -> None:
         help="output folder (default: RUN-r<rate> beside RUN; runs/compression-sweep)",
     )
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
+    p.add_argument(
+        "--linear-skip",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help=(
+            "E and D with an affine path started from the principal components of the training "
+            "windows (default: the profile's; quick on, paper off = the paper's plain MLPs)"
+        ),
+    )
     p.add_argument("--seed", type=int, default=0, help="seed (--sweep: the first of --seeds)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads (per job)")
@@ -104,11 +113,15 @@ def _one(args: argparse.Namespace) -> int:
         profile=args.profile,
         seed=args.seed,
         epochs=args.epochs,
+        linear_skip=args.linear_skip,
         device=args.device,
         threads=None,
         resume=args.resume,
+        command=("canonid", *sys.argv[1:]),
     )
-    train_opts, red_opts = reduce_options(args.profile, epochs=args.epochs)
+    train_opts, red_opts = reduce_options(
+        args.profile, epochs=args.epochs, linear_skip=args.linear_skip
+    )
     frozen = red_opts.frozen_epochs(train_opts.epochs)
     bar = None
     if not args.no_progress:
@@ -161,8 +174,10 @@ def _sweep(args: argparse.Namespace) -> int:
         seeds=tuple(range(args.seed, args.seed + args.seeds)),
         profile=args.profile,
         epochs=args.epochs,
+        linear_skip=args.linear_skip,
         device=args.device,
         threads=args.threads if args.threads is not None else 1,
+        command=("canonid", *sys.argv[1:]),
     )
     sweep = compression_sweep(
         plan,

@@ -48,7 +48,15 @@ def register(sub: Any) -> None:
         help="training budget (default quick)",
     )
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
-    p.add_argument("--seed", type=int, default=0, help="seed of weights and sub-windows")
+    p.add_argument("--lr", type=float, help="override the profile's learning rate")
+    p.add_argument("--batch-size", type=int, metavar="B", help="override the profile's batch")
+    p.add_argument(
+        "--horizon",
+        type=int,
+        metavar="H",
+        help="override the profile's final training rollout length",
+    )
+    p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/MODEL-lL)")
     p.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in RUN")
@@ -83,7 +91,15 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         raise DataError("give the training DATA (or --resume RUN)")
     if args.model is None or args.window is None:
         raise DataError("--model and --window are required for a new run")
-    opts = train_options(args.profile, epochs=args.epochs, seed=args.seed, device=args.device)
+    opts = train_options(
+        args.profile,
+        epochs=args.epochs,
+        lr=args.lr,
+        batch_size=args.batch_size,
+        horizon=args.horizon,
+        seed=args.seed,
+        device=args.device,
+    )
     net_options = {"feedthrough": not args.no_feedthrough, "residual": args.residual}
     return {
         "format": "canonid-run",
@@ -103,6 +119,15 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
 def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
     if not (run_dir / CHECKPOINT_FILE).is_file():
         raise CheckpointError(f"{run_dir} holds no {CHECKPOINT_FILE} to resume from")
+    fixed = [
+        f"--{k.replace('_', '-')}"
+        for k in ("lr", "batch_size", "horizon", "seed")
+        if getattr(args, k) is not None
+    ]
+    if fixed:
+        raise CheckpointError(
+            f"{', '.join(fixed)} cannot change when resuming (only --epochs and --device can)"
+        )
     recipe = read_json(run_dir / RUN_FILE, what="run recipe")
     if not isinstance(recipe, dict) or recipe.get("format") != "canonid-run":
         raise CheckpointError(f"{run_dir / RUN_FILE} is not a canonid run recipe")

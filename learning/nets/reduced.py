@@ -21,6 +21,11 @@ Training loss on a sub-window of ``ℓ + H`` samples (*authors' code*; means ove
 ``z_k`` is the measured window of samples ``k … k+ℓ−1`` of the sub-window (the window before
 predicted sample ``k``), and ``x̄_k`` the reduced state after ``k`` open-loop steps from
 ``x̄_0 = E(z_0)``.
+
+``E`` and ``D`` are ReLU MLPs (the paper's); with ``linear_skip`` each also has an affine path,
+which :func:`learning.reduction.reduce_model` starts from the principal components of the
+training windows, so that training begins at the linear (PCA) reduction and learns a nonlinear
+correction.
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import torch
+from torch import nn
 
 from learning.canonical import pairs_to_state, shift
 from learning.nets.base import CanonicalModel, SequenceModel, mlp, output_error
@@ -71,6 +77,9 @@ class ReducedNet(SequenceModel):
             2 × 512).
         reconstruction_weight, consistency_weight, output_weight: weights of the three loss
             terms (see the module docstring; default 1 each).
+        linear_skip: ``E`` and ``D`` each add a linear map (affine) to their MLP, ``E(z) =
+            MLP_E(z) + W_E z + b_E`` and likewise ``D``; :meth:`init_linear` starts them from a
+            linear reduction (off by default: the paper's plain MLPs).
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``.
 
     Raises:
@@ -91,6 +100,7 @@ class ReducedNet(SequenceModel):
         reconstruction_weight: float = 1.0,
         consistency_weight: float = 1.0,
         output_weight: float = 1.0,
+        linear_skip: bool = False,
         **common: Any,
     ) -> None:
         super().__init__(**common)
@@ -115,6 +125,9 @@ class ReducedNet(SequenceModel):
         self.output_weight = float(output_weight)
         self.encoder = mlp(self.state_dim, self.encoder_hidden, latent_dim)
         self.decoder = mlp(latent_dim, self.decoder_hidden, self.state_dim)
+        self.linear_skip = bool(linear_skip)
+        self.encoder_skip = nn.Linear(self.state_dim, latent_dim) if linear_skip else None
+        self.decoder_skip = nn.Linear(latent_dim, self.state_dim) if linear_skip else None
         self.residual_scale.copy_(self.regressor.residual_scale)
 
     @classmethod
@@ -144,6 +157,7 @@ class ReducedNet(SequenceModel):
             "reconstruction_weight": self.reconstruction_weight,
             "consistency_weight": self.consistency_weight,
             "output_weight": self.output_weight,
+            "linear_skip": self.linear_skip,
         }
 
     def freeze_regressor(self, frozen: bool) -> None:
@@ -154,24 +168,52 @@ class ReducedNet(SequenceModel):
     # ------------------------------------------------------------------ the reduced model
     def encode(self, z: torch.Tensor) -> torch.Tensor:
         """``x̄ = E(z)``: ``(…, ℓp)`` → ``(…, n̄)``."""
-        return self.encoder(z)
+        x = self.encoder(z)
+        return x + self.encoder_skip(z) if self.encoder_skip is not None else x
 
     def decode(self, x: torch.Tensor) -> torch.Tensor:
         """``D(x̄)``: ``(…, n̄)`` → ``(…, ℓp)``."""
-        return self.decoder(x)
+        z = self.decoder(x)
+        return z + self.decoder_skip(x) if self.decoder_skip is not None else z
+
+    def init_linear(self, mean: torch.Tensor, components: torch.Tensor) -> None:
+        """Start from the linear reduction ``E(z) = C (z − m)``, ``D(x̄) = Cᵀ x̄ + m``: set the
+        skip paths to it and the MLPs' output layers to zero.
+
+        ``mean`` ``m`` is ``(ℓp,)``; ``components`` ``C`` is ``(n̄, ℓp)`` with orthonormal rows
+        (e.g. the leading principal directions of training windows). Needs ``linear_skip``.
+        """
+        if self.encoder_skip is None or self.decoder_skip is None:
+            raise ShapeError("init_linear needs a reduced model built with linear_skip=True")
+        d, n = self.state_dim, self.latent_dim
+        if tuple(mean.shape) != (d,) or tuple(components.shape) != (n, d):
+            raise ShapeError(
+                f"init_linear: mean must be ({d},) and components ({n}, {d}); got "
+                f"{tuple(mean.shape)} and {tuple(components.shape)}"
+            )
+        with torch.no_grad():
+            self.encoder_skip.weight.copy_(components)
+            self.encoder_skip.bias.copy_(-(components @ mean))
+            self.decoder_skip.weight.copy_(components.T)
+            self.decoder_skip.bias.copy_(mean)
+            for net in (self.encoder, self.decoder):
+                last = net[-1]
+                assert isinstance(last, nn.Linear)
+                nn.init.zeros_(last.weight)
+                nn.init.zeros_(last.bias)
 
     def output(self, x: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """``ȳ_t = Ĥ(D(x̄_t), u_t)``: ``x`` ``(B, n̄)``, ``u`` ``(B, n_u)`` → ``(B, n_y)``."""
-        return self.regressor.one_step(self.decoder(x), u)
+        return self.regressor.one_step(self.decode(x), u)
 
     def step(self, x: torch.Tensor, u: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``(x̄_{t+1}, ȳ_t)`` from ``x̄_t`` ``(B, n̄)`` and ``u_t`` ``(B, n_u)``."""
-        z = self.decoder(x)
+        z = self.decode(x)
         y = self.regressor.one_step(z, u)
-        return self.encoder(shift(z, u, y)), y
+        return self.encode(shift(z, u, y)), y
 
     def one_step(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        return self.output(self.encoder(z), u)
+        return self.output(self.encode(z), u)
 
     def _latent_rollout(
         self, x: torch.Tensor, u_future: torch.Tensor
@@ -188,7 +230,7 @@ class ReducedNet(SequenceModel):
         self, u_past: torch.Tensor, y_past: torch.Tensor, u_future: torch.Tensor
     ) -> torch.Tensor:
         self._check_rollout_args(u_past, y_past, u_future)
-        return self._latent_rollout(self.encoder(pairs_to_state(u_past, y_past)), u_future)[0]
+        return self._latent_rollout(self.encode(pairs_to_state(u_past, y_past)), u_future)[0]
 
     def training_loss(
         self, u: torch.Tensor, y: torch.Tensor, *, alpha_first: float
@@ -197,8 +239,8 @@ class ReducedNet(SequenceModel):
         # measured windows z_k, k = 0 … H: samples k … k+ℓ−1 of the sub-window
         pairs = torch.cat([u, y], dim=-1)  # (B, ℓ+H, p)
         z_meas = pairs.unfold(1, ell, 1).transpose(2, 3).reshape(u.shape[0], -1, self.state_dim)
-        x_enc = self.encoder(z_meas)  # (B, H+1, n̄)
-        recon = (self.decoder(x_enc) - z_meas).pow(2).mean()
+        x_enc = self.encode(z_meas)  # (B, H+1, n̄)
+        recon = (self.decode(x_enc) - z_meas).pow(2).mean()
         y_pred, x_roll = self._latent_rollout(x_enc[:, 0], u[:, ell:])
         consist = (x_roll[:, 1:] - x_enc[:, 1:]).pow(2).mean()
         oe = output_error(y_pred, y[:, ell:], alpha_first=alpha_first)

@@ -1,0 +1,28 @@
+"""The datasets the benchmarks train on: generated with ``canonid generate`` when missing."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "runs" / "data"
+
+#: name → ``canonid generate`` arguments; the folder is ``runs/data/<name>``
+DATASETS = {
+    "tank-s0": ["tank"],
+    "drone2d-small": ["drone2d", "--n-train", "40", "--n-val", "10", "--n-test", "10"],
+}
+
+__all__ = ["DATA", "DATASETS", "ensure_dataset"]
+
+
+def ensure_dataset(name: str, path: Path | None = None) -> Path:
+    """The folder of dataset ``name`` (default ``runs/data/<name>``), generated if it does not
+    hold a ``dataset.npz`` yet."""
+    folder = path or DATA / name
+    if not (folder / "dataset.npz").is_file():
+        cmd = [sys.executable, "-m", "canonid", "generate", *DATASETS[name]]
+        subprocess.run([*cmd, "--no-progress", "--out", str(folder)], check=True, cwd=ROOT)
+    return folder

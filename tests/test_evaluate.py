@@ -1,0 +1,107 @@
+"""Evaluation against closed forms: which samples each score uses, and the formulas."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from learning import evaluate
+from models.errors import ShapeError
+
+
+class EchoModel:
+    """A stand-in for a trained model on the system y_t = u_t: it predicts u_t plus the error of
+    the last burn-in sample (y_{ℓ−1} − u_{ℓ−1}) plus a constant ``offset``."""
+
+    name, n_u, n_y = "echo", 1, 1
+
+    def __init__(self, window: int, offset: float = 0.0) -> None:
+        self.window, self.offset = window, offset
+
+    def predict(self, u: np.ndarray, y_burn_in: np.ndarray) -> np.ndarray:
+        carry = y_burn_in[:, -1:, :] - u[:, self.window - 1 : self.window, :]
+        return u[:, self.window :, :] + carry + self.offset
+
+
+@pytest.fixture
+def records(rng):
+    out = []
+    for T in (70, 64, 30):  # the last is too short for a 50-step rollout
+        u = rng.normal(size=(T, 1))
+        out.append(SimpleNamespace(u=u, y=u + rng.uniform(-0.1, 0.1, size=(T, 1)), y_clean=u))
+    return out
+
+
+def test_rollout_metric_uses_every_start_with_the_measured_burn_in(records):
+    ell, H, stride = 3, 50, 4
+    ev = evaluate(EchoModel(ell), records, horizon=H, stride=stride, n_init=10)
+    expected_sq, count = [], 0
+    for r in records:
+        w = (r.y - r.y_clean)[:, 0]
+        for s in range(0, len(w) - ell - H + 1, stride):
+            # prediction = u + w[s+ℓ−1]; against y: error w[s+ℓ−1] − w[t]; against y_clean: w[s+ℓ−1]
+            expected_sq.append((w[s + ell - 1] - w[s + ell : s + ell + H]) ** 2)
+            count += 1
+    assert ev.n_rollouts == count == len(range(0, 70 - 53 + 1, 4)) + len(range(0, 64 - 53 + 1, 4))
+    assert ev.measured.rollout_mse == pytest.approx(np.mean(expected_sq), rel=1e-12)
+    assert ev.clean is not None
+    clean_sq = [
+        (r.y - r.y_clean)[s + ell - 1, 0] ** 2
+        for r in records
+        for s in range(0, r.u.shape[0] - ell - H + 1, stride)
+    ]
+    assert ev.clean.rollout_mse == pytest.approx(np.mean(clean_sq), rel=1e-12)
+    # the k-step curve of the clean target: every step carries the same burn-in error
+    sd = np.concatenate([r.y_clean for r in records]).std()
+    np.testing.assert_allclose(ev.clean.kstep_nrmse, np.sqrt(np.mean(clean_sq)) / sd, rtol=1e-12)
+    assert len(ev.clean.kstep_nrmse) == H
+
+
+def test_simulation_scores_skip_n_init_and_burn_in_just_before_it(records):
+    ell, n_init = 3, 20
+    ev = evaluate(EchoModel(ell), records, horizon=5, n_init=n_init)
+    assert ev.n_records == 3 and ev.n_scored_samples == (70 - 20) + (64 - 20) + (30 - 20)
+    carried = np.concatenate(
+        [np.full(len(r.u) - n_init, (r.y - r.y_clean)[n_init - 1, 0]) for r in records]
+    )
+    assert ev.clean is not None
+    assert ev.clean.rmse == pytest.approx(np.sqrt(np.mean(carried**2)), rel=1e-12)
+
+
+def test_offset_gives_the_closed_form_rmse_nrmse_and_fit():
+    rng = np.random.default_rng(3)
+    u = rng.normal(size=(80, 1))
+    clean = [SimpleNamespace(u=u, y=u, y_clean=u)]
+    c, ell, n_init = 0.25, 4, 50
+    ev = evaluate(EchoModel(ell, offset=c), clean, horizon=10, n_init=n_init)
+    scored = u[n_init:, 0]
+    for scores in (ev.measured, ev.clean):
+        assert scores is not None
+        assert scores.rollout_mse == pytest.approx(c**2)
+        assert scores.rmse == pytest.approx(c)
+        assert scores.nrmse == pytest.approx(c / scored.std())
+        fit = 100 * (1 - c * np.sqrt(len(scored)) / np.linalg.norm(scored - scored.mean()))
+        assert scores.fit_percent == pytest.approx(fit)
+    perfect = evaluate(EchoModel(ell), clean, horizon=10)
+    assert perfect.measured.rollout_mse == 0 and perfect.measured.fit_percent == 100
+
+
+def test_json_names_its_targets_and_keys(records):
+    body = evaluate(EchoModel(3), records, horizon=10, n_init=10).to_json()
+    for key in ("rollout_mse", "rmse", "nrmse", "fit_percent"):
+        assert key in body and f"{key}_per_output" in body and key in body["clean"]
+    assert body["targets"]["top_level"].startswith("y (measured")
+    assert body["rollout_horizon"] == 10 and body["window"] == 3
+    no_clean = [SimpleNamespace(u=r.u, y=r.y) for r in records]
+    assert evaluate(EchoModel(3), no_clean, horizon=10).to_json()["clean"] is None
+
+
+def test_bad_requests(records):
+    with pytest.raises(ShapeError, match="no test trajectory holds window"):
+        evaluate(EchoModel(3), records, horizon=100)
+    with pytest.raises(ShapeError, match="n_init = 2 must be at least the window"):
+        evaluate(EchoModel(3), records, horizon=5, n_init=2)
+    with pytest.raises(ShapeError, match="longer than n_init"):
+        evaluate(EchoModel(3), records, horizon=5, n_init=70)
