@@ -169,7 +169,7 @@ def _table1_blocks(report: Report, cells: Sequence[Any], system: str, seeds: int
     models = sorted({c.model for c in mine}, key=_model_order)
     windows = sorted({c.window for c in mine})
     by_key = {(c.model, c.window): c for c in mine}
-    spread = "mean ± sample standard deviation" if seeds > 1 else "one seed (no spread)"
+    spread = f"mean ± sample standard deviation over {seeds} seeds" if seeds > 1 else "one seed"
     for target, attr in (
         ("measured y (noisy, as the paper's data)", "mean"),
         ("noise-free y_clean", "mean_clean"),
@@ -196,7 +196,7 @@ def _table1_blocks(report: Report, cells: Sequence[Any], system: str, seeds: int
             rows,
             caption=(
                 f"{system_label(system)}: 100-step open-loop MSE against {target}, physical "
-                f"units, ×{scale:g}; canonid: {spread} over {seeds} seed(s); paper: Table 1 as "
+                f"units, ×{scale:g}; canonid: {spread}; paper: Table 1 as "
                 "printed (the paper's column is against its own noisy data)"
             ),
         )
