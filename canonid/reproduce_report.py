@@ -10,6 +10,7 @@ budget that produced it, the machine, and a link to every artefact.
 from __future__ import annotations
 
 import datetime as _dt
+import io
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -19,6 +20,7 @@ import numpy as np
 
 from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
 from canonid.report import Report
+from models.io import atomic_write_bytes
 
 __all__ = ["QUADROTOR_NOTE", "plot_rollouts", "plot_table1", "system_label", "write_report"]
 
@@ -49,10 +51,7 @@ def _pyplot() -> Any:
 
 
 def _save(fig: Any, path: Path) -> Path:
-    import io
-
-    from models.io import atomic_write_bytes
-
+    """Write ``fig`` as a PNG without a software stamp (same figure, same bytes), atomically."""
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
