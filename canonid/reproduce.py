@@ -264,6 +264,7 @@ def prepare_datasets(
         t0 = time.perf_counter()
         dataset = _existing_dataset(target, config)
         reused = dataset is not None
+        log.info("%s dataset in %s: %s", system, target, "reused" if reused else "generating")
         if dataset is None:
             run = functools.partial(runner, description=f"{system} flights")
             generate_dataset(config, target, run_jobs=run, resume=True)
@@ -529,6 +530,7 @@ def _run_all(
             outcomes[i] = done
         else:
             todo.append(i)
+    log.info("%d of %d jobs finished before, %d to run", len(outcomes), len(jobs), len(todo))
     failures: list[Any] = []
     if todo:
         try:

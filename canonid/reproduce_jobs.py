@@ -86,6 +86,7 @@ def finished(folder: Path, recipe: Mapping[str, Any]) -> JobOutcome | None:
 
 
 def store(kind: str, name: str, folder: Path, recipe: Mapping[str, Any], result: Any) -> JobOutcome:
+    """Write ``folder/result.json`` (recipe and result, atomically: the job's last act)."""
     body = {
         "format": RESULT_FORMAT,
         "kind": kind,

@@ -10,6 +10,7 @@ budget that produced it, the machine, and a link to every artefact.
 from __future__ import annotations
 
 import datetime as _dt
+import io
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -19,6 +20,7 @@ import numpy as np
 
 from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
 from canonid.report import Report
+from models.io import atomic_write_bytes
 
 __all__ = ["QUADROTOR_NOTE", "plot_rollouts", "plot_table1", "system_label", "write_report"]
 
@@ -49,10 +51,7 @@ def _pyplot() -> Any:
 
 
 def _save(fig: Any, path: Path) -> Path:
-    import io
-
-    from models.io import atomic_write_bytes
-
+    """Write ``fig`` as a PNG without a software stamp (same figure, same bytes), atomically."""
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
@@ -169,7 +168,7 @@ def _table1_blocks(report: Report, cells: Sequence[Any], system: str, seeds: int
     models = sorted({c.model for c in mine}, key=_model_order)
     windows = sorted({c.window for c in mine})
     by_key = {(c.model, c.window): c for c in mine}
-    spread = "mean ± sample standard deviation" if seeds > 1 else "one seed (no spread)"
+    spread = f"mean ± sample standard deviation over {seeds} seeds" if seeds > 1 else "one seed"
     for target, attr in (
         ("measured y (noisy, as the paper's data)", "mean"),
         ("noise-free y_clean", "mean_clean"),
@@ -196,7 +195,7 @@ def _table1_blocks(report: Report, cells: Sequence[Any], system: str, seeds: int
             rows,
             caption=(
                 f"{system_label(system)}: 100-step open-loop MSE against {target}, physical "
-                f"units, ×{scale:g}; canonid: {spread} over {seeds} seed(s); paper: Table 1 as "
+                f"units, ×{scale:g}; canonid: {spread}; paper: Table 1 as "
                 "printed (the paper's column is against its own noisy data)"
             ),
         )

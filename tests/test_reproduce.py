@@ -14,11 +14,11 @@ import canonid.reproduce as rp
 from canonid.cli import main
 from canonid.paper import TABLE1
 from canonid.reproduce import reproduce, settings_from_profile
-from canonid.reproduce_jobs import RESULT_FILE, finished, store
+from canonid.reproduce_jobs import RESULT_FILE, JobOutcome, finished, store
+from canonid.reproduce_report import system_label
 from canonid.runner import JobsFailedError
-from models.errors import CheckpointError
-
-pytestmark = pytest.mark.slow
+from learning.training import OptionError
+from models.errors import CheckpointError, DataError
 
 
 def _results(out: Path) -> dict[str, tuple[bytes, int]]:
@@ -43,6 +43,7 @@ def serial(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
     md = (serial / "report.md").read_text()
     data = json.loads((serial / "reproduction.json").read_text())
@@ -73,6 +74,7 @@ def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
     assert probe["window"] == 5 and probe["test_rows"] == residual["rows"] + residual["excluded"]
 
 
+@pytest.mark.slow
 def test_resume_of_a_finished_reproduction_runs_nothing(serial, capsys):
     before = _results(serial)
     assert main(["reproduce", "--profile", "tiny", "--out", str(serial), "--resume"]) == 0
@@ -80,11 +82,13 @@ def test_resume_of_a_finished_reproduction_runs_nothing(serial, capsys):
     assert _results(serial) == before
 
 
+@pytest.mark.slow
 def test_existing_output_needs_resume(serial, capsys):
     assert main(["reproduce", "--profile", "tiny", "--out", str(serial)]) == 1
     assert "--resume" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_two_dask_workers_give_the_same_table(serial, tmp_path):
     out = tmp_path / "dask"
     shutil.copytree(serial / "data", out / "data")  # reused: same configuration
@@ -95,6 +99,7 @@ def test_two_dask_workers_give_the_same_table(serial, tmp_path):
     assert _table(out) == _table(serial)
 
 
+@pytest.mark.slow
 def test_interrupted_run_resumes_without_redoing_finished_jobs(tmp_path, monkeypatch):
     out = tmp_path / "repro"
     calls: list[str] = []
@@ -132,6 +137,7 @@ def test_a_folder_of_another_recipe_is_refused(tmp_path):
         finished(folder, {"seed": 1})
 
 
+@pytest.mark.slow
 def test_a_failing_job_is_retried_once_and_reported(tmp_path, monkeypatch):
     out = tmp_path / "repro"
     calls: list[str] = []
@@ -153,3 +159,53 @@ def test_a_failing_job_is_retried_once_and_reported(tmp_path, monkeypatch):
     assert "Failed jobs" in md and "simulated failure" in md
     cells = json.loads((out / "reproduction.json").read_text())["table1"]
     assert [c["model"] for c in cells] == ["mlp"]  # the finished job is kept
+
+
+def _outcome(model: str, window: int, seed: int, mse: float) -> JobOutcome:
+    recipe = {"system": "tank", "model": model, "window": window, "seed": seed}
+    result = {"rollout_mse": mse, "rollout_mse_clean": mse / 2}
+    return JobOutcome("train", f"{model} {window} {seed}", "f", recipe, result, ran=True)
+
+
+def test_table_rows_are_mean_and_sample_spread_over_seeds():
+    cells = rp.table1_rows(
+        [
+            _outcome("mlp", 5, 0, 1.0),
+            _outcome("mlp", 5, 1, 3.0),
+            _outcome("mlp", 7, 0, 2.0),
+            JobOutcome("analysis", "a", "f", {"system": "tank"}, {}, ran=True),
+        ]
+    )
+    by_window = {c.window: c for c in cells}
+    assert set(by_window) == {5, 7}
+    five = by_window[5]
+    assert (five.mean, five.std, five.seeds) == (2.0, pytest.approx(2**0.5), 2)
+    assert (five.mean_clean, five.std_clean) == (1.0, pytest.approx(2**0.5 / 2))
+    assert five.paper == pytest.approx(TABLE1["tank"].values["mlp"][0] * TABLE1["tank"].scale)
+    assert by_window[7].std is None and by_window[7].paper is None  # one seed; not in the paper
+
+
+def test_quadrotor_is_labelled_as_a_simulated_stand_in():
+    assert system_label("quadrotor") == "3D Drone (simulated stand-in vs real data in the paper)"
+    assert system_label("tank") == "Tank" and system_label("linear") == "linear"
+
+
+def test_settings_refuse_unknown_systems_models_and_windows(tmp_path):
+    with pytest.raises(DataError, match="no data scenario"):
+        settings_from_profile("tiny", out=tmp_path, systems=["linear"])
+    with pytest.raises(OptionError, match="unknown model"):
+        settings_from_profile("tiny", out=tmp_path, models=["mlp", "nope"])
+    with pytest.raises(OptionError, match="windows"):
+        settings_from_profile("tiny", out=tmp_path, windows=[0])
+    with pytest.raises(OptionError, match="repeats"):
+        settings_from_profile("tiny", out=tmp_path, windows=[5, 5])
+
+
+def test_the_job_list_depends_on_the_settings_only(tmp_path):
+    info = rp.DatasetInfo("tank", tmp_path / "d.npz", {}, "abc", {}, reused=False, seconds=0.0)
+    plans = [
+        rp.plan_jobs(settings_from_profile("tiny", out=tmp_path, workers=w), {"tank": info})
+        for w in (0, 2)
+    ]
+    assert plans[0] == plans[1]
+    assert [type(j).__name__ for j in plans[0]] == ["AnalysisJob", "TrainJob", "TrainJob"]
