@@ -530,14 +530,18 @@ def plot_heatmap(results: Sequence[ReductionResult], path: str | os.PathLike[str
     for i in range(len(sources)):
         for j in range(len(rates)):
             if np.isfinite(grid[i, j]):
-                ax.text(j, i, f"{grid[i, j]:.2g}", ha="center", va="center", fontsize=8, color="w")
+                # dark text on the light (yellow) end of viridis, white on the dark end
+                light = norm is not None and grid[i, j] > 0 and norm(grid[i, j]) > 0.6
+                colour = "k" if light else "w"
+                ax.text(
+                    j, i, f"{grid[i, j]:.2g}", ha="center", va="center", fontsize=8, color=colour
+                )
     ax.set_xticks(range(len(rates)), [f"{r:.0%}" for r in rates])
     ax.set_yticks(range(len(sources)), [_run_label(results, s) for s in sources])
     ax.set_xlabel("compression rate r")
     seeds = len({r.seed for r in results})
-    ax.set_title(
-        f"auto-encoder reconstruction MSE (test, normalised; mean of {seeds} seeds)", fontsize=9
-    )
+    spread = "one seed" if seeds == 1 else f"mean of {seeds} seeds"
+    ax.set_title(f"auto-encoder reconstruction MSE (test, normalised; {spread})", fontsize=9)
     fig.colorbar(image, ax=ax)
     return _save(fig, path)
 
@@ -568,10 +572,8 @@ def plot_reduced_mse(results: Sequence[ReductionResult], path: str | os.PathLike
     ax.set_xlabel("reduced state size n̄")
     ax.set_ylabel("100-step rollout MSE (test, physical units)")
     seeds = len({r.seed for r in results})
-    ax.set_title(
-        f"reduced model vs state size (mean ± std over {seeds} seeds; dashed: full model)",
-        fontsize=9,
-    )
+    spread = "one seed" if seeds == 1 else f"mean ± std over {seeds} seeds"
+    ax.set_title(f"reduced model vs state size ({spread}; dashed: full model)", fontsize=9)
     ax.legend(fontsize=8)
     return _save(fig, path)
 
