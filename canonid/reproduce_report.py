@@ -411,7 +411,7 @@ def _analysis_blocks(
                 str(r["violations"]),
                 str(r["solver_failures"]),
                 _fmt(r["max_error"]),
-                _fmt(r["worst_case_bound"]),
+                _upper(r["worst_case_bound"]),  # null: α_ℓ = 0 or γ_f = ∞, no bound
                 _fmt(r["max_ratio"]),
             ]
             for r in o.result["windows"]
