@@ -77,7 +77,10 @@ class BoundConstants:
         """``γ_f^ℓ / α_ℓ`` (``inf`` when ``α_ℓ = 0``: the proposition then says nothing)."""
         if self.alpha.value <= 0:
             return math.inf
-        return float(self.gamma_f.value**self.window / self.alpha.value)
+        try:
+            return float(self.gamma_f.value**self.window / self.alpha.value)
+        except OverflowError:  # γ_f^ℓ beyond the float range: as good as no bound
+            return math.inf
 
     def bound(self, noise_norm: np.ndarray | float) -> np.ndarray:
         """``2 γ_f^ℓ α_ℓ^{−1} ‖w̄‖`` for the given norms of the stacked window noise."""

@@ -23,6 +23,7 @@ import heapq
 import itertools
 import time
 from collections.abc import Callable
+from typing import Any
 
 import casadi as ca
 import numpy as np
@@ -64,12 +65,26 @@ def _unbounded_error(
         )
         flags = int(res.jac_flags[0])
         why = describe_flags(flags) if flags else "it is not finite there"
-    return SetError(
-        f"{quantity} is unbounded on {where}: near x = {np.round(point[:n_x], 6).tolist()}, "
-        f"u = {np.round(point[n_x:], 6).tolist()} the Jacobian of {fun.name()} has no finite bound "
-        f"({why}). Move the set away from the singularity (e.g. the tank's eps > 0, and inputs "
+    advice = (
+        "The set is too large for float64: shrink it."
+        if why.startswith("an overflow")
+        else "Move the set away from the singularity (e.g. the tank's eps > 0, and inputs "
         "that keep the levels away from 0)."
     )
+    return SetError(
+        f"{quantity} is unbounded on {where}: near x = {_point(point[:n_x])}, "
+        f"u = {_point(point[n_x:])} the Jacobian of {fun.name()} has no finite bound "
+        f"({why}). {advice}"
+    )
+
+
+def _reason(flags: int) -> str:
+    """Words for an unusable Jacobian enclosure (flags 0: finite entries whose norm overflows)."""
+    return describe_flags(flags) if flags else "entries too large for a finite norm in float64"
+
+
+def _point(values: np.ndarray) -> str:
+    return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
 
 
 def _norms(jac: ca.Function, pts: np.ndarray, n_x: int) -> np.ndarray:
@@ -189,6 +204,9 @@ def lipschitz_upper(
             centres raise it further during the search.
         tol: stop when ``upper − lower ≤ tol · lower``.
         budget: ``boxes`` and ``seconds`` limit the search; the bound is valid whenever it stops.
+            When the budget ends while a box still has no finite Jacobian enclosure, the result
+            is the trivial bound ``inf`` (method ``"trivial: ..."``, ``details["why"]`` names the
+            box and the operation).
         batch: boxes refined per round (the worst first).
         where: words naming the set, for error messages.
         progress: optional callback ``(message, fraction_done)``.
@@ -279,33 +297,42 @@ def lipschitz_upper(
                 max(min(1.0, tol / max(gap, 1e-300)), budget.used(evaluated, t0)),
             )
     upper = max(-heap[0][0], best) if heap else best
-    if not np.isfinite(upper):
+    details: dict[str, Any] = {
+        "boxes": evaluated,
+        "stop": stop_reason,
+        "tol": tol,
+        "lower_found": best,
+        "split_dims": np.flatnonzero(mask).tolist(),
+    }
+    method = "certified: interval Jacobian branch-and-bound (outward rounding, arb)"
+    if np.isfinite(upper):
+        details["relative_gap"] = (upper - best) / best if best > 0 else None
+    else:
+        # out of budget with a box whose Jacobian enclosure is still unusable (an overflow, or
+        # an operation whose enclosure is not decided yet): the honest bound is the trivial one
         _, _, wlo, whi = heap[0]
         res = enclosure(
             [Interval(wlo[None, :n_x], whi[None, :n_x]), Interval(wlo[None, n_x:], whi[None, n_x:])]
         )
-        raise SetError(
-            f"{quantity}: no finite upper bound on {where} within the budget ({stop_reason}): "
-            f"on x ∈ {Box(wlo[:n_x], whi[:n_x])}, u ∈ {Box(wlo[n_x:], whi[n_x:])} the Jacobian "
-            f"enclosure meets {describe_flags(int(res.jac_flags[0]))}"
+        method = "trivial: no finite certified bound within the budget"
+        details["why"] = (
+            f"no finite upper bound on {where} within the budget ({stop_reason}): a box's "
+            f"Jacobian enclosure meets {_reason(int(res.jac_flags[0]))}"
         )
+        details["worst_box"] = {
+            "x": Box(wlo[:n_x], whi[:n_x]).to_dict(),
+            "u": Box(wlo[n_x:], whi[n_x:]).to_dict(),
+        }
     return Estimate(
         quantity=quantity,
         value=float(upper),
         kind="upper",
         sets={"X": X, "U": U},
-        method="certified: interval Jacobian branch-and-bound (outward rounding, arb)",
+        method=method,
         window=window,
         budget=budget.to_dict(),
         seconds=time.perf_counter() - t0,
-        details={
-            "boxes": evaluated,
-            "stop": stop_reason,
-            "tol": tol,
-            "lower_found": best,
-            "relative_gap": (upper - best) / best if best > 0 else None,
-            "split_dims": np.flatnonzero(mask).tolist(),
-        },
+        details=details,
     )
 
 

@@ -149,20 +149,23 @@ def _mid_rad(j: Interval) -> tuple[np.ndarray, np.ndarray]:
 def spectral_upper(j: Interval) -> np.ndarray:
     """Per box, a certified upper bound of ``sup ‖J‖₂`` over the interval matrix ``j``.
 
-    ``j`` has shape ``(B, m, n)``; boxes with non-finite entries give ``inf``.
+    ``j`` has shape ``(B, m, n)``; boxes with non-finite entries, or entries so large that the
+    computation overflows, give ``inf``.
     """
     finite = np.all(j.finite, axis=(1, 2))
     safe = Interval(
         np.where(finite[:, None, None], j.lo, 0.0), np.where(finite[:, None, None], j.hi, 0.0)
     )
-    magnitude = _perron_upper(safe.mag)
-    jc, rad = _mid_rad(safe)
-    exact = np.all(rad == 0, axis=(1, 2))
-    radius_norm = np.where(exact, 0.0, _perron_upper(rad))
-    centre_norm = _certify_norm(jc)
-    combined = np.nextafter(centre_norm + radius_norm, np.inf)
+    with np.errstate(over="ignore", invalid="ignore"):
+        magnitude = _perron_upper(safe.mag)
+        jc, rad = _mid_rad(safe)
+        exact = np.all(rad == 0, axis=(1, 2))
+        radius_norm = np.where(exact, 0.0, _perron_upper(rad))
+        centre_norm = _certify_norm(jc)
+        combined = np.nextafter(centre_norm + radius_norm, np.inf)
     combined = np.where(exact, centre_norm, combined)
-    return np.where(finite, np.minimum(magnitude, combined), np.inf)
+    upper = np.fmin(magnitude, combined)  # fmin: a NaN (overflow) on one side is ignored
+    return np.where(finite & ~np.isnan(upper), upper, np.inf)
 
 
 def _det(j: Interval, rows: tuple[int, ...], cols: tuple[int, ...]) -> Interval:
@@ -208,7 +211,7 @@ def smin_lower(j: Interval) -> np.ndarray:
     ``σ_min`` is the smallest of the ``n`` singular values of the ``m × n`` matrix (0 when
     ``m < n``). The larger of two bounds is returned: Weyl's ``σ_min(Jc) − ‖Δ‖₂`` and, for
     ``n ≤ 4`` with at most 64 row subsets, the determinant bound of :func:`_det_bound`. Boxes
-    with non-finite entries give 0.
+    with non-finite entries, or entries so large that the computation overflows, give 0.
     """
     batch, rows, cols = j.shape
     finite = np.all(j.finite, axis=(1, 2))
@@ -217,11 +220,13 @@ def smin_lower(j: Interval) -> np.ndarray:
     )
     if rows < cols:
         return np.zeros(batch)
-    jc, rad = _mid_rad(safe)
-    exact = np.all(rad == 0, axis=(1, 2))
-    centre = _certify_smin(jc)
-    radius_norm = np.where(exact, 0.0, _perron_upper(rad))
-    lower = np.where(exact, centre, np.nextafter(centre - radius_norm, -np.inf))
-    if cols <= 4 and math.comb(rows, cols) <= 64:
-        lower = np.maximum(lower, _det_bound(safe, spectral_upper(safe)))
-    return np.where(finite, np.maximum(lower, 0.0), 0.0)
+    with np.errstate(over="ignore", invalid="ignore"):
+        jc, rad = _mid_rad(safe)
+        exact = np.all(rad == 0, axis=(1, 2))
+        centre = _certify_smin(jc)
+        radius_norm = np.where(exact, 0.0, _perron_upper(rad))
+        lower = np.where(exact, centre, np.nextafter(centre - radius_norm, -np.inf))
+        lower = np.where(np.isnan(lower), 0.0, lower)
+        if cols <= 4 and math.comb(rows, cols) <= 64:
+            lower = np.fmax(lower, _det_bound(safe, spectral_upper(safe)))
+    return np.where(finite & ~np.isnan(lower), np.maximum(lower, 0.0), 0.0)

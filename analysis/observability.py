@@ -12,6 +12,10 @@ with ``O_ℓ(x, ū)`` stacking ``h(x, u_1), h(F_1(x, u_1), u_2), …, h(F_{ℓ�
 
   - *dimension*: ``ℓ·n_y < n_x`` (on an X with interior) — ``O_ℓ(·, ū)`` cannot be injective,
     ``α_ℓ = 0`` exactly;
+  - *unobserved state*: ``O_ℓ`` does not depend on some coordinate ``x_k`` at all (structurally,
+    from the CasADi expression graph) while X is wider than a point in it — two states that
+    differ only in ``x_k`` give the same outputs, ``α_ℓ = 0`` exactly (the quadrotor's IMU never
+    sees the position);
   - *constant Jacobian*: when ``∂O_ℓ/∂x`` is a constant matrix ``M`` (checked symbolically —
     linear systems, the planar drone's ``O_2``), ``O_ℓ`` is affine in ``x`` and ``α_ℓ = σ_min(M)``
     exactly, certified by an interval Cholesky factorisation;
@@ -31,7 +35,7 @@ import heapq
 import itertools
 import time
 from collections.abc import Callable, Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import casadi as ca
 import numpy as np
@@ -196,28 +200,49 @@ def alpha_upper(
 
 
 # ---------------------------------------------------------------------------------- lower bounds
-def _dimension_zero(system: System, ell: int, X: Box, U: Box) -> Estimate | None:
-    if ell * system.n_y >= _interior_dim(X):
-        return None
+def _exact_zero(ell: int, X: Box, U: Box, reason: str, **details: Any) -> Estimate:
+    """``α_ℓ = 0`` exactly, for ``reason``."""
     return Estimate(
         quantity="alpha",
         value=0.0,
         kind="lower",
         sets=_sets(X, U),
-        method=(
-            f"exact: ℓ·n_y = {ell * system.n_y} < n_x = {_interior_dim(X)}, "
-            "O_ℓ(·,ū) is not injective"
-        ),
+        method=f"exact: {reason}",
         window=ell,
-        details={"exact": True},
+        details={"exact": True, **details},
     )
 
 
-def _constant_jacobian(system: System, ell: int, X: Box, U: Box) -> Estimate | None:
+def _dimension_zero(system: System, ell: int, X: Box, U: Box) -> Estimate | None:
+    if ell * system.n_y >= _interior_dim(X):
+        return None
+    reason = f"ℓ·n_y = {ell * system.n_y} < n_x = {_interior_dim(X)}, O_ℓ(·,ū) is not injective"
+    return _exact_zero(ell, X, U, reason)
+
+
+def _state_jacobian(system: System, ell: int) -> ca.SX:
+    """``∂O_ℓ/∂x`` as an SX expression of ``(x, ū)``."""
     hz = Horizon(system, ell)
     x = ca.SX.sym("x", system.n_x)
     ub = ca.SX.sym("u", hz.n_ubar)
-    jac = ca.jacobian(hz.O(x, ub), x)
+    return ca.jacobian(hz.O(x, ub), x)
+
+
+def _unobserved(system: System, ell: int, X: Box, U: Box, jac: ca.SX) -> Estimate | None:
+    """``α_ℓ = 0`` when a column of ``∂O_ℓ/∂x`` is structurally zero where X has width."""
+    column_nnz = np.diff(np.asarray(jac.sparsity().colind()))
+    unseen = np.flatnonzero((column_nnz == 0) & (X.width > 0))
+    if unseen.size == 0:
+        return None
+    names = [system.state_names[k] for k in unseen]
+    reason = (
+        f"O_ℓ(x,ū) does not depend on {', '.join(names)} (structurally), states differing "
+        "only there give the same outputs"
+    )
+    return _exact_zero(ell, X, U, reason, unobserved_states=names)
+
+
+def _constant_jacobian(system: System, ell: int, X: Box, U: Box, jac: ca.SX) -> Estimate | None:
     if not jac.is_constant():
         return None
     t0 = time.perf_counter()
@@ -480,10 +505,12 @@ def alpha_lower(
     ell = check_window(window)
     X, U = X or system.X, U or system.U
     budget = budget or Budget()
-    zero = _dimension_zero(system, ell, X, U)
-    if zero is not None:
-        return zero
-    exact = _constant_jacobian(system, ell, X, U)
+    jac = _state_jacobian(system, ell)
+    exact = (
+        _unobserved(system, ell, X, U, jac)
+        or _dimension_zero(system, ell, X, U)
+        or _constant_jacobian(system, ell, X, U, jac)
+    )
     if exact is not None:
         return exact
     candidates = []

@@ -3,13 +3,18 @@
 :func:`analyze` computes, for each window ``ℓ``:
 
 * the certified hull ``H_{ℓ−1}`` of the states reachable from X (:mod:`analysis.reach`);
-* γ_f on ``H_{ℓ−1} × U`` and γ_h on ``H_ℓ × U`` (sampled lower bound, certified upper bound);
+* γ_f on ``H_{ℓ−1} × U`` and γ_h on ``H_ℓ × U`` (sampled lower bound, certified upper bound;
+  where a hull has no finite certified box within the budget, the upper bound is the trivial
+  ``∞`` and the lower bound is sampled on ``X ⊆ H``);
 * α_ℓ on ``X × U^ℓ`` (sampled upper bounds, the best certified lower bound, using
   ``α_ℓ ≥ α_k`` for ``k < ℓ``);
 * the Monte-Carlo check of Proposition 2 with the certified constants (γ_f upper, α_ℓ lower);
 
-and :class:`AnalysisReport` writes ``analysis.json`` (schema in :data:`SCHEMA`), a text table and
-the figure "bound and observed error versus ℓ".
+and :class:`AnalysisReport` writes ``analysis.json`` (schema in :data:`SCHEMA`), a text table,
+the list of certified bounds that are out of reach and why (:mod:`analysis.limits`) and the
+figure "bound and observed error versus ℓ". Every certified search (each hull step, each γ
+search, each α pair search) stops at the budget's boxes or seconds and returns what it has;
+the sampled bounds and the Monte-Carlo check are always computed.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import math
 import platform
 import time
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -28,10 +33,11 @@ import numpy as np
 
 from analysis.bound import BoundCheck, BoundConstants, check_bound
 from analysis.estimate import Bracket, Budget, Estimate
-from analysis.lipschitz import lipschitz_bracket
+from analysis.limits import limitations
+from analysis.lipschitz import lipschitz_bracket, lipschitz_lower
 from analysis.maps import check_window
 from analysis.observability import alpha_bracket
-from analysis.reach import reachable_hulls
+from analysis.reach import ReachableHulls, reach
 from models.base import System
 from models.errors import SetError
 from models.io import atomic_write_bytes, atomic_write_json
@@ -49,7 +55,15 @@ SCHEMA: dict[str, Any] = {
         "system": "the system description (models.System.describe())",
         "sets": "boxes X, U, W used (lower/upper per component)",
         "windows": "the windows ℓ analysed",
-        "hulls": "per ℓ: the certified box H_{ℓ-1} ⊇ states reachable from X in ℓ-1 steps",
+        "hulls": (
+            "per ℓ: the certified box H_{ℓ-1} ⊇ states reachable from X in ℓ-1 steps (null: no "
+            "finite certified box within the budget)"
+        ),
+        "reach": (
+            "the hull search: per step {step, boxes, stop, seconds}, and unbounded: why the "
+            "hulls stop being finite (null when they do not)"
+        ),
+        "limitations": "sentences: which certified bounds are out of reach, and why",
         "estimates": (
             "list of records {quantity: gamma_f|gamma_h|alpha, window, value (null = +inf), "
             "kind: lower|upper|estimate, method, seconds, sets, budget, details}; gamma_f for "
@@ -73,7 +87,7 @@ class WindowResult:
     """Everything computed for one window."""
 
     window: int
-    hull: Box
+    hull: Box | None
     gamma_f: Bracket
     gamma_h: Bracket
     alpha: Bracket
@@ -91,6 +105,7 @@ class AnalysisReport:
     results: list[WindowResult]
     settings: Mapping[str, Any]
     seconds: float
+    reach: ReachableHulls | None = None
     learned: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -100,6 +115,11 @@ class AnalysisReport:
             for b in (r.gamma_f, r.gamma_h, r.alpha):
                 out.extend([b.lower, b.upper])
         return out
+
+    @property
+    def limitations(self) -> list[str]:
+        """Which certified bounds are out of reach, and why (:mod:`analysis.limits`)."""
+        return limitations(self.system, self.results, reach=self.reach)
 
     @property
     def checks(self) -> list[BoundCheck]:
@@ -112,7 +132,13 @@ class AnalysisReport:
             "system": self.system.describe(),
             "sets": {"X": self.X.to_dict(), "U": self.U.to_dict(), "W": self.W.to_dict()},
             "windows": [r.window for r in self.results],
-            "hulls": {str(r.window): r.hull.to_dict() for r in self.results},
+            "hulls": {
+                str(r.window): None if r.hull is None else r.hull.to_dict() for r in self.results
+            },
+            "reach": None
+            if self.reach is None
+            else {"steps": list(self.reach.steps), "unbounded": self.reach.unbounded},
+            "limitations": self.limitations,
             "estimates": [e.to_dict() for e in self.estimates],
             "bound_checks": [c.to_dict() for c in self.checks],
             "learned": self.learned,
@@ -145,15 +171,20 @@ class AnalysisReport:
                     str(c.solver_failures),
                 ]
             )
+            gf, al = r.gamma_f, r.alpha
             lines.append(
-                f"{r.window:>3}  {r.gamma_f.lower.value:>10.4g} {r.gamma_f.upper.value:>10.4g}  "
-                f"{r.alpha.lower.value:>10.4g} {r.alpha.upper.value:>10.4g}  "
+                f"{r.window:>3}  {_fmt(gf.lower.value):>10} {_fmt(gf.upper.value):>10}  "
+                f"{_fmt(al.lower.value):>10} {_fmt(al.upper.value):>10}  "
                 f"{check[0]:>13} {check[1]:>10} {check[2]:>13} {check[3]:>5} {check[4]:>5}"
             )
         lines.append(
             "γ_f on the reachable hull H_{ℓ−1}×U; α_ℓ lower certified, upper sampled; bound = "
             "2 γ_f^ℓ α_ℓ^{−1} ‖w̄‖ with the certified constants (∞ when α_ℓ = 0)."
         )
+        limits = self.limitations
+        if limits:
+            lines.append("Certified bounds out of reach:")
+            lines.extend(f"  - {line}" for line in limits)
         return "\n".join(lines)
 
     def figure(self, path: str | Path) -> Path:
@@ -204,11 +235,16 @@ class AnalysisReport:
 
 
 def _factor(gamma: float, alpha: float, ell: int) -> float:
-    return math.inf if alpha <= 0 else gamma**ell / alpha
+    if alpha <= 0:
+        return math.inf
+    try:
+        return gamma**ell / alpha
+    except OverflowError:
+        return math.inf
 
 
 def _fmt(v: float | None) -> str:
-    if v is None:
+    if v is None or v == math.inf:
         return "∞"
     return f"{v:.4g}"
 
@@ -285,9 +321,9 @@ def analyze(
     budget = budget or Budget()
     note = progress or (lambda message, fraction: None)
     note("reachable hulls", 0.0)
-    hulls = reachable_hulls(system, max(ells), X=X, U=U)
+    hulls = reach(system, max(ells), X=X, U=U, budget=budget)
     alphas: dict[int, Bracket] = {}
-    results = []
+    results: list[WindowResult] = []
     for done, ell in enumerate(range(1, max(ells) + 1)):
         frac = done / max(ells)
 
@@ -309,23 +345,20 @@ def analyze(
         )
         if ell not in ells:
             continue
-        reach = "X" if ell == 1 else f"the hull reachable from X in {ell - 1} step(s)"
         brackets = {}
-        for quantity, fun, hull, where in (
-            ("gamma_f", system.f, hulls[ell - 1], f"{reach} × U"),
-            ("gamma_h", system.h, hulls[ell], f"the hull reachable from X in {ell} step(s) × U"),
-        ):
+        for quantity, fun, step in (("gamma_f", system.f, ell - 1), ("gamma_h", system.h, ell)):
             sub(quantity, 0.3)
-            brackets[quantity] = lipschitz_bracket(
+            brackets[quantity] = _gamma_on_hull(
                 fun,
-                hull,
+                hulls,
+                step,
                 U,
                 quantity=quantity,
                 window=ell,
                 tol=gamma_tol,
                 budget=budget,
                 seed=seed,
-                where=where,
+                smaller=getattr(results[-1], quantity).lower if results else None,
             )
         gamma_f, gamma_h = brackets["gamma_f"], brackets["gamma_h"]
         check = None
@@ -344,7 +377,7 @@ def analyze(
                 seed=seed + ell,
                 estimated=estimated,
             )
-        results.append(WindowResult(ell, hulls[ell - 1], gamma_f, gamma_h, alphas[ell], check))
+        results.append(WindowResult(ell, hulls.hull(ell - 1), gamma_f, gamma_h, alphas[ell], check))
     note("done", 1.0)
     return AnalysisReport(
         system=system,
@@ -362,4 +395,69 @@ def analyze(
             "seed": seed,
         },
         seconds=time.perf_counter() - t0,
+        reach=hulls,
     )
+
+
+def _gamma_on_hull(
+    fun: ca.Function,
+    hulls: ReachableHulls,
+    step: int,
+    U: Box,
+    *,
+    quantity: str,
+    window: int,
+    tol: float,
+    budget: Budget,
+    seed: int,
+    smaller: Estimate | None = None,
+) -> Bracket:
+    """γ of ``fun`` on ``H_step × U``: the sampled lower and the certified upper bound.
+
+    Where ``H_step`` has no finite certified box, or ``fun``'s Jacobian cannot be bounded on it
+    (for ``step ≥ 1``: the hull, loose or not, may reach a singularity or overflow where X does
+    not), the upper bound is the trivial ``∞`` with the reason, and the lower bound is
+    ``smaller`` (a lower bound on an earlier, smaller hull) or else one sampled on ``X = H_0``:
+    the hulls are nested, so either is a lower bound of the supremum over ``H_step``.
+    """
+    X = hulls.hulls[0]
+    hull = hulls.hull(step)
+    reach_words = "X" if step == 0 else f"the hull reachable from X in {step} step(s)"
+    why = None
+    if hull is not None:
+        try:
+            return lipschitz_bracket(
+                fun,
+                hull,
+                U,
+                quantity=quantity,
+                window=window,
+                tol=tol,
+                budget=budget,
+                seed=seed,
+                where=f"{reach_words} × U",
+            )
+        except SetError as exc:
+            if step == 0:
+                raise
+            why = str(exc)
+    else:
+        why = f"H_{step} has no finite certified box (see the reachable hulls)"
+    if smaller is not None:
+        low = replace(smaller, window=window, method=f"{smaller.method}, on a hull ⊆ H_{step}")
+    else:
+        low = lipschitz_lower(
+            fun, X, U, quantity=quantity, window=window, budget=budget, seed=seed, where="X × U"
+        )
+        low = replace(low, method=f"{low.method}, on X ⊆ H_{step}")
+    up = Estimate(
+        quantity=quantity,
+        value=math.inf,
+        kind="upper",
+        sets={"X": hull or X, "U": U},
+        method=f"trivial: no finite certified bound on H_{step} × U",
+        window=window,
+        budget=budget.to_dict(),
+        details={"why": why},
+    )
+    return Bracket(low, up)

@@ -307,6 +307,7 @@ def _analyse(job: AnalysisJob, folder: Path) -> dict[str, Any]:
         "windows": rows,
         "sets": {"X": report.X.to_dict(), "U": report.U.to_dict(), "W": report.W.to_dict()},
         "table": report.table(),
+        "limitations": report.limitations,
         "figure": str(figure) if figure else None,
         "seconds": round(time.perf_counter() - t0, 3),
         "cpu_seconds": round(time.process_time() - cpu0, 3),

@@ -151,6 +151,11 @@ def _fmt(value: float | None, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
+def _upper(value: float | None) -> str:
+    """An upper bound as stored in JSON: ``None`` is ``+inf`` (no finite bound)."""
+    return "∞" if value is None else _fmt(value, 4)
+
+
 def _pm(mean: float, std: float, seeds: int) -> str:
     return f"{_fmt(mean)} ± {_fmt(std, 2)}" if seeds > 1 else _fmt(mean)
 
@@ -400,13 +405,13 @@ def _analysis_blocks(
         rows = [
             [
                 str(r["window"]),
-                f"[{_fmt(r['gamma_f'][0], 4)}, {_fmt(r['gamma_f'][1], 4)}]",
-                f"[{_fmt(r['alpha'][0], 4)}, {_fmt(r['alpha'][1], 4)}]",
+                f"[{_fmt(r['gamma_f'][0], 4)}, {_upper(r['gamma_f'][1])}]",
+                f"[{_fmt(r['alpha'][0], 4)}, {_upper(r['alpha'][1])}]",
                 str(r["trials"]),
                 str(r["violations"]),
                 str(r["solver_failures"]),
                 _fmt(r["max_error"]),
-                _fmt(r["worst_case_bound"]),
+                _upper(r["worst_case_bound"]),  # null: α_ℓ = 0 or γ_f = ∞, no bound
                 _fmt(r["max_ratio"]),
             ]
             for r in o.result["windows"]
@@ -426,6 +431,11 @@ def _analysis_blocks(
             rows,
             caption=f"sets {o.result['sets']}; settings {o.recipe['settings']}",
         )
+        if o.result.get("limitations"):
+            report.paragraph(
+                "Certified bounds out of reach: "
+                + " ".join(f"({i}) {line}." for i, line in enumerate(o.result["limitations"], 1))
+            )
         if o.result.get("figure"):
             figures[f"bound_{system}"] = o.result["figure"]
             report.figure(Path(o.result["figure"]), f"{system}: bound and observed error versus ℓ")

@@ -58,6 +58,9 @@ class System(ABC):
     description: str = ""
     #: set when the system is a simulated stand-in for a real one
     simulated_stand_in_for: str | None = None
+    #: why certified analysis bounds are hard to get for this system (one sentence, or empty);
+    #: ``canonid analyze`` shows it beside bounds its budget could not make finite or tight
+    analysis_note: str = ""
 
     def __init__(
         self,

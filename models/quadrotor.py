@@ -160,6 +160,14 @@ class Quadrotor(System):
 
     description = "Quadrotor 3-D, SIMULATED rigid body (quaternion attitude), IMU out, RK4 at 50 Hz"
     simulated_stand_in_for = "Blackbird UAV dataset (real flights)"
+    analysis_note = (
+        "13 states and 4 inputs; f multiplies quaternion components (R(q) in the velocity, "
+        "q ⊗ ω in the attitude) and renormalises with the cubic q(3 − ‖q‖²)/2, through four "
+        "RK4 stages, so interval arithmetic, which treats every occurrence of a variable as "
+        "independent, wraps: enclosures on boxes of X are loose, the hull of reachable states "
+        "grows at every step of a window, and tightening them means splitting boxes in 17 "
+        "dimensions; the IMU does not measure position, so α_ℓ = 0 for every ℓ"
+    )
 
     def __init__(
         self,

@@ -3,6 +3,7 @@ arithmetic (fractions) and against sampled points, exactness where promised."""
 
 from __future__ import annotations
 
+import warnings
 from fractions import Fraction
 
 import casadi as ca
@@ -261,3 +262,15 @@ def test_point_matrices_are_exact_to_1e8(shape, rng):
 def test_rank_deficient_matrix_has_zero_lower_bound():
     a = np.array([[[1.0, 2.0], [2.0, 4.0], [3.0, 6.0]]])
     assert smin_lower(Interval.point(a))[0] == 0.0
+
+
+def test_norm_bounds_of_matrices_too_large_for_float64_are_trivial_not_nan():
+    """Entries near 1e200 overflow the Gram matrix: the bounds must be the trivial ones
+    (an upper bound ∞, a lower bound 0), never NaN, which a branch-and-bound would drop."""
+    big = np.full((3, 4, 4), 1e200)
+    big[1] = np.eye(4) * 1e200
+    j = Interval(big * 0.5, big)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no "invalid value" noise either
+        upper, lower = spectral_upper(j), smin_lower(j)
+    assert np.all(upper == np.inf) and np.all(lower == 0.0)

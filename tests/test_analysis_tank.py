@@ -11,7 +11,7 @@ import pytest
 from analysis.estimate import Bracket, Budget, Estimate
 from analysis.lipschitz import lipschitz_bracket, lipschitz_lower, lipschitz_upper
 from analysis.observability import alpha_bracket, alpha_lower
-from analysis.reach import reachable_hulls
+from analysis.reach import reach, reachable_hulls
 from models.errors import SetError, ShapeError
 from models.registry import get_system
 from models.sets import Box
@@ -87,6 +87,22 @@ def test_reachable_hulls_contain_simulated_trajectories(tank, rng):
         states = sim.x[:, k, :]
         assert np.all(states >= hulls[k].lo) and np.all(states <= hulls[k].hi)
     assert np.all(sim.x_final >= hulls[6].lo) and np.all(sim.x_final <= hulls[6].hi)
+
+
+def test_a_hull_search_out_of_boxes_stops_there_and_stays_rigorous(tank, rng):
+    full = reach(tank, 4, X=X, U=U)
+    cut = reach(tank, 4, X=X, U=U, budget=Budget(boxes=100))
+    assert [s["stop"] for s in full.steps] == ["tolerance reached"] * 4
+    assert [s["stop"] for s in cut.steps] == ["box budget exhausted"] * 4
+    # one round of at most 2 × 64 children may follow the last check of the budget
+    assert all(100 <= s["boxes"] <= 100 + 128 for s in cut.steps)
+    x0 = rng.uniform(X.lo, X.hi, size=(500, 2))
+    sim = tank.simulate_batch(x0, rng.uniform(1, 3, size=(500, 4, 1)))
+    for k, (tight, loose) in enumerate(zip(full.hulls, cut.hulls)):
+        assert np.all(loose.lo <= tight.lo) and np.all(loose.hi >= tight.hi)
+        states = sim.x[:, k, :] if k < 4 else sim.x_final
+        assert np.all(states >= loose.lo) and np.all(states <= loose.hi)
+    assert full.unbounded is None and cut.unbounded is None
 
 
 def test_set_touching_the_sqrt_singularity_says_gamma_is_unbounded(tank):

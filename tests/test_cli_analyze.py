@@ -163,3 +163,39 @@ def test_window_parsing():
     assert parse_windows("2,5,10") == [2, 5, 10]
     with pytest.raises(SetError):
         parse_windows("a-b")
+
+
+@pytest.mark.slow
+def test_quadrotor_analysis_keeps_to_its_box_budget_and_says_what_is_out_of_reach(tmp_path, capsys):
+    """13 states: every certified search stops at --boxes (the time budget is set out of the
+    way, so the work done does not depend on the machine); the sampled bounds and the
+    Monte-Carlo check are there; the output says which certified bounds are out of reach."""
+    boxes, out = 64, tmp_path / "quad"
+    argv = ["analyze", "quadrotor", "--windows", "1-4", "--trials", "3", "--budget", "3600"]
+    assert main([*argv, "--boxes", str(boxes), "--out", str(out), "--quiet"]) == 0
+    printed = capsys.readouterr().out
+    assert "Certified bounds out of reach:" in printed and "why (quadrotor)" in printed
+    data = json.loads((out / "analysis.json").read_text())
+    # one round of children (2 × 64 for the hulls, 2 × 32 for γ) may follow the last check
+    for step in data["reach"]["steps"]:
+        assert boxes <= step["boxes"] <= boxes + 128 and step["stop"] == "box budget exhausted"
+    certified = [e for e in data["estimates"] if "boxes" in e["details"]]
+    assert certified and all(e["details"]["boxes"] <= boxes + 64 for e in certified)
+    by = {(e["quantity"], e["kind"], e["window"]): e for e in data["estimates"]}
+    for ell in range(1, 5):
+        # sampled bounds, always: γ_f from below, α_ℓ from above
+        assert by["gamma_f", "lower", ell]["value"] > 0
+        assert by["alpha", "upper", ell]["value"] is not None
+        # α_ℓ = 0 exactly: the IMU does not see the position
+        low = by["alpha", "lower", ell]
+        assert low["value"] == 0 and "does not depend on px, py, pz" in low["method"]
+    # interval wrapping: at this budget the hull H_4 overflows (γ_h for ℓ = 4 lives on it) and
+    # H_3 is already too large for a finite γ_f bound; both get the trivial bound ∞ (null)
+    assert data["reach"]["unbounded"].startswith("H_4 ") and data["hulls"]["4"] is not None
+    for quantity in ("gamma_f", "gamma_h"):
+        trivial = by[quantity, "upper", 4]
+        assert trivial["value"] is None and trivial["method"].startswith("trivial")
+    assert {c["window"]: c["trials"] for c in data["bound_checks"]} == {1: 3, 2: 3, 3: 3, 4: 3}
+    text = " ".join(data["limitations"])
+    assert "α_ℓ = 0 exactly for ℓ ∈ {1, 2, 3, 4}" in text and "quaternion" in text
+    assert "no finite certified upper bound" in text

@@ -152,3 +152,52 @@ def test_bad_training_requests_fail_in_one_line(dataset_path, tmp_path, capsys, 
     )
     err = capsys.readouterr().err
     assert code == 1 and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_hidden_widths_are_kept_by_the_run_and_another_width_is_refused(
+    dataset_path, tmp_path, capsys
+):
+    import shutil
+
+    import torch
+
+    common = ["--window", "3", "--epochs", "1", "--no-progress", "--device", "cpu"]
+    base = ["train", str(dataset_path), "--model", "mlp", *common]
+    run, narrow = tmp_path / "wide", tmp_path / "narrow"
+    assert main([*base, "--hidden", "12,7", "--out", str(run)]) == 0
+    assert json.loads((run / "run.json").read_text())["net_options"]["hidden"] == [12, 7]
+    assert json.loads((run / "config.json").read_text())["net"]["hidden"] == [12, 7]
+    weights = torch.load(run / "weights.pt", weights_only=True)
+    layers = [tuple(v.shape) for k, v in weights.items() if k.endswith("weight")]
+    assert [shape[0] for shape in layers] == [12, 7, 1]  # two hidden layers, then y
+    # evaluate and resume rebuild the same network from the run
+    assert main(["evaluate", str(run), "--horizon", "20"]) == 0
+    resume = ["train", "--resume", str(run), "--no-progress", "--device", "cpu"]
+    assert main([*resume, "--epochs", "2", "--hidden", "12,7"]) == 0
+    capsys.readouterr()
+    assert main([*resume, "--epochs", "3", "--hidden", "16,16"]) == 1
+    err = capsys.readouterr().err
+    assert "hidden widths: [12, 7] there, [16, 16] here" in err and "Traceback" not in err
+    # weights of another width in the run folder are refused, naming the mismatch
+    assert main([*base, "--hidden", "5", "--out", str(narrow)]) == 0
+    shutil.copyfile(narrow / "weights.pt", run / "weights.pt")
+    capsys.readouterr()
+    assert main(["evaluate", str(run)]) == 1
+    err = capsys.readouterr().err
+    assert "weights do not fit" in err and "shape differs" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize(
+    ("model", "hidden", "message"),
+    [
+        ("mlp", "0,3", "--hidden: expected positive integer widths"),
+        ("mlp", "2048x2", "--hidden: expected positive integer widths"),
+        ("classic-gru", "8", "--hidden does not apply to classic-gru"),
+    ],
+)
+def test_bad_hidden_widths_fail_in_one_line(dataset_path, tmp_path, capsys, model, hidden, message):
+    argv = ["train", str(dataset_path), "--model", model, "--window", "3", "--hidden", hidden]
+    code = main([*argv, "--out", str(tmp_path / "r"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 1 and message in err and len(err.strip().splitlines()) == 1

@@ -185,6 +185,29 @@ def test_table_rows_are_mean_and_sample_spread_over_seeds():
     assert by_window[7].std is None and by_window[7].paper is None  # one seed; not in the paper
 
 
+@pytest.mark.slow
+def test_quadrotor_reproduction_runs_end_to_end_and_says_what_is_out_of_reach(tmp_path):
+    """``reproduce --systems quadrotor`` on the tiny profile: simulated data, Table 1, the
+    analysis (sampled bounds; the certified side labelled out of reach) and the compression."""
+    out = tmp_path / "quad"
+    argv = ["reproduce", "--profile", "tiny", "--systems", "quadrotor", "--out", str(out)]
+    assert main([*argv, "--no-progress", "--device", "cpu"]) == 0
+    data = json.loads((out / "reproduction.json").read_text())
+    assert {(c["system"], c["model"]) for c in data["table1"]} == {
+        ("quadrotor", "mlp"),
+        ("quadrotor", "classic-gru"),
+    }
+    assert all(c["mean"] > 0 for c in data["table1"])
+    analysis = json.loads((out / "analysis" / "quadrotor" / RESULT_FILE).read_text())["result"]
+    (row,) = analysis["windows"]
+    assert row["window"] == 2 and row["gamma_f"][0] > 0 and row["alpha"] == [0.0, 0.0]
+    assert any("α_ℓ = 0 exactly" in line for line in analysis["limitations"])
+    md = (out / "report.md").read_text()
+    assert "3D Drone (simulated stand-in vs real data in the paper)" in md
+    assert "Certified bounds out of reach" in md and "why (quadrotor)" in md
+    assert data["compression"]["quadrotor"]["rows"]
+
+
 def test_quadrotor_is_labelled_as_a_simulated_stand_in():
     assert system_label("quadrotor") == "3D Drone (simulated stand-in vs real data in the paper)"
     assert system_label("tank") == "Tank" and system_label("linear") == "linear"

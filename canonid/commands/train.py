@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import inspect
 import io
 import sys
 from pathlib import Path
@@ -19,7 +20,7 @@ from canonid.commands import _data
 from canonid.commands.evaluate import RUN_FILE, evaluate_run, table
 from canonid.profiles import profile_names, train_options
 from datagen.loaders import split_train_val
-from learning import EpochReport, TrainOptions, fit, model_names
+from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names
 from learning.plots import plot_training_curve
 from learning.training import CHECKPOINT_FILE
 from models.errors import CheckpointError, DataError
@@ -71,6 +72,13 @@ def register(sub: Any) -> None:
         default=0.2,
         help="share of DATA held out for validation when it has no val split",
     )
+    p.add_argument(
+        "--hidden",
+        metavar="W,W",
+        help="widths of the hidden layers, e.g. 2048,2048 (the paper's Ours (MLP) on the "
+        "quadrotor; default 256,256,256): Ours (MLP)'s regressor, each MLP of Masti et al., "
+        "the head of Ours (GRU); not classic-gru, whose sizes follow from ℓ",
+    )
     p.add_argument("--residual", action="store_true", help="predict y_t − y_{t−1}")
     p.add_argument("--no-feedthrough", action="store_true", help="the output map ignores u_t")
     p.add_argument(
@@ -100,7 +108,12 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         seed=args.seed,
         device=args.device,
     )
-    net_options = {"feedthrough": not args.no_feedthrough, "residual": args.residual}
+    net_options: dict[str, Any] = {
+        "feedthrough": not args.no_feedthrough,
+        "residual": args.residual,
+    }
+    if args.hidden is not None:
+        net_options[_hidden_option(args.model)] = parse_widths(args.hidden)
     return {
         "format": "canonid-run",
         "data": str(args.data),
@@ -114,6 +127,31 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         "train_options": opts.to_dict(),
         "command": ["canonid", *sys.argv[1:]],
     }
+
+
+def parse_widths(text: str) -> list[int]:
+    """``"2048,2048"`` → ``[2048, 2048]`` (positive integers), or :class:`OptionError`."""
+    try:
+        widths = [int(part) for part in text.split(",")]
+    except ValueError:
+        widths = []
+    if not widths or min(widths) < 1:
+        raise OptionError(
+            f"--hidden: expected positive integer widths separated by commas (e.g. 2048,2048), "
+            f"got {text!r}"
+        )
+    return widths
+
+
+def _hidden_option(model: str) -> str:
+    """The constructor argument of ``model`` that ``--hidden`` sets."""
+    option = NETS[model].hidden_option
+    if option is None:
+        raise OptionError(
+            f"--hidden does not apply to {model}: its layer sizes follow from the window "
+            "(⌈ℓ(n_u+n_y)/2⌉, as in the paper)"
+        )
+    return option
 
 
 def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
@@ -136,6 +174,12 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
         for key, value in (("model", args.model), ("window", args.window), ("data", args.data))
         if value is not None and recipe.get(key) != value
     ]
+    if args.hidden is not None:
+        option = _hidden_option(recipe["model"])
+        default = inspect.signature(NETS[recipe["model"]]).parameters[option].default
+        there = recipe["net_options"].get(option, default)
+        if list(there) != parse_widths(args.hidden):
+            diffs.append(f"hidden widths: {list(there)} there, {parse_widths(args.hidden)} here")
     if diffs:
         raise CheckpointError(f"run {run_dir} does not match: " + "; ".join(diffs))
     opts = dict(recipe["train_options"])

@@ -71,6 +71,9 @@ class SequenceModel(nn.Module, ABC):
     name: ClassVar[str] = ""
     #: the table label of the paper
     label: ClassVar[str] = ""
+    #: the constructor argument holding the widths of the hidden layers (what
+    #: ``canonid train --hidden`` sets), or ``None`` where the sizes are not a list of widths
+    hidden_option: ClassVar[str | None] = None
     residual_scale: torch.Tensor
 
     def __init__(

@@ -39,6 +39,7 @@ class Masti(SequenceModel):
 
     name = "masti"
     label = "Masti et al."
+    hidden_option = "hidden"
 
     def __init__(
         self,

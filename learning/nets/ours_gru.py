@@ -30,6 +30,7 @@ class OursGRU(CanonicalModel):
 
     name = "gru"
     label = "Ours (GRU)"
+    hidden_option = "head_hidden"
 
     def __init__(
         self,

@@ -24,6 +24,7 @@ class OursMLP(CanonicalModel):
 
     name = "mlp"
     label = "Ours (MLP)"
+    hidden_option = "hidden"
 
     def __init__(
         self,
