@@ -393,6 +393,8 @@ def run_turns(
 
     def run(key: str) -> None:
         try:
+            if torch.get_num_threads() != 1:  # thread_time() would miss the other threads' work
+                raise RuntimeError(f"{key}: torch uses {torch.get_num_threads()} threads, not 1")
             models[key] = trainers[key](turns, curves[key])
         except BaseException as exc:  # report it from the main thread
             errors.append(exc)
