@@ -9,7 +9,8 @@ stopping at the first validation past the budget or when its epochs are done. Th
 compared is the one both contestants of ``bench_deepsi.py`` are kept on, the normalised MSE of
 100-step rollouts from every 5th start of the validation flights; the test split is not read.
 Prints, and writes to the section "Ours (MLP) on the planar drone: settings" of
-benchmarks/RESULTS.md, one row per variant: the best validation MSE after a third, two thirds
+benchmarks/RESULTS.md (``--add``: beside the rows of an earlier run with the same data and
+budget), one row per variant: the best validation MSE after a third, two thirds
 and all of the budget, how it stopped and its training CPU time. Not a speed benchmark
 (``run_all.py`` skips it): each variant takes up to the budget in CPU seconds.
 """
@@ -17,6 +18,7 @@ and all of the budget, how it stopped and its training CPU time. Not a speed ben
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -28,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _data import ensure_dataset  # noqa: E402
-from _results import write_section  # noqa: E402
+from _results import RESULTS, write_section  # noqa: E402
 from bench_deepsi import WARM_UP, Curve, run_turns, train_ours  # noqa: E402
 
 from datagen.dataset import Dataset  # noqa: E402
@@ -51,7 +53,25 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
         RES,
     ),
     "res-noft-lr1e-3": ("`--residual --no-feedthrough`, Adam 1e-3", {"lr": 1e-3}, RES),
+    "res-noft-lr1e-3-b64": (
+        "`--residual --no-feedthrough`, Adam 1e-3, batch 64, 16 windows per flight and epoch",
+        {"lr": 1e-3, "batch_size": 64, "windows_per_trajectory": 16},
+        RES,
+    ),
 }
+SECTION = "Ours (MLP) on the planar drone: settings"
+
+
+def earlier(intro: str) -> tuple[str, list[str]]:
+    """The command and the variant rows of this script's section of RESULTS.md, if it was
+    written for the same data and budget (``intro``); else ``("", [])``."""
+    text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else ""
+    found = re.search(rf"<!-- BEGIN {re.escape(SECTION)} -->(.*?)<!-- END", text, re.S)
+    if found is None or intro not in found.group(1):
+        return "", []
+    command = re.search(r"Command: `([^`]*)`", found.group(1))
+    rows = [line for line in found.group(1).splitlines() if line.split(" | ")[0][2:] in VARIANTS]
+    return (command.group(1) if command else ""), rows
 
 
 def best_by(curve: Curve, seconds: float) -> str:
@@ -68,6 +88,11 @@ def main() -> int:
     )
     parser.add_argument(
         "--only", nargs="*", metavar="KEY", help=f"variants (default all): {list(VARIANTS)}"
+    )
+    parser.add_argument(
+        "--add",
+        action="store_true",
+        help="keep the rows of an earlier run with the same data and budget in RESULTS.md",
     )
     args = parser.parse_args()
     unknown = sorted(set(args.only or ()) - set(VARIANTS))
@@ -109,6 +134,11 @@ def main() -> int:
         "epochs of 4 windows per flight in batches of 16, Adam 3e-3 cosine-decayed to 1e-5, "
         "rollout length 1 → 50 over 50 epochs) with the options listed changed."
     )
+    command = "python " + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
+    if args.add:
+        before, kept = earlier(intro)
+        rows += [row for row in kept if row.split(" | ")[0][2:] not in keys]
+        command = f"{before}; {command}" if before else command
     for key in keys:  # the section is rewritten after each variant, so none is lost
         curve = train(key, budget)
         rows.append(
@@ -118,7 +148,7 @@ def main() -> int:
             f"{curve.clock.val_cpu:.0f} |"
         )
         print(rows[-1], flush=True)
-        write_section("Ours (MLP) on the planar drone: settings", intro + "\n\n" + "\n".join(rows))
+        write_section(SECTION, intro + "\n\n" + "\n".join(rows), command=command)
     return 0
 
 
