@@ -47,8 +47,6 @@ BASE: dict[str, Any] = {
 #: key → (description, overrides of ``BASE``, MLP constructor options)
 VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "quick": ("BASE: 600 epochs, batch 16, 4 windows/traj, H 50, 3 × 256", {}, {}),
-    "w3x128": ("3 × 128", {}, {"hidden": [128, 128, 128]}),
-    "w3x64": ("3 × 64", {}, {"hidden": [64, 64, 64]}),
     "w3x64-b64": (
         "3 × 64, batch 64, 16 windows/traj (4× the data per epoch, same steps)",
         {"batch_size": 64, "windows_per_trajectory": 16},
@@ -61,17 +59,17 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     ),
     "h100-e300": ("H 100 (curriculum 50), 300 epochs", {"horizon": 100, "epochs": 300}, {}),
     "h100-e450": ("H 100 (curriculum 50), 450 epochs", {"horizon": 100, "epochs": 450}, {}),
-    "h100-e600": ("H 100 (curriculum 50), 600 epochs", {"horizon": 100, "epochs": 600}, {}),
+    "h100-e600": (
+        "H 100 (curriculum 50), 600 epochs: the quick profile now",
+        {"horizon": 100, "epochs": 600},
+        {},
+    ),
     "h100-e300-alpha1": (
         "H 100 (curriculum 50), 300 epochs, α = 1",
         {"horizon": 100, "epochs": 300, "alpha_first": 1.0},
         {},
     ),
-    "wd": ("weight decay 1e-4", {"weight_decay": 1e-4}, {}),
-    "alpha1": ("α = 1 on the first predicted step (no extra weight)", {"alpha_first": 1.0}, {}),
     "clip": ("gradient clipping at norm 1", {"grad_clip": 1.0}, {}),
-    "lr1e-3": ("lr 1e-3 cosine → 1e-5", {"lr": 1e-3}, {}),
-    "curr200": ("curriculum 1 → 50 over 200 epochs", {"curriculum_epochs": 200}, {}),
 }
 
 
