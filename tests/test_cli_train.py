@@ -201,3 +201,22 @@ def test_bad_hidden_widths_fail_in_one_line(dataset_path, tmp_path, capsys, mode
     code = main([*argv, "--out", str(tmp_path / "r"), "--no-progress"])
     err = capsys.readouterr().err
     assert code == 1 and message in err and len(err.strip().splitlines()) == 1
+
+
+def test_windows_per_trajectory_is_kept_by_the_run_and_fixed_on_resume(
+    dataset_path, tmp_path, capsys
+):
+    run = tmp_path / "run"
+    common = ["--window", "3", "--epochs", "1", "--no-progress", "--device", "cpu"]
+    argv = ["train", str(dataset_path), "--model", "mlp", *common, "--out", str(run)]
+    assert main([*argv, "--windows-per-trajectory", "5"]) == 0
+    recipe = json.loads((run / "run.json").read_text())
+    assert recipe["train_options"]["windows_per_trajectory"] == 5
+    capsys.readouterr()
+    resume = ["train", "--resume", str(run), "--epochs", "2", "--no-progress"]
+    assert main([*resume, "--windows-per-trajectory", "8"]) == 1
+    assert "--windows-per-trajectory cannot change when resuming" in capsys.readouterr().err
+    assert main([*argv[:-1], str(tmp_path / "bad"), "--windows-per-trajectory", "0"]) == 1
+    err = capsys.readouterr().err
+    assert "windows_per_trajectory must be an integer >= 1" in err
+    assert len(err.strip().splitlines()) == 1

@@ -57,6 +57,12 @@ def register(sub: Any) -> None:
         metavar="H",
         help="override the profile's final training rollout length",
     )
+    p.add_argument(
+        "--windows-per-trajectory",
+        type=int,
+        metavar="N",
+        help="override the profile's random sub-windows drawn per training trajectory per epoch",
+    )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
     p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/MODEL-lL)")
@@ -105,6 +111,7 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         lr=args.lr,
         batch_size=args.batch_size,
         horizon=args.horizon,
+        windows_per_trajectory=args.windows_per_trajectory,
         seed=args.seed,
         device=args.device,
     )
@@ -159,7 +166,7 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
         raise CheckpointError(f"{run_dir} holds no {CHECKPOINT_FILE} to resume from")
     fixed = [
         f"--{k.replace('_', '-')}"
-        for k in ("lr", "batch_size", "horizon", "seed")
+        for k in ("lr", "batch_size", "horizon", "windows_per_trajectory", "seed")
         if getattr(args, k) is not None
     ]
     if fixed:
