@@ -33,6 +33,7 @@ from _data import ensure_dataset  # noqa: E402
 from _results import RESULTS, write_section  # noqa: E402
 from bench_deepsi import WARM_UP, Curve, run_turns, train_ours  # noqa: E402
 
+from canonid.profiles import train_options  # noqa: E402
 from datagen.dataset import Dataset  # noqa: E402
 
 RES = {"residual": True, "feedthrough": False}
@@ -124,15 +125,18 @@ def main() -> int:
         "|---|---|---:|---:|---:|---|---:|---:|",
     ]
     train_split = ds.split("train")
+    quick = train_options("quick")  # the stage every variant starts from (described as it is now)
     intro = (
         f"Ours (MLP), ℓ = 10, seed 0, on `runs/data/drone2d-small` ({len(train_split)} "
         f"training and {len(ds.split('val'))} validation flights × "
         f"{train_split[0].u.shape[0]} samples); budget {budget:.0f} s of training CPU per "
         "variant, clocked as in `bench_deepsi.py`. Validation MSE: 100-step rollouts from "
         "every 5th start of the validation flights, normalised by the training output "
-        "variance (the test split is not read). Each variant is the quick profile (600 "
-        "epochs of 4 windows per flight in batches of 16, Adam 3e-3 cosine-decayed to 1e-5, "
-        "rollout length 1 → 50 over 50 epochs) with the options listed changed."
+        "variance (the test split is not read). Each variant is the quick profile "
+        f"({quick.epochs} epochs of {quick.windows_per_trajectory} windows per flight in "
+        f"batches of {quick.batch_size}, Adam {quick.lr:g} cosine-decayed to "
+        f"{quick.lr_final:g}, rollout length 1 → {quick.horizon} over "
+        f"{quick.curriculum_epochs} epochs) with the options listed changed."
     )
     command = "python " + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
     if args.add:
