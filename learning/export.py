@@ -47,6 +47,7 @@ import torch
 
 from learning.model import Model, load_state
 from learning.nets import ReducedNet, build_net
+from models._validate import require_finite
 from models.errors import ShapeError
 
 __all__ = ["NumpyModel", "ReducedNumpyModel"]
@@ -60,9 +61,7 @@ def _batch(name: str, value: Any, cols: int) -> tuple[np.ndarray, bool]:
         arr = arr[None]
     if arr.ndim != 2 or arr.shape[1] != cols:
         raise ShapeError(f"{name} must have shape (N, {cols}) or ({cols},), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ShapeError(f"{name} contains NaN or Inf")
-    return arr, single
+    return require_finite(arr, name), single
 
 
 class NumpyModel:

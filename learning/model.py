@@ -26,6 +26,7 @@ import torch
 
 from learning.data import Normalisation
 from learning.nets import ALL_NETS, SequenceModel, build_net
+from models._validate import require_finite
 from models.errors import CheckpointError, DataError, ShapeError
 from models.io import atomic_write_bytes, atomic_write_json, read_json
 
@@ -56,9 +57,7 @@ def _as_batch(value: Any, cols: int, name: str) -> tuple[np.ndarray, bool]:
         arr = arr[None]
     if arr.ndim != 3 or arr.shape[2] != cols:
         raise ShapeError(f"{name} must have shape (T, {cols}) or (N, T, {cols}), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ShapeError(f"{name} contains NaN or Inf")
-    return arr, single
+    return require_finite(arr, name), single
 
 
 class Model:
