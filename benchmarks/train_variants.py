@@ -70,6 +70,32 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
         {},
     ),
     "clip": ("gradient clipping at norm 1", {"grad_clip": 1.0}, {}),
+    # second study, from the quick profile of the first (H 100, 600 epochs): regularisation
+    "h100-wd1e-4": (
+        "h100-e600 with Adam weight decay 1e-4",
+        {"horizon": 100, "epochs": 600, "weight_decay": 1e-4},
+        {},
+    ),
+    "h100-w8-b32": (
+        "h100-e600 with 8 windows/traj and batch 32 (2× the data per epoch, same steps)",
+        {"horizon": 100, "epochs": 600, "windows_per_trajectory": 8, "batch_size": 32},
+        {},
+    ),
+    "h100-ema": (
+        "h100-e600, validating and keeping the weight average (ema_decay 0.999)",
+        {"horizon": 100, "epochs": 600, "ema_decay": 0.999},
+        {},
+    ),
+    "h100-silu": (
+        "h100-e600 with SiLU activations",
+        {"horizon": 100, "epochs": 600},
+        {"activation": "silu"},
+    ),
+    "h100-tanh": (
+        "h100-e600 with tanh activations",
+        {"horizon": 100, "epochs": 600},
+        {"activation": "tanh"},
+    ),
 }
 
 

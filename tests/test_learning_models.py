@@ -157,6 +157,21 @@ def test_save_load_gives_identical_predictions(name, mimo_data, tmp_path):
     np.testing.assert_array_equal(loaded.norm.y_std, model.norm.y_std)
 
 
+@pytest.mark.parametrize("activation", ["tanh", "silu"])
+def test_the_mlp_activation_is_built_saved_and_loaded(activation, mimo_data, tmp_path):
+    model = small_model("mlp", mimo_data, seed=4, activation=activation)
+    kinds = {type(m).__name__.lower() for m in model.net.net}
+    assert kinds == {"linear", activation}
+    tr = mimo_data[0]
+    before = model.simulate(tr.u, tr.y[:3])
+    model.save(tmp_path / "m")
+    loaded = Model.load(tmp_path / "m")
+    assert loaded.net.config()["activation"] == activation
+    np.testing.assert_array_equal(loaded.simulate(tr.u, tr.y[:3]), before)
+    with pytest.raises(UnknownModelError, match=r"activation must be one of \['relu', 'silu'"):
+        build_net("mlp", window=2, n_u=1, n_y=1, activation="gelu")
+
+
 def test_loading_another_model_or_window_names_what_differs(mimo_data, tmp_path):
     small_model("mlp", mimo_data).save(tmp_path / "mlp")
     with pytest.raises(CheckpointError, match=r"model: 'mlp' there, 'gru' here"):

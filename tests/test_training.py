@@ -83,9 +83,10 @@ def test_same_seed_same_weights_other_seed_other_weights(data):
     assert [r["val_loss"] for r in a.history] == [r["val_loss"] for r in b.history]
 
 
-def test_best_on_validation_is_kept(data):
+@pytest.mark.parametrize("ema_decay", [None, 0.9])
+def test_best_on_validation_is_kept(data, ema_decay):
     train, val = data
-    res = fit_tiny(train, val, options=tiny_options(epochs=6))
+    res = fit_tiny(train, val, options=tiny_options(epochs=6, ema_decay=ema_decay))
     vals = [row["val_loss"] for row in res.history]
     assert res.best_val_loss == min(vals)
     assert res.best_epoch == int(np.argmin(vals))
@@ -101,13 +102,13 @@ class _Interrupt(Exception):
     pass
 
 
-@pytest.mark.parametrize("name", ["mlp", "masti"])
-def test_resume_ends_where_an_uninterrupted_run_ends(name, data, tmp_path):
+@pytest.mark.parametrize(("name", "ema_decay"), [("mlp", None), ("masti", None), ("mlp", 0.9)])
+def test_resume_ends_where_an_uninterrupted_run_ends(name, ema_decay, data, tmp_path):
     train, val = data
     kw = {
         "model": name,
         "net_options": TINY if name == "mlp" else {"hidden": [8]},
-        "options": tiny_options(epochs=6),
+        "options": tiny_options(epochs=6, ema_decay=ema_decay),
     }
     full = fit_tiny(train, val, run_dir=tmp_path / "full", **kw)
 
@@ -150,6 +151,30 @@ def test_resume_refuses_another_model_window_data_or_options(data, tmp_path, cha
             resume=True,
             **kwargs,
         )
+
+
+def test_the_weight_average_follows_its_formula_and_is_what_is_kept(data, tmp_path):
+    from learning.nets import build_net
+
+    train, val = data
+    # 6 trajectories × 2 windows in one batch of 16: one optimiser step
+    opts = tiny_options(epochs=1, batch_size=16, ema_decay=0.5)
+    res = fit_tiny(train, val, options=opts, run_dir=tmp_path)
+    ckpt = torch.load(tmp_path / CHECKPOINT_FILE, weights_only=True)
+    torch.manual_seed(opts.seed)  # the untrained network, built as fit builds it
+    w0 = dict(build_net("mlp", window=3, n_u=1, n_y=1, **TINY).named_parameters())
+    # step 0 of the average: decay min(0.5, 1/10) = 0.1
+    for k, w1 in ckpt["net"].items():
+        if k in w0:
+            expected = 0.1 * w0[k].detach() + 0.9 * w1
+            torch.testing.assert_close(ckpt["ema"][k], expected, rtol=1e-6, atol=1e-7)
+    assert ckpt["ema_steps"] == 1
+    kept = weights(res.model)
+    assert res.best_epoch == 1  # the average, not the network's last weights, was kept
+    assert all(np.array_equal(kept[k], ckpt["ema"][k].numpy()) for k in ckpt["ema"])
+    assert not all(np.array_equal(kept[k], ckpt["net"][k].numpy()) for k in ckpt["ema"])
+    with pytest.raises(OptionError, match=r"ema_decay must be None or in \(0, 1\)"):
+        TrainOptions(ema_decay=1.0)
 
 
 def test_resume_with_more_epochs_continues_the_run(data, tmp_path):

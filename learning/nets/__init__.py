@@ -69,5 +69,7 @@ def build_net(name: str, **config: Any) -> SequenceModel:
         ) from None
     try:
         return cls(**config)
-    except TypeError as exc:
+    except CanonidError:
+        raise  # already names what is wrong (a bad window, say)
+    except (TypeError, ValueError) as exc:
         raise UnknownModelError(f"model {name!r}: bad configuration {config}: {exc}") from None

@@ -29,15 +29,26 @@ from torch import nn
 from learning.canonical import pairs_to_state, shift
 from models.errors import ShapeError
 
-__all__ = ["CanonicalModel", "SequenceModel", "mlp", "output_error"]
+__all__ = ["ACTIVATIONS", "CanonicalModel", "SequenceModel", "mlp", "output_error"]
 
 
-def mlp(n_in: int, hidden: Sequence[int], n_out: int) -> nn.Sequential:
-    """A ReLU multilayer perceptron ``n_in → hidden[0] → … → n_out`` (linear output)."""
+#: hidden-layer activations of :func:`mlp`, by name
+ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "silu": nn.SiLU}
+
+
+def mlp(n_in: int, hidden: Sequence[int], n_out: int, *, activation: str = "relu") -> nn.Sequential:
+    """A multilayer perceptron ``n_in → hidden[0] → … → n_out`` (linear output).
+
+    ``activation`` names the hidden layers' nonlinearity (:data:`ACTIVATIONS`; ReLU, the
+    paper's, by default). All three are 1-Lipschitz, so the analysis layer's bounds hold as for
+    ReLU.
+    """
+    if activation not in ACTIVATIONS:
+        raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}, got {activation!r}")
     layers: list[nn.Module] = []
     width = n_in
     for h in hidden:
-        layers += [nn.Linear(width, int(h)), nn.ReLU()]
+        layers += [nn.Linear(width, int(h)), ACTIVATIONS[activation]()]
         width = int(h)
     layers.append(nn.Linear(width, n_out))
     return nn.Sequential(*layers)

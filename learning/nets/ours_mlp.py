@@ -13,11 +13,13 @@ __all__ = ["OursMLP"]
 
 
 class OursMLP(CanonicalModel):
-    """``Ĥ`` = ReLU MLP on ``[z_t; u_t]`` (``z_t`` alone without feedthrough).
+    """``Ĥ`` = MLP on ``[z_t; u_t]`` (``z_t`` alone without feedthrough).
 
     Args:
         hidden: hidden layer widths; the paper uses 3 × 256 on the simulated systems and
             2 × 2048 on the quadrotor.
+        activation: the hidden layers' nonlinearity, ``"relu"`` (the paper's), ``"tanh"`` or
+            ``"silu"``.
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
             :class:`learning.nets.base.SequenceModel`).
     """
@@ -30,14 +32,18 @@ class OursMLP(CanonicalModel):
         self,
         *,
         hidden: Sequence[int] = (256, 256, 256),
+        activation: str = "relu",
         **common: Any,
     ) -> None:
         super().__init__(**common)
         self.hidden = tuple(int(h) for h in hidden)
-        self.net = mlp(self._head_width(self.state_dim), self.hidden, self.n_y)
+        self.activation = activation
+        self.net = mlp(
+            self._head_width(self.state_dim), self.hidden, self.n_y, activation=activation
+        )
 
     def options(self) -> dict[str, Any]:
-        return {"hidden": list(self.hidden)}
+        return {"hidden": list(self.hidden), "activation": self.activation}
 
     def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         return self.net(self._head_input(z, u))
