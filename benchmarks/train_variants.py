@@ -91,6 +91,16 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
         {"horizon": 100, "epochs": 600},
         {"activation": "silu"},
     ),
+    "h100-silu-lr1e-3": (
+        "h100-silu with Adam at 1e-3",
+        {"horizon": 100, "epochs": 600, "lr": 1e-3},
+        {"activation": "silu"},
+    ),
+    "h100-silu-lr5e-3": (
+        "h100-silu with Adam at 5e-3",
+        {"horizon": 100, "epochs": 600, "lr": 5e-3},
+        {"activation": "silu"},
+    ),
     "h100-tanh": (
         "h100-e600 with tanh activations",
         {"horizon": 100, "epochs": 600},

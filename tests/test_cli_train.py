@@ -188,6 +188,24 @@ def test_hidden_widths_are_kept_by_the_run_and_another_width_is_refused(
     assert len(err.strip().splitlines()) == 1
 
 
+def test_activation_is_kept_by_the_run_and_another_is_refused(dataset_path, tmp_path, capsys):
+    common = ["--window", "3", "--epochs", "1", "--no-progress", "--device", "cpu"]
+    run = tmp_path / "silu"
+    argv = ["train", str(dataset_path), "--model", "mlp", *common, "--out", str(run)]
+    assert main([*argv, "--activation", "silu"]) == 0
+    assert json.loads((run / "config.json").read_text())["net"]["activation"] == "silu"
+    resume = ["train", "--resume", str(run), "--no-progress", "--device", "cpu"]
+    assert main([*resume, "--epochs", "2", "--activation", "silu"]) == 0
+    capsys.readouterr()
+    assert main([*resume, "--epochs", "3", "--activation", "tanh"]) == 1
+    err = capsys.readouterr().err
+    assert "activation: silu there, tanh here" in err and "Traceback" not in err
+    masti = ["train", str(dataset_path), "--model", "masti", *common, "--activation", "silu"]
+    assert main([*masti, "--out", str(tmp_path / "m")]) == 1
+    err = capsys.readouterr().err
+    assert "--activation applies to Ours (MLP) only, not masti" in err
+
+
 @pytest.mark.parametrize(
     ("model", "hidden", "message"),
     [

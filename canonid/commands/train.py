@@ -21,6 +21,7 @@ from canonid.commands.evaluate import RUN_FILE, evaluate_run, table
 from canonid.profiles import profile_names, train_options
 from datagen.loaders import split_train_val
 from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names
+from learning.nets.base import ACTIVATIONS
 from learning.plots import plot_training_curve
 from learning.training import CHECKPOINT_FILE
 from models.errors import CheckpointError, DataError
@@ -85,6 +86,11 @@ def register(sub: Any) -> None:
         "quadrotor; default 256,256,256): Ours (MLP)'s regressor, each MLP of Masti et al., "
         "the head of Ours (GRU); not classic-gru, whose sizes follow from ℓ",
     )
+    p.add_argument(
+        "--activation",
+        choices=sorted(ACTIVATIONS),
+        help="hidden-layer nonlinearity of Ours (MLP) (default relu, the paper's)",
+    )
     p.add_argument("--residual", action="store_true", help="predict y_t − y_{t−1}")
     p.add_argument("--no-feedthrough", action="store_true", help="the output map ignores u_t")
     p.add_argument(
@@ -121,6 +127,10 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
     }
     if args.hidden is not None:
         net_options[_hidden_option(args.model)] = parse_widths(args.hidden)
+    if args.activation is not None:
+        if args.model != "mlp":
+            raise OptionError(f"--activation applies to Ours (MLP) only, not {args.model}")
+        net_options["activation"] = args.activation
     return {
         "format": "canonid-run",
         "data": str(args.data),
@@ -187,6 +197,10 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
         there = recipe["net_options"].get(option, default)
         if list(there) != parse_widths(args.hidden):
             diffs.append(f"hidden widths: {list(there)} there, {parse_widths(args.hidden)} here")
+    if args.activation is not None:
+        there = recipe["net_options"].get("activation", "relu")
+        if there != args.activation:
+            diffs.append(f"activation: {there} there, {args.activation} here")
     if diffs:
         raise CheckpointError(f"run {run_dir} does not match: " + "; ".join(diffs))
     opts = dict(recipe["train_options"])
