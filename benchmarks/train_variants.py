@@ -3,9 +3,11 @@
     python benchmarks/train_variants.py runs/data/tank [--only KEY ...] [--seeds 0 1]
     python benchmarks/train_variants.py runs/data/tank --only KEY ... --test   # afterwards
 
-Each variant is the ``quick`` ``train`` stage as it was before this study (``BASE``: 600
+Each variant is the ``quick`` ``train`` stage as it was before the first study (``BASE``: 600
 epochs, batch 16, 4 windows per trajectory, rollout length 50) with a few options changed, and
-the MLP's constructor options (``VARIANTS``); every model is ``--model mlp --window 10 --residual
+the MLP's constructor options (``VARIANTS``); the second study's variants (the ``h100-…`` keys
+after ``clip``) start from the stage the first one chose (``h100-e600``) and change one training
+option or the MLP's activation. Every model is ``--model mlp --window 10 --residual
 --no-feedthrough``, trained on one torch thread on the CPU. The script prints one Markdown row
 per variant and seed: the **validation** split's 100-step rollout MSE (the paper metric, every
 start time, physical units) against the noise-free ``y_clean`` and against the measured ``y``,

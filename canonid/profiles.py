@@ -101,7 +101,9 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
         # "Identification"): 100-step rollouts (the metric's length) over 600 epochs gave the
         # lowest validation error, 1.59e-4 against 2.33e-4 for 50-step rollouts (seed 1:
         # 2.77e-4 against 3.21e-4), at 1.75× the CPU time; a 3 × 64 MLP with batch 64 and α = 1
-        # were worse.
+        # were worse. A second study from this stage (same script) found no better training
+        # option (weight decay, weight averaging, more windows per step, other learning rates);
+        # the SiLU activation, a network option (`canonid train --activation silu`), won there.
         "train": {
             "epochs": 600,
             "batch_size": 16,
