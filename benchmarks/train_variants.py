@@ -103,6 +103,11 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
         {"horizon": 100, "epochs": 600, "lr": 5e-3},
         {"activation": "silu"},
     ),
+    "h100-silu-e900": (
+        "h100-silu over 900 epochs (cosine over the 900)",
+        {"horizon": 100, "epochs": 900},
+        {"activation": "silu"},
+    ),
     "h100-tanh": (
         "h100-e600 with tanh activations",
         {"horizon": 100, "epochs": 600},
