@@ -108,6 +108,11 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
         {"horizon": 100, "epochs": 900},
         {"activation": "silu"},
     ),
+    "h100-silu-3x512": (
+        "h100-silu with a 3 × 512 MLP",
+        {"horizon": 100, "epochs": 600},
+        {"activation": "silu", "hidden": [512, 512, 512]},
+    ),
     "h100-tanh": (
         "h100-e600 with tanh activations",
         {"horizon": 100, "epochs": 600},

@@ -7,7 +7,9 @@ a model sees in use).
 **Paper metric** (Table 1), :attr:`Evaluation.rollout_mse`: from every start ``s = 0, stride,
 2·stride, …`` with ``s + ℓ + H ≤ T`` of every test trajectory, burn in on the measured samples
 ``s … s+ℓ−1`` and predict samples ``s+ℓ … s+ℓ+H−1`` in open loop; the mean squared error over all
-those rollouts, their ``H`` steps and the outputs (per output too). The same rollouts give the
+those rollouts, their ``H`` steps and the outputs (per output too, and per test record: the mean
+over that record's rollouts, ``None`` for a record too short for one, so that a few records
+that dominate the mean can be found). The same rollouts give the
 **k-step NRMSE**: for ``k = 1 … H``, the RMSE of the k-th predicted step over all rollouts divided
 by the standard deviation of the target over all samples of the test trajectories.
 
@@ -41,6 +43,7 @@ class Scores:
 
     rollout_mse: float
     rollout_mse_per_output: list[float]
+    rollout_mse_per_record: list[float | None]
     kstep_nrmse: list[float]
     kstep_nrmse_per_output: list[list[float]]
     rmse: float
@@ -147,6 +150,12 @@ def _scores(
     true_roll = np.stack([targets[i][s + ell : s + ell + horizon] for i, s in starts])
     err2 = (pred_roll - true_roll) ** 2  # (N, H, n_y)
     mse_out = err2.mean(axis=(0, 1))
+    owner = np.array([i for i, _ in starts])
+    per_rollout = err2.mean(axis=(1, 2))
+    per_record: list[float | None] = [
+        float(per_rollout[owner == i].mean()) if np.any(owner == i) else None
+        for i in range(len(targets))
+    ]
     sd_all = np.concatenate(list(targets)).std(axis=0)
     sd_all = np.where(sd_all > 0, sd_all, 1.0)
     kstep = np.sqrt(err2.mean(axis=0)) / sd_all  # (H, n_y)
@@ -162,6 +171,7 @@ def _scores(
     return Scores(
         rollout_mse=float(mse_out.mean()),
         rollout_mse_per_output=mse_out.tolist(),
+        rollout_mse_per_record=per_record,
         kstep_nrmse=kstep.mean(axis=1).tolist(),
         kstep_nrmse_per_output=kstep.T.tolist(),
         rmse=float(np.sqrt((rmse_out**2).mean())),

@@ -80,8 +80,12 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
 
     (run / "metrics.json").unlink()
     assert main(["evaluate", str(run), "--horizon", "20", "--stride", "5", "--n-init", "10"]) == 0
-    assert "rollout_mse" in capsys.readouterr().out
+    out = capsys.readouterr().out
     again = json.loads((run / "metrics.json").read_text())
+    per = again["clean"]["rollout_mse_per_record"]
+    worst = max(range(2), key=lambda i: per[i])
+    assert "rollout_mse" in out and "largest rollout_mse per record (y_clean; of 2)" in out
+    assert f"#{worst} {per[worst]:.3g}, #{1 - worst} " in out
     assert again["rollout_horizon"] == 20 and again["n_init"] == 10
     assert again["n_rollouts"] == 2 * len(range(0, 110 - 3 - 20 + 1, 5))
 

@@ -59,6 +59,23 @@ def test_rollout_metric_uses_every_start_with_the_measured_burn_in(records):
     assert len(ev.clean.kstep_nrmse) == H
 
 
+def test_per_record_rollout_mse_is_each_records_own_score(records):
+    ell, H, stride = 3, 50, 4
+    ev = evaluate(EchoModel(ell), records, horizon=H, stride=stride, n_init=10)
+    assert ev.clean is not None
+    for scores, target in ((ev.measured, "y"), (ev.clean, "y_clean")):
+        per = scores.rollout_mse_per_record
+        assert per[2] is None  # 30 samples: too short for one 53-sample rollout
+        for i in (0, 1):
+            alone = evaluate(EchoModel(ell), [records[i]], horizon=H, stride=stride, n_init=10)
+            own = alone.measured if target == "y" else alone.clean
+            assert own is not None and per[i] == pytest.approx(own.rollout_mse, rel=1e-12)
+        # the overall score is the rollout-count-weighted mean of the records'
+        counts = [len(range(0, len(r.u) - ell - H + 1, stride)) for r in records[:2]]
+        weighted = (counts[0] * per[0] + counts[1] * per[1]) / sum(counts)
+        assert scores.rollout_mse == pytest.approx(weighted, rel=1e-12)
+
+
 def test_simulation_scores_skip_n_init_and_burn_in_just_before_it(records):
     ell, n_init = 3, 20
     ev = evaluate(EchoModel(ell), records, horizon=5, n_init=n_init)
@@ -92,6 +109,7 @@ def test_json_names_its_targets_and_keys(records):
     body = evaluate(EchoModel(3), records, horizon=10, n_init=10).to_json()
     for key in ("rollout_mse", "rmse", "nrmse", "fit_percent"):
         assert key in body and f"{key}_per_output" in body and key in body["clean"]
+    assert len(body["rollout_mse_per_record"]) == len(records)
     assert body["targets"]["top_level"].startswith("y (measured")
     assert body["rollout_horizon"] == 10 and body["window"] == 3
     no_clean = [SimpleNamespace(u=r.u, y=r.y) for r in records]

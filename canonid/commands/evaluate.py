@@ -105,7 +105,18 @@ def table(metrics: dict[str, Any]) -> str:
         f"[{metrics['data']['split']}]: {metrics['n_rollouts']} rollouts of "
         f"{metrics['rollout_horizon']} steps; simulation scores after n_init = {metrics['n_init']}"
     )
-    return "\n".join([head, *lines])
+    return "\n".join([head, *lines, *_worst_records(metrics)])
+
+
+def _worst_records(metrics: dict[str, Any], count: int = 3) -> list[str]:
+    """One line naming the records with the largest rollout MSE (noise-free target if any)."""
+    label, scores = ("y_clean", metrics["clean"]) if metrics.get("clean") else ("y", metrics)
+    per = scores.get("rollout_mse_per_record") or []
+    scored = sorted(((value, i) for i, value in enumerate(per) if value is not None), reverse=True)
+    if len(scored) < 2:
+        return []
+    worst = ", ".join(f"#{i} {value:.3g}" for value, i in scored[:count])
+    return [f"largest rollout_mse per record ({label}; of {len(scored)}): {worst}"]
 
 
 def run(args: argparse.Namespace) -> int:
