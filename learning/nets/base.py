@@ -41,7 +41,8 @@ def mlp(n_in: int, hidden: Sequence[int], n_out: int, *, activation: str = "relu
 
     ``activation`` names the hidden layers' nonlinearity (:data:`ACTIVATIONS`; ReLU, the
     paper's, by default). ReLU and tanh are 1-Lipschitz, SiLU is not (its slope peaks at about
-    1.0998, at x ≈ 2.4); the analysis layer samples the exported network and assumes neither.
+    1.0998, at x ≈ 2.4); the analysis layer only evaluates the exported network, at data
+    points, and assumes neither.
     """
     if activation not in ACTIVATIONS:
         raise ValueError(f"activation must be one of {sorted(ACTIVATIONS)}, got {activation!r}")
