@@ -151,10 +151,10 @@ def _scores(
     err2 = (pred_roll - true_roll) ** 2  # (N, H, n_y)
     mse_out = err2.mean(axis=(0, 1))
     owner = np.array([i for i, _ in starts])
-    per_rollout = err2.mean(axis=(1, 2))
+    sums = np.bincount(owner, weights=err2.mean(axis=(1, 2)), minlength=len(targets))
+    counts = np.bincount(owner, minlength=len(targets))
     per_record: list[float | None] = [
-        float(per_rollout[owner == i].mean()) if np.any(owner == i) else None
-        for i in range(len(targets))
+        float(total / n) if n else None for total, n in zip(sums, counts, strict=True)
     ]
     sd_all = np.concatenate(list(targets)).std(axis=0)
     sd_all = np.where(sd_all > 0, sd_all, 1.0)
