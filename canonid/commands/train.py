@@ -41,7 +41,11 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("data", nargs="?", metavar="DATA", help="training data (not with --resume)")
-    p.add_argument("--model", choices=model_names(), help="model (required unless --resume)")
+    p.add_argument(
+        "--model",
+        choices=model_names(),
+        help="model (default mlp, Ours (MLP); arx: the linear baseline, least squares only)",
+    )
     p.add_argument("--window", type=int, metavar="L", help="window ℓ (required unless --resume)")
     p.add_argument(
         "--profile",
@@ -130,8 +134,10 @@ def register(sub: Any) -> None:
 def _recipe(args: argparse.Namespace) -> dict[str, Any]:
     if args.data is None:
         raise DataError("give the training DATA (or --resume RUN)")
-    if args.model is None or args.window is None:
-        raise DataError("--model and --window are required for a new run")
+    if args.window is None:
+        raise DataError("--window is required for a new run (e.g. --window 10)")
+    if args.model is None:
+        args.model = "mlp"
     opts = train_options(
         args.profile,
         epochs=args.epochs,
