@@ -59,6 +59,7 @@ import numpy as np
 from analysis.report import AnalysisReport
 from canonid.paper import table1_value
 from canonid.profiles import profile as load_profile
+from canonid.profiles import train_options
 from canonid.reduction import SweepPlan, compression_sweep
 from canonid.reproduce_jobs import (
     ANALYSIS_KEYS,
@@ -286,8 +287,6 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
     """The reproduction's independent jobs, in a fixed order: the analyses first (the longest
     single jobs), then Table 1 by system, model, window and seed. The list depends only on the
     settings and the datasets, never on how it is run."""
-    from canonid.profiles import train_options
-
     stage = settings.stage
     out = settings.out.resolve()
     overrides = dict(stage.get("train", {}))

@@ -21,6 +21,9 @@ from matplotlib.figure import Figure
 
 from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
 from canonid.report import Report
+from datagen.dataset import Dataset
+from learning import Model
+from learning.evaluate import simulate_records
 from models.io import atomic_write_bytes
 
 __all__ = ["QUADROTOR_NOTE", "plot_rollouts", "plot_table1", "system_label", "write_report"]
@@ -99,9 +102,6 @@ def plot_rollouts(
     folder), from a burn-in on the measured samples ``n_init−ℓ … n_init−1``, ``n_init =
     max(ℓ, 50)`` (capped to leave half the record), against the measured and noise-free
     outputs; one panel per output."""
-    from learning import Model
-    from learning.evaluate import simulate_records
-
     test = dataset.split("test") if "test" in dataset.splits else dataset.split("val")
     trajectory = test[record]
     models = {name: Model.load(folder) for name, folder in runs.items()}
@@ -211,8 +211,6 @@ def write_report(
 ) -> tuple[Path, Path, dict[str, str]]:
     """Draw the figures and write ``out/report.md`` and ``out/report.html``; return both paths
     and the figures (name → path)."""
-    from datagen.dataset import Dataset
-
     figures: dict[str, str] = {}
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
