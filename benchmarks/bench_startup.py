@@ -1,6 +1,6 @@
 """Start-up benchmark: wall time of ``canonid --help``, ``canonid systems``, ``canonid generate
 --help`` (what ``generate`` loads before its first flight) and ``import canonid``, each in a
-fresh interpreter, and whether it loaded torch or CasADi.
+fresh interpreter beside the interpreter alone, and whether it loaded torch or CasADi.
 
 ``--baseline REF`` measures the tree of git revision ``REF`` too (exported to a temporary
 folder and run with the same interpreter), the two trees taking turns run by run, so both see
@@ -28,6 +28,7 @@ from _results import write_section  # noqa: E402
 
 #: label → arguments of the interpreter (run in the tree's root, so its packages come first)
 CASES = {
+    "python -c pass": ["-c", "pass"],  # the interpreter alone: the floor on this machine
     "canonid --help": ["-m", "canonid", "--help"],
     "canonid systems": ["-m", "canonid", "systems"],
     "canonid generate --help": ["-m", "canonid", "generate", "--help"],
