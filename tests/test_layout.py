@@ -213,3 +213,26 @@ def test_code_and_tests_cite_no_document_outside_the_repository():
         and str(path.relative_to(ROOT)) not in SPEC_PENDING
     ]
     assert not offenders, offenders
+
+
+def test_figures_use_the_object_api():
+    """Library code draws on ``matplotlib.figure.Figure``: pyplot's global state and backend
+    belong to the user's session."""
+    offenders = [
+        f"{module} imports {target}"
+        for module, path in MODULES.items()
+        for target, names in _imports(path)
+        if target == "matplotlib.pyplot" or (target == "matplotlib" and "pyplot" in names)
+    ]
+    offenders += [m for m, p in MODULES.items() if "matplotlib.use(" in p.read_text("utf-8")]
+    assert not offenders, offenders
+
+
+def test_one_jsonable():
+    defined = [
+        module
+        for module, path in MODULES.items()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.FunctionDef) and node.name.lstrip("_") == "jsonable"
+    ]
+    assert defined == ["models.io"]
