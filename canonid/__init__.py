@@ -9,11 +9,13 @@ in this package's modules. A typical session::
     system = canonid.get_system("tank")                      # a registered true system
     data = canonid.load_data("data/tank")                    # canonid dataset, CSV or .npz
     result = canonid.fit(
-        data.split("train"), data.split("val"), model="mlp", window=10,
+        data.split("train"), data.split("val"), model="mlp", window=2,
         options=canonid.TrainOptions(epochs=200),
     )
     scores = canonid.evaluate(result.model, data.split("test"), horizon=100)
-    report = canonid.analyze(system, [1, 2, 3])              # γ_f, α_ℓ, Proposition 2
+    report = canonid.analyze(system, [2])                    # γ_f, α_ℓ, Proposition 2
+    checks = report.learned_checks([result.model.export()], data.split("train"),
+                                   data.split("test"))      # the model against the theory
 
 Systems and data
     :func:`get_system`, :func:`system_names` (the registry), :class:`Dataset`,
