@@ -171,6 +171,25 @@ class BoundCheck:
             "settings": dict(self.settings),
         }
 
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> BoundCheck:
+        """The check of a :meth:`to_dict` record (without the per-trial arrays)."""
+        return cls(
+            window=int(data["window"]),
+            trials=int(data["trials"]),
+            violations=int(data["violations"]),
+            solver_failures=int(data["solver_failures"]),
+            max_ratio=data["max_ratio"],
+            ratio_quantiles=dict(data["ratio_quantiles"]),
+            max_error=float(data["max_error"]),
+            median_error=float(data["median_error"]),
+            worst_case_bound=data["worst_case_bound"],
+            constants=dict(data["constants"]),
+            max_ratio_estimated=data.get("max_ratio_estimated"),
+            seconds=float(data.get("seconds", 0.0)),
+            settings=dict(data.get("settings", {})),
+        )
+
 
 def check_bound(
     system: System,

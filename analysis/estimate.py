@@ -129,6 +129,22 @@ class Estimate:
             "details": dict(self.details),
         }
 
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Estimate:
+        """The estimate of a :meth:`to_dict` record (``value: null`` is ``+∞``)."""
+        value = data["value"]
+        return cls(
+            quantity=data["quantity"],
+            value=math.inf if value is None else float(value),
+            kind=data["kind"],
+            sets={name: Box.from_dict(box) for name, box in data["sets"].items()},
+            method=data["method"],
+            window=data["window"],
+            budget=dict(data.get("budget", {})),
+            seconds=float(data.get("seconds", 0.0)),
+            details=dict(data.get("details", {})),
+        )
+
 
 @dataclass(frozen=True)
 class Bracket:

@@ -1,6 +1,6 @@
 """The maps of the theory as CasADi SX functions: F_ℓ, O_ℓ and Jacobians, plus batched calls.
 
-Conventions (paper eq. 4–5, SPEC §6). For a window ``ℓ ≥ 1`` and inputs
+Conventions (paper eq. 4–5). For a window ``ℓ ≥ 1`` and inputs
 ``ū = (u_1, …, u_ℓ) ∈ U^ℓ`` stacked as one vector of length ``ℓ·n_u`` (``u_1`` first):
 
 * ``F_1(x, u_1) = f(x, u_1)``, ``F_i(x, ū) = f(F_{i−1}(x, ū), u_i)``: ``F_ℓ`` propagates ``ℓ``

@@ -26,24 +26,26 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import casadi as ca
 import numpy as np
 
 from analysis.bound import BoundCheck, BoundConstants, check_bound
 from analysis.estimate import Bracket, Budget, Estimate
+from analysis.learned import ProbeResult, ResidualCheck, residual_check, state_probe
 from analysis.limits import limitations
 from analysis.lipschitz import lipschitz_bracket, lipschitz_lower
 from analysis.maps import check_window
 from analysis.observability import alpha_bracket
 from analysis.reach import ReachableHulls, reach
 from models.base import System
-from models.errors import SetError
-from models.io import atomic_write_bytes, atomic_write_json
+from models.errors import DataError, SetError
+from models.io import atomic_write_bytes, atomic_write_json, jsonable, read_json
+from models.registry import get_system
 from models.sets import Box
 
-__all__ = ["SCHEMA", "AnalysisReport", "analyze"]
+__all__ = ["SCHEMA", "AnalysisReport", "Exported", "LearnedChecks", "analyze"]
 
 Progress = Callable[[str, float], None]
 
@@ -61,7 +63,8 @@ SCHEMA: dict[str, Any] = {
         ),
         "reach": (
             "the hull search: per step {step, boxes, stop, seconds}, and unbounded: why the "
-            "hulls stop being finite (null when they do not)"
+            "hulls stop being finite (null when they do not); hulls: H_0, H_1, ... as far as "
+            "they are finite; requested: the number of steps asked for"
         ),
         "limitations": "sentences: which certified bounds are out of reach, and why",
         "estimates": (
@@ -92,6 +95,24 @@ class WindowResult:
     gamma_h: Bracket
     alpha: Bracket
     check: BoundCheck | None
+
+
+class Exported(Protocol):
+    """A learned model as the checks see it: ``H(z, u) -> y`` in numpy and its window ℓ
+    (what ``learning.Model.export()`` returns)."""
+
+    window: int
+
+    def H(self, z: np.ndarray, u: np.ndarray) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class LearnedChecks:
+    """What :meth:`AnalysisReport.learned_checks` found: one residual check per model (in the
+    order given) and one state probe per window (empty when the data carry no states)."""
+
+    residuals: list[ResidualCheck]
+    probes: list[ProbeResult]
 
 
 @dataclass
@@ -137,7 +158,12 @@ class AnalysisReport:
             },
             "reach": None
             if self.reach is None
-            else {"steps": list(self.reach.steps), "unbounded": self.reach.unbounded},
+            else {
+                "steps": list(self.reach.steps),
+                "unbounded": self.reach.unbounded,
+                "hulls": [h.to_dict() for h in self.reach.hulls],
+                "requested": self.reach.requested,
+            },
             "limitations": self.limitations,
             "estimates": [e.to_dict() for e in self.estimates],
             "bound_checks": [c.to_dict() for c in self.checks],
@@ -148,7 +174,94 @@ class AnalysisReport:
         }
 
     def write_json(self, path: str | Path) -> Path:
-        return atomic_write_json(path, _jsonable(self.to_dict()))
+        return atomic_write_json(path, jsonable(self.to_dict()))
+
+    @classmethod
+    def from_json(cls, path: str | Path, *, system: System | None = None) -> AnalysisReport:
+        """The report written by :meth:`write_json` to ``path`` (without the per-trial arrays
+        of the bound checks). ``system``: the analysed system when it is not in the registry
+        under the name the file gives. A file without the hulls of the reach search (written
+        before they were) gives a report without it (``reach = None``)."""
+        body = read_json(path, what="analysis")
+        if system is None:
+            name = body.get("system", {}).get("name") if isinstance(body, dict) else None
+            if not isinstance(name, str):
+                raise DataError(f"{path} is not an analysis.json of canonid (no system name)")
+            system = get_system(name)
+        try:
+            estimates = {
+                (e["window"], e["quantity"], e["kind"]): Estimate.from_dict(e)
+                for e in body["estimates"]
+            }
+            checks = {c["window"]: BoundCheck.from_dict(c) for c in body["bound_checks"]}
+            hulls = body["hulls"]
+
+            def bracket(ell: int, quantity: str) -> Bracket:
+                return Bracket(
+                    estimates[(ell, quantity, "lower")], estimates[(ell, quantity, "upper")]
+                )
+
+            results = [
+                WindowResult(
+                    ell,
+                    None if hulls[str(ell)] is None else Box.from_dict(hulls[str(ell)]),
+                    gamma_f=bracket(ell, "gamma_f"),
+                    gamma_h=bracket(ell, "gamma_h"),
+                    alpha=bracket(ell, "alpha"),
+                    check=checks.get(ell),
+                )
+                for ell in body["windows"]
+            ]
+            sets = {name: Box.from_dict(body["sets"][name]) for name in ("X", "U", "W")}
+            reach = body["reach"]
+            return cls(
+                system=system,
+                **sets,
+                results=results,
+                settings=body["settings"],
+                seconds=float(body["seconds"]),
+                reach=None
+                if reach is None or "hulls" not in reach
+                else ReachableHulls(
+                    tuple(Box.from_dict(h) for h in reach["hulls"]),
+                    tuple(reach["steps"]),
+                    int(reach["requested"]),
+                    reach["unbounded"],
+                ),
+                learned=body.get("learned") or {},
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise DataError(f"{path} is not an analysis.json of canonid ({exc!r})") from exc
+
+    def constants(self, window: int) -> BoundConstants:
+        """The certified constants of Proposition 2 for ``window``: γ_f and γ_h upper bounds,
+        α_ℓ lower bound."""
+        r = next((r for r in self.results if r.window == window), None)
+        if r is None:
+            raise SetError(
+                f"window ℓ = {window} is not among the analysed windows "
+                f"{[r.window for r in self.results]}"
+            )
+        return BoundConstants(window, r.gamma_f.upper, r.alpha.lower, r.gamma_h.upper)
+
+    def learned_checks(
+        self, models: Sequence[Exported], train: Sequence[Any], test: Sequence[Any]
+    ) -> LearnedChecks:
+        """Checks of learned models with this report's certified constants and X: for each
+        model (numpy ``H(z, u)`` and ``window``) its one-step residual on ``test`` against the
+        noise-induced level (:func:`analysis.learned.residual_check`); for each of their windows,
+        when ``train`` is given and every trajectory carries its states, an affine probe
+        z_t → x_t against Proposition 2's bound (:func:`analysis.learned.state_probe`)."""
+        residuals = [
+            residual_check(m.H, test, self.constants(int(m.window)), X=self.X) for m in models
+        ]
+        probes = []
+        if train and all(t.x is not None for t in [*train, *test]):
+            probes = [
+                state_probe(train, test, window=ell, constants=self.constants(ell), X=self.X)
+                for ell in sorted({int(m.window) for m in models})
+            ]
+        return LearnedChecks(residuals, probes)
 
     def table(self) -> str:
         """A plain-text table: one line per window."""
@@ -260,21 +373,6 @@ def _versions() -> dict[str, str]:
         "casadi": str(getattr(ca, "__version__", "unknown")),
         "python-flint": str(getattr(flint, "__version__", "unknown")),
     }
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
-    return value
 
 
 def analyze(

@@ -59,8 +59,8 @@ VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
 def main() -> int:
     import torch
 
-    from canonid.commands.train import _splits
     from canonid.profiles import reduce_options
+    from canonid.runfolder import load_splits
     from learning import Model, evaluate
     from learning.nets import ReducedNet
     from learning.reduction import (
@@ -87,7 +87,7 @@ def main() -> int:
         parser.error(f"unknown variant(s) {unknown}; known: {sorted(VARIANTS)}")
 
     model = Model.load(args.run)
-    dataset, train, val, test_name, _ = _splits(read_json(args.run / "run.json", what="recipe"))
+    dataset, train, val, test_name, _ = load_splits(read_json(args.run / "run.json", what="recipe"))
     test = list(dataset.split(test_name))
     full = evaluate(model, test, horizon=100).measured.rollout_mse
     latent = latent_size(model.net.state_dim, args.rate)

@@ -1,14 +1,96 @@
 """canonid: learn reduced nonlinear state-space models with the output-error canonical method.
 
-The application layer (CLI, experiment profiles, sweeps, reports) lives here; the library layers
-are the top-level packages ``models``, ``datagen``, ``learning`` and ``analysis``.
+The names a Python user needs, from the four library packages (``models``, ``datagen``,
+``learning``, ``analysis``) in one place; the CLI, experiment profiles, sweeps and reports live
+in this package's modules. A typical session::
+
+    import canonid
+
+    system = canonid.get_system("tank")                      # a registered true system
+    data = canonid.load_data("data/tank")                    # canonid dataset, CSV or .npz
+    result = canonid.fit(
+        data.split("train"), data.split("val"), model="mlp", window=2,
+        options=canonid.TrainOptions(epochs=200),
+    )
+    scores = canonid.evaluate(result.model, data.split("test"), horizon=100)
+    report = canonid.analyze(system, [2])                    # γ_f, α_ℓ, Proposition 2
+    checks = report.learned_checks([result.model.export()], data.split("train"),
+                                   data.split("test"))      # the model against the theory
+
+Systems and data
+    :func:`get_system`, :func:`system_names` (the registry), :class:`Dataset`,
+    :class:`Trajectory`, :func:`load_data` (a dataset, CSV file or folder, or ``.npz``),
+    :class:`GenerationConfig` and :func:`generate_dataset` (closed-loop data).
+Identification (torch)
+    :func:`fit` with :class:`TrainOptions`, :class:`Model` (``Model.load(run_dir)``,
+    ``.export()``), :func:`evaluate`, :func:`reduce_model` with :class:`ReductionOptions`.
+Analysis
+    :func:`analyze` → :class:`AnalysisReport`; every number is an :class:`Estimate` that says
+    whether it is a lower bound, an upper bound or an estimate.
+
+The names load on first use (PEP 562), so ``import canonid`` imports neither torch nor CasADi;
+``canonid.fit`` imports torch, ``canonid.get_system`` CasADi.
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from __future__ import annotations
 
-try:
-    __version__ = version("canonid")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.1.0"
+from typing import TYPE_CHECKING
 
-__all__ = ["__version__"]
+from models.lazy import lazy_exports
+
+#: the package version (pyproject.toml reads it from here)
+__version__ = "0.1.0"
+
+_EXPORTS = {
+    "get_system": "models.registry",
+    "system_names": "models.registry",
+    "Dataset": "datagen.dataset",
+    "Trajectory": "datagen.dataset",
+    "load_data": "datagen.loaders",
+    "GenerationConfig": "datagen.generate",
+    "generate_dataset": "datagen.generate",
+    "fit": "learning.training",
+    "TrainOptions": "learning.training",
+    "Model": "learning.model",
+    "evaluate": "learning.evaluate",
+    "reduce_model": "learning.reduction",
+    "ReductionOptions": "learning.reduction",
+    "analyze": "analysis.report",
+    "AnalysisReport": "analysis.report",
+    "Estimate": "analysis.estimate",
+}
+
+__all__ = [
+    "AnalysisReport",
+    "Dataset",
+    "Estimate",
+    "GenerationConfig",
+    "Model",
+    "ReductionOptions",
+    "TrainOptions",
+    "Trajectory",
+    "__version__",
+    "analyze",
+    "evaluate",
+    "fit",
+    "generate_dataset",
+    "get_system",
+    "load_data",
+    "reduce_model",
+    "system_names",
+]
+
+if TYPE_CHECKING:  # what the lazy names are, for type checkers and editors
+    from analysis.estimate import Estimate
+    from analysis.report import AnalysisReport, analyze
+    from datagen.dataset import Dataset, Trajectory
+    from datagen.generate import GenerationConfig, generate_dataset
+    from datagen.loaders import load_data
+    from learning.evaluate import evaluate
+    from learning.model import Model
+    from learning.reduction import ReductionOptions, reduce_model
+    from learning.training import TrainOptions, fit
+    from models.registry import get_system, system_names
+
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,9 +1,10 @@
 """The ``canonid`` command line.
 
 Each subcommand lives in its own module under :mod:`canonid.commands` and exposes
-``register(subparsers)``, which adds its parser and sets ``func(args) -> int``. Errors raised on
-purpose (:class:`models.errors.CanonidError`) print as one line on stderr with a non-zero exit;
-``--debug`` shows the traceback instead.
+``register(subparsers)``, which adds its parser and sets ``func(args) -> int``. Only the module of
+the command being run is imported: ``canonid --help`` and ``canonid systems`` load neither torch
+nor CasADi. Errors raised on purpose (:class:`models.errors.CanonidError`) print as one line on
+stderr with a non-zero exit; ``--debug`` shows the traceback instead.
 """
 
 from __future__ import annotations
@@ -15,16 +16,17 @@ from collections.abc import Sequence
 
 from canonid import __version__
 from canonid.commands import COMMANDS
-from models.errors import CanonidError, NotImplementedYetError
+from models.errors import CanonidError
 
 __all__ = ["build_parser", "main"]
 
 EXIT_ERROR = 1
-EXIT_NOT_YET = 2
 EXIT_INTERRUPTED = 130
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The parser listing every subcommand; only ``command``'s module is imported and its
+    arguments registered (the others parse nothing but are listed by ``--help``)."""
     parser = argparse.ArgumentParser(
         prog="canonid",
         description=(
@@ -38,25 +40,29 @@ def build_parser() -> argparse.ArgumentParser:
         "--debug", action="store_true", help="show full tracebacks and debug logging"
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for module in COMMANDS:
-        module.register(sub)
+    for cmd in COMMANDS:
+        if cmd.name == command:
+            cmd.load().register(sub)
+        else:
+            sub.add_parser(cmd.name, help=cmd.help)
     return parser
 
 
+def _command(argv: Sequence[str]) -> str | None:
+    """The subcommand named on the command line: its first word that is not an option (no
+    top-level option takes a value)."""
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(_command(argv)).parse_args(argv)
     logging.basicConfig(
         level=logging.DEBUG if args.debug else logging.WARNING,
         format="%(levelname)s %(name)s: %(message)s",
     )
     try:
         return int(args.func(args) or 0)
-    except NotImplementedYetError as exc:
-        if args.debug:
-            raise
-        print(f"canonid {args.command}: {exc}", file=sys.stderr)
-        return EXIT_NOT_YET
     except CanonidError as exc:
         if args.debug:
             raise

@@ -38,8 +38,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.colors import LogNorm
+from matplotlib.figure import Figure
 
 from canonid.profiles import reduce_options
+from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, pick_split, write_history
 from canonid.runner import run_jobs
 from learning import EpochReport, Model, evaluate
 from learning.data import as_series
@@ -175,8 +178,6 @@ class ReductionResult:
 
 
 def _load_source(source: Path) -> tuple[Model, dict[str, Any]]:
-    from canonid.commands.evaluate import RUN_FILE
-
     recipe = read_json(source / RUN_FILE, what="run recipe")
     if (
         not isinstance(recipe, dict)
@@ -193,12 +194,6 @@ def reduce_run(
     job: ReductionJob, *, callback: Callable[[EpochReport], None] | None = None
 ) -> ReductionResult:
     """Run one reduction and write its run folder (see the module docstring)."""
-    # the run-folder helpers of `train` and `evaluate`; imported here because the command
-    # modules import this one
-    from canonid.commands import _data
-    from canonid.commands.evaluate import RUN_FILE, evaluate_run
-    from canonid.commands.train import _splits, _write_history
-
     source, out = Path(job.source), Path(job.out)
     model, recipe = _load_source(source)
     latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early
@@ -213,7 +208,7 @@ def reduce_run(
         raise CheckpointError(
             f"{out} already holds a reduction run; resume it or choose another output folder"
         )
-    dataset, train, val, test_name, data_path = _splits(recipe)
+    dataset, train, val, test_name, data_path = load_splits(recipe)
     out.mkdir(parents=True, exist_ok=True)
     run_recipe: dict[str, Any] = {
         **{k: recipe[k] for k in ("data", "data_options", "val", "val_fraction") if k in recipe},
@@ -250,7 +245,7 @@ def reduce_run(
         },
     )
     seconds = time.perf_counter() - t0
-    _write_history(out, fit.history)
+    write_history(out, fit.history)
     reduced = fit.model
     metrics = evaluate_run(
         out,
@@ -262,7 +257,7 @@ def reduce_run(
         stride=1,
         n_init=None,
     )
-    _, trajs = _data.pick_split(dataset, test_name, where=data_path)
+    _, trajs = pick_split(dataset, test_name, where=data_path)
     full = evaluate(model, trajs, horizon=EVAL_HORIZON, stride=1, n_init=metrics["n_init"])
     _plot_reduced_vs_full(
         model,
@@ -477,19 +472,9 @@ def compression_sweep(
 
 
 # ---------------------------------------------------------------------- figures
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: Any, path: str | os.PathLike[str]) -> Path:
+def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     fig.tight_layout()
     fig.savefig(path, dpi=120)
-    _pyplot().close(fig)
     return Path(path)
 
 
@@ -510,9 +495,6 @@ def _sources_by_window(results: Sequence[ReductionResult]) -> list[str]:
 def plot_heatmap(results: Sequence[ReductionResult], path: str | os.PathLike[str]) -> Path:
     """Reconstruction MSE (normalised units, mean over seeds) over window ℓ (rows) and rate r
     (columns), log colour scale, each cell annotated (the paper's Fig. 4)."""
-    from matplotlib.colors import LogNorm
-
-    plt = _pyplot()
     sources = _sources_by_window(results)
     rates = sorted({r.compression for r in results})
     grid = np.full((len(sources), len(rates)), np.nan)
@@ -525,7 +507,8 @@ def plot_heatmap(results: Sequence[ReductionResult], path: str | os.PathLike[str
                 grid[i, j] = float(np.mean(vals))
     positive = grid[np.isfinite(grid) & (grid > 0)]
     norm = LogNorm(vmin=positive.min(), vmax=positive.max()) if positive.size else None
-    fig, ax = plt.subplots(figsize=(1.2 * len(rates) + 2.5, 0.7 * len(sources) + 1.8))
+    fig = Figure(figsize=(1.2 * len(rates) + 2.5, 0.7 * len(sources) + 1.8))
+    ax = fig.subplots()
     image = ax.imshow(np.where(grid > 0, grid, np.nan), cmap="viridis", norm=norm, aspect="auto")
     for i in range(len(sources)):
         for j in range(len(rates)):
@@ -550,8 +533,8 @@ def plot_reduced_mse(results: Sequence[ReductionResult], path: str | os.PathLike
     """100-step rollout MSE of the reduced model against its state size ``n̄``, one line per
     window ℓ with mean ± standard deviation over seeds; the full model's MSE (state size
     ``dim z``) as a dashed line of the same colour (the paper's Fig. 3)."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4.2))
+    fig = Figure(figsize=(7, 4.2))
+    ax = fig.subplots()
     for k, source in enumerate(_sources_by_window(results)):
         mine = [r for r in results if r.source == source]
         sizes = sorted({r.latent_dim for r in mine})
@@ -591,14 +574,12 @@ def _plot_reduced_vs_full(
 ) -> Path:
     """Open-loop simulations of the full and the reduced model from sample ``n_init`` on the
     first ``count`` test records, one row per output."""
-    plt = _pyplot()
     records = [s for s in as_series(list(trajs), what="test data") if s.T > n_init][:count]
     sims_full = simulate_records(full, records, n_init)
     sims_red = simulate_records(reduced, records, n_init)
     n_y = full.n_y
-    fig, axes = plt.subplots(
-        n_y, len(records), figsize=(4.2 * len(records), 2.4 * n_y), squeeze=False, sharex="col"
-    )
+    fig = Figure(figsize=(4.2 * len(records), 2.4 * n_y))
+    axes = fig.subplots(n_y, len(records), squeeze=False, sharex="col")
     assert isinstance(reduced.net, ReducedNet)
     latent = reduced.net.latent_dim
     for j, (rec, yf, yr) in enumerate(zip(records, sims_full, sims_red)):

@@ -45,7 +45,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import logging
-import math
 import os
 import platform
 import time
@@ -57,8 +56,10 @@ from typing import Any
 
 import numpy as np
 
+from analysis.report import AnalysisReport
 from canonid.paper import table1_value
 from canonid.profiles import profile as load_profile
+from canonid.profiles import train_options
 from canonid.reduction import SweepPlan, compression_sweep
 from canonid.reproduce_jobs import (
     ANALYSIS_KEYS,
@@ -68,7 +69,6 @@ from canonid.reproduce_jobs import (
     JobOutcome,
     TrainJob,
     finished,
-    jsonable,
     run_job,
 )
 from canonid.reproduce_report import write_report
@@ -76,10 +76,11 @@ from canonid.runner import JobsFailedError, run_jobs
 from datagen.dataset import Dataset
 from datagen.generate import GenerationConfig, generate_dataset
 from datagen.scenarios import scenario_names
-from learning import model_names
+from learning import Model, model_names
+from learning.presets import net_options
 from learning.training import OptionError
 from models.errors import CheckpointError, DataError
-from models.io import atomic_write_json, read_json
+from models.io import atomic_write_json, jsonable, read_json
 
 __all__ = [
     "RESULT_FILE",
@@ -287,9 +288,6 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
     """The reproduction's independent jobs, in a fixed order: the analyses first (the longest
     single jobs), then Table 1 by system, model, window and seed. The list depends only on the
     settings and the datasets, never on how it is run."""
-    from canonid.profiles import train_options
-    from learning.presets import net_options
-
     stage = settings.stage
     out = settings.out.resolve()
     overrides = dict(stage.get("train", {}))
@@ -559,59 +557,21 @@ def _run_all(
 
 
 # ------------------------------------------------------------------------------ checks
-def _estimate(record: Mapping[str, Any]) -> Any:
-    """An :class:`analysis.Estimate` back from its ``analysis.json`` record (``null`` = +∞)."""
-    from analysis.estimate import Estimate
-    from models.sets import Box
-
-    value = record["value"]
-    return Estimate(
-        quantity=record["quantity"],
-        value=math.inf if value is None else float(value),
-        kind=record["kind"],
-        sets={k: Box(v["lower"], v["upper"]) for k, v in record["sets"].items()},
-        method=record["method"],
-        window=record["window"],
-    )
-
-
-def _constants(analysis: Mapping[str, Any], window: int) -> Any:
-    """Certified Proposition 2 constants of ``window`` from an ``analysis.json`` body:
-    γ_f and γ_h upper bounds, α_ℓ lower bound."""
-    from analysis.bound import BoundConstants
-
-    wanted = {("gamma_f", "upper"), ("gamma_h", "upper"), ("alpha", "lower")}
-    found = {
-        (r["quantity"], r["kind"]): _estimate(r)
-        for r in analysis["estimates"]
-        if r["window"] == window and (r["quantity"], r["kind"]) in wanted
-    }
-    return BoundConstants(
-        window, found[("gamma_f", "upper")], found[("alpha", "lower")], found[("gamma_h", "upper")]
-    )
-
-
 def learned_checks(
     outcomes: Sequence[JobOutcome], datasets: Mapping[str, DatasetInfo]
 ) -> dict[str, dict[str, list[dict[str, Any]]]]:
     """Checks of :mod:`analysis.learned` on the test split with the certified constants, for
-    each analysed system: ``"residual"`` — one record per trained canonical model of seed 0
-    whose window the analysis covers (its one-step residual against the noise-induced level);
-    ``"probe"`` — one record per such window (an affine probe z_t → x_t against Proposition 2's
-    bound; it depends on the data and ℓ only, not on a model)."""
-    from analysis.learned import residual_check, state_probe
-    from learning import Model
-    from models.sets import Box
-
+    each analysed system (:meth:`analysis.report.AnalysisReport.learned_checks`):
+    ``"residual"`` — one record per trained canonical model of seed 0 whose window the analysis
+    covers (its one-step residual against the noise-induced level); ``"probe"`` — one record
+    per such window (an affine probe z_t → x_t against Proposition 2's bound; it depends on the
+    data and ℓ only, not on a model)."""
     out: dict[str, dict[str, list[dict[str, Any]]]] = {}
     for a in (o for o in outcomes if o.kind == "analysis"):
         system = a.recipe["system"]
-        analysis = read_json(Path(a.folder) / "analysis.json", what="analysis")
-        X = Box(analysis["sets"]["X"]["lower"], analysis["sets"]["X"]["upper"])
+        report = AnalysisReport.from_json(Path(a.folder) / "analysis.json")
+        windows = {r.window for r in report.results}
         dataset = Dataset.load(datasets[system].path)
-        # Trajectory satisfies analysis.learned's protocol at run time (read-only arrays)
-        train: list[Any] = list(dataset.split("train"))
-        test: list[Any] = list(dataset.split("test"))
         runs = [
             o
             for o in outcomes
@@ -619,29 +579,23 @@ def learned_checks(
             and o.recipe["system"] == system
             and o.recipe["model"] in CANONICAL_MODELS
             and o.recipe["seed"] == 0
-            and o.recipe["window"] in analysis["windows"]
+            and o.recipe["window"] in windows
         ]
-        residuals = []
-        for o in runs:
-            constants = _constants(analysis, int(o.recipe["window"]))
-            exported = Model.load(o.folder).export()
-            residual = residual_check(exported.H, test, constants, X=X)
-            residuals.append(
-                {
-                    "model": o.recipe["model"],
-                    "window": o.recipe["window"],
-                    "run": o.folder,
-                    **residual.to_dict(),
-                }
-            )
-        probes = []
-        if all(t.x is not None for t in [*train, *test]):
-            for window in sorted({int(o.recipe["window"]) for o in runs}):
-                probe = state_probe(
-                    train, test, window=window, constants=_constants(analysis, window), X=X
-                )
-                probes.append(probe.to_dict())
-        out[system] = {"residual": residuals, "probe": probes}
+        checks = report.learned_checks(
+            [Model.load(o.folder).export() for o in runs],
+            list(dataset.split("train")),
+            list(dataset.split("test")),
+        )
+        residuals = [
+            {
+                "model": o.recipe["model"],
+                "window": o.recipe["window"],
+                "run": o.folder,
+                **residual.to_dict(),
+            }
+            for o, residual in zip(runs, checks.residuals)
+        ]
+        out[system] = {"residual": residuals, "probe": [p.to_dict() for p in checks.probes]}
     return out
 
 

@@ -14,18 +14,21 @@ recipe is an error: the folder belongs to another reproduction.
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
-from learning.training import OptionError
+from analysis.estimate import Budget
+from analysis.report import analyze
+from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, write_history
+from learning import TrainOptions, fit
+from learning.training import CHECKPOINT_FILE, OptionError
 from models.errors import CheckpointError
-from models.io import atomic_write_json, read_json
+from models.io import atomic_write_json, jsonable, read_json
+from models.registry import get_system
+from models.sets import Box
 
 __all__ = [
     "ANALYSIS_KEYS",
@@ -35,7 +38,6 @@ __all__ = [
     "JobOutcome",
     "TrainJob",
     "finished",
-    "jsonable",
     "run_job",
 ]
 
@@ -153,11 +155,6 @@ class TrainJob:
 def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
     """Train (or continue from the checkpoint) and evaluate; the ``canonid train`` run
     folder plus the fields of Table 1."""
-    from canonid.commands.evaluate import RUN_FILE, evaluate_run
-    from canonid.commands.train import _splits, _write_history
-    from learning import TrainOptions, fit
-    from learning.training import CHECKPOINT_FILE
-
     t0, cpu0 = time.perf_counter(), time.process_time()
     recipe: dict[str, Any] = {
         "format": "canonid-run",
@@ -172,7 +169,7 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
         "train_options": dict(job.train_options),
         "command": ["canonid", "reproduce", "(job)", job.name],
     }
-    dataset, train, val, test_name, data_path = _splits(recipe)
+    dataset, train, val, test_name, data_path = load_splits(recipe)
     folder.mkdir(parents=True, exist_ok=True)
     resume = (folder / CHECKPOINT_FILE).is_file()
     atomic_write_json(folder / RUN_FILE, recipe)
@@ -193,7 +190,7 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
             "dt": dataset.dt,
         },
     )
-    _write_history(folder, fitted.history)
+    write_history(folder, fitted.history)
     metrics = evaluate_run(
         folder,
         fitted.model,
@@ -254,8 +251,6 @@ ANALYSIS_KEYS = frozenset({"windows", "X", "U", "W", "trials", "budget_seconds",
 
 
 def _box(value: Any, where: str) -> Any:
-    from models.sets import Box
-
     if value is None:
         return None
     try:
@@ -266,10 +261,6 @@ def _box(value: Any, where: str) -> Any:
 
 
 def _analyse(job: AnalysisJob, folder: Path) -> dict[str, Any]:
-    from analysis.estimate import Budget
-    from analysis.report import analyze
-    from models.registry import get_system
-
     s = job.settings
     t0, cpu0 = time.perf_counter(), time.process_time()
     system = get_system(job.system)
@@ -342,20 +333,3 @@ class _torch_threads:
             import torch
 
             torch.set_num_threads(self.previous)
-
-
-def jsonable(value: Any) -> Any:
-    """JSON-ready copy: numpy scalars to Python, non-finite floats to ``None``, tuples to
-    lists (so a recipe compares equal after a round trip through JSON)."""
-    if isinstance(value, Mapping):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, Path):
-        return str(value)
-    return value

@@ -17,9 +17,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
 from canonid.report import Report
+from datagen.dataset import Dataset
+from learning import Model
+from learning.evaluate import simulate_records
 from models.io import atomic_write_bytes
 
 __all__ = ["QUADROTOR_NOTE", "plot_rollouts", "plot_table1", "system_label", "write_report"]
@@ -41,30 +45,20 @@ def _scale(system: str) -> float:
     return column.scale if column else 1.0
 
 
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig: Any, path: Path) -> Path:
+def _save(fig: Figure, path: Path) -> Path:
     """Write ``fig`` as a PNG without a software stamp (same figure, same bytes), atomically."""
     fig.tight_layout()
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
-    _pyplot().close(fig)
     return atomic_write_bytes(path, buf.getvalue())
 
 
 def plot_table1(cells: Sequence[Any], system: str, path: Path) -> Path:
     """Our MSE against ℓ per model (mean ± std over seeds, solid) and the paper's (dashed),
     log scale, in the paper's scale for the system."""
-    plt = _pyplot()
     scale = _scale(system)
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    fig = Figure(figsize=(6.4, 4.0))
+    ax = fig.subplots()
     models = sorted({c.model for c in cells if c.system == system}, key=_model_order)
     for k, model in enumerate(models):
         mine = sorted(
@@ -108,19 +102,14 @@ def plot_rollouts(
     folder), from a burn-in on the measured samples ``n_init−ℓ … n_init−1``, ``n_init =
     max(ℓ, 50)`` (capped to leave half the record), against the measured and noise-free
     outputs; one panel per output."""
-    from learning import Model
-    from learning.evaluate import simulate_records
-
-    plt = _pyplot()
     test = dataset.split("test") if "test" in dataset.splits else dataset.split("val")
     trajectory = test[record]
     models = {name: Model.load(folder) for name, folder in runs.items()}
     window = max(m.window for m in models.values())
     n_init = min(max(window, 50), max(window, trajectory.T // 2))
     t = np.arange(trajectory.T) * dataset.dt
-    fig, axes = plt.subplots(
-        dataset.n_y, 1, figsize=(7.5, 2.2 * dataset.n_y + 0.6), squeeze=False, sharex=True
-    )
+    fig = Figure(figsize=(7.5, 2.2 * dataset.n_y + 0.6))
+    axes = fig.subplots(dataset.n_y, 1, squeeze=False, sharex=True)
     for i, name in enumerate(dataset.output_names):
         ax = axes[i, 0]
         ax.plot(t, trajectory.y[:, i], ".", ms=2, color="0.6", label="measured y")
@@ -222,8 +211,6 @@ def write_report(
 ) -> tuple[Path, Path, dict[str, str]]:
     """Draw the figures and write ``out/report.md`` and ``out/report.html``; return both paths
     and the figures (name → path)."""
-    from datagen.dataset import Dataset
-
     figures: dict[str, str] = {}
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)

@@ -1,4 +1,4 @@
-"""Random references for closed-loop data generation (SPEC §4, the authors' generator).
+"""Random references for closed-loop data generation (the authors' generator).
 
 Every sampler is a pure function of a :class:`numpy.random.Generator`: the same generator state
 gives the same reference, so a flight's reference is fixed by its seed alone.

@@ -40,15 +40,17 @@ from.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
 
-from learning.model import Model, load_state
 from learning.nets import ReducedNet, build_net
 from models._validate import require_finite
 from models.errors import ShapeError
+
+if TYPE_CHECKING:  # learning.model imports this module for Model.export()
+    from learning.model import Model
 
 __all__ = ["NumpyModel", "ReducedNumpyModel"]
 
@@ -70,14 +72,10 @@ class NumpyModel:
     def __init__(self, model: Model) -> None:
         net = build_net(model.name, **model.net.config())
         net.to(dtype=torch.float64)
-        load_state(
-            net,
-            {k: v.detach().cpu() for k, v in model.net.state_dict().items()},
-            where="exported model",
-        )
+        net.load_state_dict({k: v.detach().cpu() for k, v in model.net.state_dict().items()})
         net.eval()
         self._net = net
-        self._model = Model(net, model.norm, info=model.info)
+        self._model = type(model)(net, model.norm, info=model.info)  # the float64 twin
         norm = model.norm
         self.name: str = model.name
         self.window: int = model.window

@@ -25,7 +25,8 @@ import numpy as np
 import torch
 
 from learning.data import Normalisation
-from learning.nets import ALL_NETS, SequenceModel, build_net
+from learning.export import NumpyModel, ReducedNumpyModel
+from learning.nets import ALL_NETS, ReducedNet, SequenceModel, build_net
 from models._validate import require_finite
 from models.errors import CheckpointError, DataError, ShapeError
 from models.io import atomic_write_bytes, atomic_write_json, read_json
@@ -126,12 +127,9 @@ class Model:
         out = self.predict(ua, ya)
         return out[0] if single else out
 
-    def export(self) -> Any:
+    def export(self) -> NumpyModel:
         """A plain numpy object for the analysis layer (see :mod:`learning.export`): a
         ``ReducedNumpyModel`` for a reduced model, else a ``NumpyModel``."""
-        from learning.export import NumpyModel, ReducedNumpyModel
-        from learning.nets import ReducedNet
-
         return ReducedNumpyModel(self) if isinstance(self.net, ReducedNet) else NumpyModel(self)
 
     # ------------------------------------------------------------------ storage

@@ -1,6 +1,7 @@
 """Figures of a training run: the training curve and open-loop rollouts against the data.
 
-Both write a PNG (matplotlib, Agg backend) and return its path; they never show windows.
+Both write a PNG and return its path. They draw on a :class:`matplotlib.figure.Figure` of their
+own, so they neither need nor change pyplot's backend and never show windows.
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib.figure import Figure
 
 from learning.data import as_series
 from learning.evaluate import simulate_records
@@ -19,19 +21,10 @@ from learning.model import Model
 __all__ = ["plot_rollouts", "plot_training_curve"]
 
 
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def plot_training_curve(history: Sequence[Mapping[str, Any]], path: str | os.PathLike[str]) -> Path:
     """Training and validation losses (normalised units, log scale) and the rollout length."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4))
+    fig = Figure(figsize=(7, 4))
+    ax = fig.subplots()
     train = [(r["epoch"], r["train_loss"]) for r in history if r.get("train_loss") is not None]
     val = [(r["epoch"], r["val_loss"]) for r in history if r.get("val_loss") is not None]
     if train:
@@ -50,7 +43,6 @@ def plot_training_curve(history: Sequence[Mapping[str, Any]], path: str | os.Pat
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out
 
 
@@ -67,14 +59,13 @@ def plot_rollouts(
     """Open-loop simulation of the first ``count`` records from sample ``n_init`` (burn-in on the
     measured samples ``n_init−ℓ … n_init−1``), against the measured and, if present, noise-free
     outputs; one row per output, one column per record."""
-    plt = _pyplot()
     series = [s for s in as_series(data, what="plotted data") if s.T > n_init][:count]
     sims = simulate_records(model, series, n_init)
     names = list(output_names or (f"y{i + 1}" for i in range(model.n_y)))
-    fig, axes = plt.subplots(
+    fig = Figure(figsize=(4.2 * len(series), 2.4 * model.n_y))
+    axes = fig.subplots(
         model.n_y,
         len(series),
-        figsize=(4.2 * len(series), 2.4 * model.n_y),
         squeeze=False,
         sharex="col",
     )
@@ -101,5 +92,4 @@ def plot_rollouts(
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out, dpi=120)
-    plt.close(fig)
     return out

@@ -1,4 +1,4 @@
-"""Output-error training (SPEC §5, paper eq. J(H)), with curriculum, early stopping, resume.
+"""Output-error training (the paper's loss J(H)), with curriculum, early stopping, resume.
 
 One *epoch* draws ``windows_per_epoch`` random sub-windows, uniformly over every start that
 fits the current span ``ℓ + H`` in any training trajectory (start ``s`` of trajectory ``i`` with

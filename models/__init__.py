@@ -8,8 +8,7 @@ analysis} → models``); it needs only numpy and CasADi. The names below are imp
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from models.lazy import lazy_exports
 
 _EXPORTS = {
     "SimResult": "models.base",
@@ -18,7 +17,6 @@ _EXPORTS = {
     "CanonidError": "models.errors",
     "CheckpointError": "models.errors",
     "DataError": "models.errors",
-    "NotImplementedYetError": "models.errors",
     "SetError": "models.errors",
     "ShapeError": "models.errors",
     "UnknownSystemError": "models.errors",
@@ -35,15 +33,4 @@ _EXPORTS = {
 __all__ = sorted(_EXPORTS)
 
 
-def __getattr__(name: str) -> Any:
-    try:
-        module = _EXPORTS[name]
-    except KeyError:
-        raise AttributeError(f"module 'models' has no attribute {name!r}") from None
-    value = getattr(importlib.import_module(module), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_EXPORTS))
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

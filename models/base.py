@@ -18,6 +18,7 @@ import numpy as np
 
 from models._validate import as_matrix, as_vector, require_finite
 from models.errors import SetError, ShapeError
+from models.io import jsonable
 from models.sets import Box
 
 __all__ = ["SimResult", "System"]
@@ -229,7 +230,7 @@ class System(ABC):
             "X": self.X.to_dict(),
             "U": self.U.to_dict(),
             "W": self.W.to_dict(),
-            "parameters": _jsonable(self.parameters),
+            "parameters": jsonable(self.parameters),
         }
 
     def __repr__(self) -> str:
@@ -237,15 +238,3 @@ class System(ABC):
             f"{type(self).__name__}(name={self.name!r}, n_x={self.n_x}, n_u={self.n_u}, "
             f"n_y={self.n_y}, dt={self.dt:g})"
         )
-
-
-def _jsonable(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, Mapping):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    return value

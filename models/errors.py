@@ -11,7 +11,6 @@ __all__ = [
     "CanonidError",
     "CheckpointError",
     "DataError",
-    "NotImplementedYetError",
     "SetError",
     "ShapeError",
     "UnknownSystemError",
@@ -43,7 +42,3 @@ class DataError(CanonidError, ValueError):
 
 class CheckpointError(CanonidError, ValueError):
     """A checkpoint or saved model cannot be used (corrupt, or from another model)."""
-
-
-class NotImplementedYetError(CanonidError, NotImplementedError):
-    """A feature whose issue has not landed yet."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 import hashlib
 import io
 import json
+import math
 import os
 import tempfile
 import zipfile
@@ -29,6 +30,7 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_json",
     "atomic_write_text",
+    "jsonable",
     "npz_bytes",
     "read_json",
     "read_npz",
@@ -73,6 +75,28 @@ def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> Path:
     """Write ``obj`` as indented, key-sorted JSON (deterministic bytes), atomically."""
     text = json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
     return atomic_write_text(path, text)
+
+
+def jsonable(value: Any) -> Any:
+    """A JSON-ready copy of ``value``: mappings with string keys, tuples and arrays as lists,
+    numpy scalars as Python numbers, non-finite floats as ``None`` (JSON has no NaN), paths as
+    strings. A value survives a round trip through JSON equal to its ``jsonable`` copy."""
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (np.floating, float)):
+        v = float(value)
+        return v if math.isfinite(v) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, Path):
+        return str(value)
+    return value
 
 
 def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -96,6 +97,11 @@ class Box:
 
     def to_dict(self) -> dict[str, list[float]]:
         return {"lower": list(self.lower), "upper": list(self.upper)}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> Box:
+        """The box of a :meth:`to_dict` record."""
+        return cls(data["lower"], data["upper"])
 
     def __repr__(self) -> str:
         parts = ", ".join(f"[{lo:g}, {hi:g}]" for lo, hi in zip(self.lower, self.upper))

@@ -1,4 +1,4 @@
-"""The canonical state: ordering, the shift equals the spec's matrices and windows cut from data."""
+"""The canonical state: ordering, the shift as matrices (Ā, B̄, S̄), windows cut from data."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ dims = st.tuples(st.integers(1, 6), st.integers(1, 3), st.integers(1, 3))
 
 @settings(max_examples=40, deadline=None)
 @given(dims, st.integers(0, 2**31 - 1))
-def test_shift_equals_the_spec_matrices(d, seed):
+def test_shift_equals_the_shift_matrices(d, seed):
     ell, n_u, n_y = d
     rng = np.random.default_rng(seed)
     a_bar, b_bar, s_bar = shift_matrices(ell, n_u, n_y)

@@ -87,12 +87,6 @@ def test_bad_arguments_are_one_line_errors(argv, message, tmp_path, capsys):
     assert len(err.strip().splitlines()) == 1
 
 
-def test_run_without_identification_exits_2(tmp_path, capsys, monkeypatch):
-    monkeypatch.setitem(sys.modules, "learning", types.ModuleType("learning"))  # no Model
-    code = main(["analyze", "tank", "--window", "2", "--run", str(tmp_path), "--quiet"])
-    assert code == 2 and "identification" in capsys.readouterr().err
-
-
 def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, monkeypatch):
     """A stand-in for learning.Model with the export contract of the identification layer:
     ``Model.load(run).export()`` has ``H(z, u)`` and ``window``. Its H is the exact canonical

@@ -1,4 +1,4 @@
-"""The torch shift equals the spec's matrices (models.canonical) and windows cut from data."""
+"""The torch shift equals the shift matrices of models.canonical and windows cut from data."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ dims = st.tuples(st.integers(1, 6), st.integers(1, 3), st.integers(1, 3))
 
 @settings(max_examples=30, deadline=None)
 @given(dims, st.integers(1, 5), st.integers(0, 2**31 - 1))
-def test_torch_shift_equals_the_spec_matrices(d, batch, seed):
+def test_torch_shift_equals_the_shift_matrices(d, batch, seed):
     ell, n_u, n_y = d
     rng = np.random.default_rng(seed)
     a_bar, b_bar, s_bar = shift_matrices(ell, n_u, n_y)

@@ -6,11 +6,10 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from datagen.dataset import Dataset, Trajectory
+from datagen.dataset import Dataset
 from datagen.loaders import load_data
-from models.errors import DataError
 
-__all__ = ["add_data_options", "data_options", "load", "pick_split"]
+__all__ = ["add_data_options", "data_options", "load"]
 
 
 def _columns(text: str) -> list[str]:
@@ -42,17 +41,3 @@ def data_options(args: argparse.Namespace) -> dict[str, Any]:
 
 def load(path: str | Path, options: dict[str, Any]) -> Dataset:
     return load_data(path, **options)
-
-
-def pick_split(dataset: Dataset, name: str | None, *, where: str) -> tuple[str, list[Trajectory]]:
-    """Split ``name``; by default ``test`` if present, else the only split there is."""
-    if name is None:
-        if "test" in dataset.splits:
-            name = "test"
-        elif len(dataset.splits) == 1:
-            name = next(iter(dataset.splits))
-        else:
-            raise DataError(
-                f"{where}: no 'test' split; choose one of {sorted(dataset.splits)} with --split"
-            )
-    return name, list(dataset.split(name))

@@ -14,12 +14,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from analysis.bound import BoundConstants
 from analysis.estimate import Budget
-from analysis.learned import residual_check, state_probe
 from analysis.report import AnalysisReport, analyze
 from datagen.dataset import Dataset
-from models.errors import DataError, NotImplementedYetError, SetError
+from models.errors import DataError, SetError
 from models.io import read_json
 from models.registry import get_system
 from models.sets import Box
@@ -28,7 +26,6 @@ from models.sets import Box
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "analyze",
-        help="γ_f, α_ℓ brackets (certified and sampled) and the Proposition 2 bound check",
         description=(
             "Estimate the Lipschitz constant γ_f and the observability constant α_ℓ of a "
             "registered system (certified bounds by interval branch-and-bound, sampled bounds "
@@ -124,37 +121,26 @@ def load_trained_model(run_dir: Path) -> Any:
     Uses the identification layer's contract: ``learning.Model.load(run_dir).export()`` returns
     an object with ``H(z, u) -> y`` and ``window`` (see ``learning/export.py``).
     """
-    try:
-        from learning import Model  # type: ignore[attr-defined,unused-ignore]
-    except ImportError:
-        raise NotImplementedYetError(
-            "--run needs the identification feature (learning.Model), which this version of "
-            "canonid does not have yet"
-        ) from None
+    from learning import Model  # torch, only when a learned model is checked
+
     return Model.load(run_dir).export()
 
 
 def learned_checks(
     model: Any, dataset: Dataset, report: AnalysisReport, *, source: Mapping[str, str]
 ) -> dict[str, Any]:
-    """Residual and probe checks of ``model`` on ``dataset`` with the report's constants."""
-    ell = int(model.window)
-    result = next((r for r in report.results if r.window == ell), None)
-    if result is None:
-        raise SetError(f"the model has window ℓ = {ell}, which the analysis did not cover")
+    """The report's checks of ``model`` (:meth:`AnalysisReport.learned_checks`) on the test
+    split of ``dataset`` (its only split if it has no ``test``), as ``analysis.json`` holds them."""
     test = list(dataset.split("test" if "test" in dataset.splits else next(iter(dataset.splits))))
-    constants = BoundConstants(ell, result.gamma_f.upper, result.alpha.lower, result.gamma_h.upper)
+    checks = report.learned_checks([model], list(dataset.splits.get("train", ())), test)
     out: dict[str, Any] = {
         **source,
         "model": repr(model),
-        "window": ell,
-        "residual": residual_check(model.H, test, constants, X=report.X).to_dict(),
+        "window": int(model.window),
+        "residual": checks.residuals[0].to_dict(),
     }
-    train = list(dataset.splits.get("train", ()))
-    if train and all(t.x is not None for t in [*train, *test]):
-        out["probe"] = state_probe(
-            train, test, window=ell, constants=constants, X=report.X
-        ).to_dict()
+    if checks.probes:
+        out["probe"] = checks.probes[0].to_dict()
     return out
 
 

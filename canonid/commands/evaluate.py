@@ -12,22 +12,17 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data
-from datagen.dataset import Dataset
-from learning import Model, evaluate
-from learning.plots import plot_rollouts
+from canonid.runfolder import METRICS_FILE, RUN_FILE, evaluate_run
+from learning import Model
 from models.errors import DataError
-from models.io import atomic_write_json, read_json
+from models.io import read_json
 
-__all__ = ["evaluate_run", "register", "run"]
-
-RUN_FILE = "run.json"
-METRICS_FILE = "metrics.json"
+__all__ = ["register", "run", "table"]
 
 
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "evaluate",
-        help="score a trained model: 100-step rollout MSE, RMSE / NRMSE / fit %%",
         description=(
             "Score the model of RUN on test data: the paper's metric (MSE of open-loop rollouts "
             "after an ℓ-sample burn-in, physical units) and RMSE / NRMSE / fit %% of a full "
@@ -42,46 +37,6 @@ def register(sub: Any) -> None:
     p.add_argument("--n-init", type=int, help="samples skipped by the scores (default max(ℓ, 50))")
     _data.add_data_options(p)
     p.set_defaults(func=run)
-
-
-def evaluate_run(
-    run_dir: Path,
-    model: Model,
-    dataset: Dataset,
-    *,
-    data_path: str,
-    split: str | None,
-    horizon: int,
-    stride: int,
-    n_init: int | None,
-) -> dict[str, Any]:
-    """Score ``model`` on ``dataset``; write metrics.json and rollouts.png to ``run_dir``."""
-    name, trajs = _data.pick_split(dataset, split, where=data_path)
-    if n_init is None and "n_init" in dataset.metadata:
-        n_init = max(int(dataset.metadata["n_init"]), model.window)
-    ev = evaluate(
-        model,
-        trajs,
-        horizon=horizon,
-        stride=stride,
-        n_init=n_init,
-        output_names=dataset.output_names,
-    )
-    metrics = {
-        "schema": 1,
-        **ev.to_json(),
-        "data": {"path": data_path, "split": name, "n_trajectories": len(trajs)},
-    }
-    atomic_write_json(run_dir / METRICS_FILE, metrics)
-    plot_rollouts(
-        model,
-        trajs,
-        run_dir / "rollouts.png",
-        n_init=ev.n_init,
-        output_names=dataset.output_names,
-        dt=dataset.dt,
-    )
-    return metrics
 
 
 def table(metrics: dict[str, Any]) -> str:

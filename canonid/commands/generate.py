@@ -23,7 +23,6 @@ from models.registry import get_system
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "generate",
-        help="generate a closed-loop dataset (tank PID, planar-drone NMPC)",
         description="Generate a closed-loop identification dataset: random spline references "
         "tracked by the system's controller, bounded measurement noise, train/val/test splits. "
         "Writes DIR/dataset.npz and DIR/dataset.json.",
@@ -136,16 +135,12 @@ def run(args: argparse.Namespace) -> int:
 
 def plot_flights(dataset: Dataset, path: Path, *, n: int = 3) -> Path:
     """Outputs against their references for the first ``n`` test (or train) flights."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # matplotlib only when a figure is asked for
 
     flights = (dataset.split("test") or dataset.split("train"))[:n]
     ref_names = dataset.metadata.get("scenario", {}).get("reference_names", [])
-    fig, axes = plt.subplots(
-        dataset.n_y, len(flights), figsize=(4 * len(flights), 2.2 * dataset.n_y), squeeze=False
-    )
+    fig = Figure(figsize=(4 * len(flights), 2.2 * dataset.n_y))
+    axes = fig.subplots(dataset.n_y, len(flights), squeeze=False)
     for j, flight in enumerate(flights):
         t = [i * dataset.dt for i in range(flight.T)]
         for i, name in enumerate(dataset.output_names):
@@ -165,5 +160,4 @@ def plot_flights(dataset: Dataset, path: Path, *, n: int = 3) -> Path:
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands.evaluate import METRICS_FILE, table
+from canonid.commands.evaluate import table
 from canonid.profiles import profile_names, reduce_options
 from canonid.reduction import (
     DEFAULT_RATES,
@@ -22,6 +22,7 @@ from canonid.reduction import (
     rate_label,
     reduce_run,
 )
+from canonid.runfolder import METRICS_FILE
 from learning import EpochReport
 from models.errors import DataError
 from models.io import read_json
@@ -39,7 +40,6 @@ def _rate(text: str) -> float:
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "reduce",
-        help="auto-encoder reduction of a trained canonical model (one rate, or the study)",
         description=(
             "Reduce the state z of the canonical model (Ours MLP/GRU) trained in RUN: an "
             "auto-encoder (E, D) gives the reduced model x̄⁺ = E(Ā D(x̄) + B̄ u + S̄ Ĥ(D(x̄), u)), "

@@ -35,7 +35,6 @@ def _ints(text: str) -> list[int]:
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "reproduce",
-        help="the paper's Table 1, compression study, analysis and figures: one report",
         description=(
             "Reproduce the paper: generate (or reuse) the datasets, train and score every "
             "(system, model, window, seed) of Table 1, analyse α_ℓ, γ_f and Proposition 2, check "

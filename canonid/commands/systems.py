@@ -12,7 +12,6 @@ from models.registry import get_system, system_names
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "systems",
-        help="list the registered true systems",
         description="List the registered systems with dimensions, units, sampling time and the "
         "sets X, U, W used by the analysis.",
     )

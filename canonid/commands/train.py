@@ -9,23 +9,20 @@ evaluation on the test split (the validation split when there is none).
 from __future__ import annotations
 
 import argparse
-import csv
 import inspect
-import io
 import sys
 from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data
-from canonid.commands.evaluate import RUN_FILE, evaluate_run, table
+from canonid.commands.evaluate import table
 from canonid.profiles import profile_names, train_options
-from datagen.loaders import split_train_val
+from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, write_history
 from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names, presets
 from learning.nets.base import ACTIVATIONS, CanonicalModel
-from learning.plots import plot_training_curve
 from learning.training import CHECKPOINT_FILE
 from models.errors import CheckpointError, DataError
-from models.io import atomic_write_json, atomic_write_text, read_json
+from models.io import atomic_write_json, read_json
 
 __all__ = ["register", "run"]
 
@@ -33,7 +30,6 @@ __all__ = ["register", "run"]
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "train",
-        help="identify a model (Ours MLP/GRU, Classic GRU, Masti et al.) by output error",
         description=(
             "Train a model on DATA (a canonid dataset, a CSV file or folder, or an .npz of "
             "arrays) by output error: ℓ measured samples burn in, the model predicts the next "
@@ -260,34 +256,6 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
     return recipe
 
 
-def _splits(recipe: dict[str, Any]) -> tuple[Any, list[Any], list[Any], str, str]:
-    data_path, options = recipe["data"], recipe["data_options"]
-    dataset = _data.load(data_path, options)
-    if recipe["val"] is not None:
-        val_set = _data.load(recipe["val"], options)
-        val = list(val_set.split("val") if "val" in val_set.splits else val_set.split("train"))
-    elif "val" in dataset.splits:
-        val = list(dataset.split("val"))
-    else:
-        dataset = split_train_val(dataset, val_fraction=recipe["val_fraction"])
-        val = list(dataset.split("val"))
-    train = list(dataset.split("train"))
-    return dataset, train, val, "test" if "test" in dataset.splits else "val", data_path
-
-
-def _write_history(run_dir: Path, history: list[dict[str, Any]]) -> None:
-    keys: list[str] = []
-    for row in history:
-        keys += [k for k in row if k not in keys]
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=keys, lineterminator="\n")
-    writer.writeheader()
-    for row in history:
-        writer.writerow({k: ("" if row.get(k) is None else row[k]) for k in keys})
-    atomic_write_text(run_dir / "history.csv", buf.getvalue())
-    plot_training_curve(history, run_dir / "training_curve.png")
-
-
 def run(args: argparse.Namespace) -> int:
     if args.threads is not None:
         import torch
@@ -303,7 +271,7 @@ def run(args: argparse.Namespace) -> int:
             raise CheckpointError(
                 f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
             )
-    dataset, train, val, test_name, data_path = _splits(recipe)
+    dataset, train, val, test_name, data_path = load_splits(recipe)
     opts = TrainOptions.from_dict(recipe["train_options"])
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_json(run_dir / RUN_FILE, recipe)
@@ -352,7 +320,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         if bar is not None:
             bar.close()
-    _write_history(run_dir, result.history)
+    write_history(run_dir, result.history)
     metrics = evaluate_run(
         run_dir,
         result.model,

@@ -1,4 +1,4 @@
-"""Discrete PID on one state component (the cascaded tanks' generator, SPEC §4).
+"""Discrete PID on one state component (the cascaded tanks' data generator).
 
 With ``e[t] = r[t] − x[t][i]`` (``r`` = column 0 of the reference, ``i`` = ``state_index``)::
 

@@ -1,0 +1,92 @@
+"""The public surface: ``import canonid`` and the command table, and what each loads."""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import canonid
+from canonid.cli import main
+from canonid.commands import COMMANDS, command_names
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _loaded_after(code: str) -> set[str]:
+    """The heavy packages (torch, CasADi, matplotlib) a fresh interpreter holds after ``code``."""
+    probe = (
+        f"{code}\n"
+        "import sys\n"
+        "print(' '.join(m for m in ('torch', 'casadi', 'matplotlib') if m in sys.modules))\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    return set(res.stdout.split())
+
+
+def _cli(*argv: str) -> str:
+    """Run ``canonid argv`` in-process (output discarded), ending on ``--help``'s exit too."""
+    return (
+        "import contextlib, io\n"
+        "from canonid.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    try:\n"
+        f"        main({list(argv)!r})\n"
+        "    except SystemExit as exc:\n"
+        "        assert exc.code == 0, exc.code\n"
+    )
+
+
+def test_import_canonid_loads_no_heavy_package():
+    assert _loaded_after("import canonid") == set()
+
+
+@pytest.mark.parametrize(
+    ("argv", "allowed"),
+    [
+        (("--help",), set()),
+        (("systems",), {"casadi"}),  # the registry defines the systems in CasADi
+        (("generate", "--help"), {"casadi"}),
+    ],
+)
+def test_fast_commands_do_not_load_torch(argv, allowed):
+    assert _loaded_after(_cli(*argv)) <= allowed
+
+
+@pytest.mark.parametrize("name", sorted(set(canonid.__all__) - {"__version__"}))
+def test_public_names_are_the_library_objects_and_documented(name):
+    home = importlib.import_module(canonid._EXPORTS[name])
+    assert getattr(canonid, name) is getattr(home, name)
+    assert f"`{name}`" in (canonid.__doc__ or ""), f"{name} is not in canonid's docstring"
+
+
+def test_public_names_are_listed_once():
+    assert sorted(canonid.__all__) == sorted(["__version__", *canonid._EXPORTS])
+    assert set(canonid.__all__) <= set(dir(canonid))
+    with pytest.raises(AttributeError, match="no attribute 'fitt'"):
+        _ = canonid.fitt
+
+
+def test_the_command_table_names_every_command_module():
+    modules = {
+        p.stem for p in (ROOT / "canonid" / "commands").glob("*.py") if not p.stem.startswith("_")
+    }
+    assert set(command_names()) == modules
+    for command in COMMANDS:
+        module = command.load()
+        assert callable(module.register) and callable(module.run)
+
+
+def test_help_lists_every_command_with_its_line(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    out = " ".join(capsys.readouterr().out.split())  # argparse wraps long lines
+    for command in COMMANDS:
+        assert f"{command.name} {command.help.replace('%%', '%')}" in out
