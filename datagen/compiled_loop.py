@@ -48,10 +48,11 @@ def loop_functions(
 ) -> tuple[ca.Function, ca.Function]:
     """``(one step, chunk steps)`` of the closed loop of ``policy`` around ``system``.
 
-    The step has inputs ``(x, memory, u_previous, window, e, kick, loose, started, lo, hi)``
-    and outputs ``(x[t+1], memory⁺, u[t], x[t], ok)``; the first three are carried from step to
-    step, so the chunk (``mapaccum``) takes the others with one column per step (``lo``, ``hi``
-    are broadcast) and returns the last three with one column per step.
+    Both have inputs ``(x, memory, u_previous, window, e, kick, loose, started, lo, hi)`` and
+    outputs ``(x[t+n], memory after n steps, u, x, ok)`` for ``n`` = 1 or ``chunk`` steps from
+    ``x = x[t]``: the first three inputs are carried from step to step, the others have one
+    column per step (``lo``, ``hi`` are broadcast), and ``u``, ``x``, ``ok`` one column per
+    step (``u[:, -1]`` is the next ``u_previous``).
     """
     nx, nu = system.n_x, system.n_u
     x = ca.MX.sym("x", nx)
@@ -70,7 +71,12 @@ def loop_functions(
         [system.f(x, applied), memory_next, applied, x, ok],
     )
     carried = [0, 1, 2]
-    return step, step.mapaccum(f"{name}_chunk", chunk, carried, carried, {})
+    steps = step.mapaccum(f"{name}_steps", chunk, carried, carried, {})
+    inputs = steps.mx_in()
+    x_next, memory_next, applied, x, ok = steps(*inputs)
+    # mapaccum returns every step's carried values: keep the last state and memory only
+    outputs = [x_next[:, -1], memory_next[:, -1], applied, x, ok]
+    return step, ca.Function(f"{name}_chunk", inputs, outputs)
 
 
 @dataclass(frozen=True)
@@ -125,10 +131,10 @@ class CompiledLoop:
             except RuntimeError as exc:  # a solver failure (error_on_fail)
                 log.debug("compiled loop stopped at sample %d: %s", t, exc)
                 return None
-            carried = [x_next[:, -1], memory[:, -1], u[:, -1]]  # a chunk returns every step's
-            xs.append(x.full())
             us.append(u.full())
+            xs.append(x.full())
             oks.append(ok.full())
+            carried = [x_next, memory, us[-1][:, -1]]
         # C order, as the step loop's arrays (np.save records the order: same bytes on disk)
         x_all = np.ascontiguousarray(np.hstack(xs).T)
         u_all = np.ascontiguousarray(np.hstack(us).T)
