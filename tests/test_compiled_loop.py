@@ -63,7 +63,7 @@ def _nmpc(drone, cache, **kwargs):
     return NMPC(drone, u_eq=(h, h), horizon=HORIZON, cache_dir=cache, **weights, **kwargs)
 
 
-@pytest.fixture(scope="module", params=["fatrop-c", "fatrop"])
+@pytest.fixture(scope="module", params=["fatrop-c", "fatrop", "ipopt"])
 def nmpc(request, drone, tmp_path_factory):
     controller = _nmpc(drone, tmp_path_factory.mktemp("cache"), solver=request.param)
     assert controller.solver_used == request.param

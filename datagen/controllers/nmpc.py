@@ -28,10 +28,10 @@ flight in which a solve fails.
 
 Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver, with the step and the
 compiled loop around it, to C, compiles it on first use and caches the library (see
-:mod:`datagen.controllers._compiled`); ``"fatrop"`` is the
-plugin of the CasADi wheel; ``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found
-and the build succeeds, else ``"fatrop"``; ``"ipopt"`` solves the same NLP with IPOPT (for
-comparisons). :meth:`NMPC.settings` names the solver actually used.
+:mod:`datagen.controllers._compiled`); ``"fatrop"`` is the plugin of the CasADi wheel;
+``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found and the build succeeds, else
+``"fatrop"``; ``"ipopt"`` solves the same NLP with IPOPT (for comparisons).
+:meth:`NMPC.settings` names the solver actually used.
 """
 
 from __future__ import annotations
