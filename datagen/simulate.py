@@ -15,6 +15,11 @@ Time convention (the one of :mod:`datagen.dataset`): for ``t = 0 … T−1``
 All random numbers are drawn from ``rng`` before the loop, in a fixed order (noise, excitation,
 loose-step mask, loose perturbations), so a flight is a pure function of its generator and the
 noise of a flight does not change when its controller does.
+
+A controller that offers a compiled loop (:meth:`Controller.compiled_loop`, the NMPC) for this
+very system flies in chunks of steps, each one CasADi call (:mod:`datagen.compiled_loop`); the
+result has the same bytes as the step loop. A flight in which that loop meets a failed solve or
+a non-finite value is flown again step by step, which counts failures and cuts divergence.
 """
 
 from __future__ import annotations
@@ -132,6 +137,7 @@ def simulate_closed_loop(
     noise: Box | None = None,
     excitation: Excitation | None = None,
     clip_input: bool = False,
+    step_by_step: bool = False,
 ) -> ClosedLoop:
     """Run ``controller`` on ``system`` for ``T = len(reference)`` samples from ``x0``.
 
@@ -144,6 +150,8 @@ def simulate_closed_loop(
         noise: measurement-noise box, default the system's W (use :func:`noise_box`).
         excitation: excitation and loose-step settings (default: none).
         clip_input: clip applied inputs to the system's U (after excitation).
+        step_by_step: call the controller once per step even when it offers a compiled loop
+            (the reference the compiled loop is tested and benchmarked against).
     """
     ref = np.asarray(reference, dtype=np.float64)
     ref = as_matrix(ref, ref.shape[1] if ref.ndim == 2 else 1, "reference")
@@ -159,6 +167,13 @@ def simulate_closed_loop(
     loose = np.less(rng.random(T), exc.loose_probability)
     kicks = exc.loose_std * rng.standard_normal((T, system.n_u))
 
+    compiled = None if step_by_step else controller.compiled_loop()
+    if compiled is not None and compiled.system is system:
+        flown = compiled.run(
+            ref, state, e=e, loose=loose, kicks=kicks, clip=system.U if clip_input else None
+        )
+        if flown is not None:
+            return _closed_loop(system, *flown, w=w, reference=ref, loose=loose)
     xs = np.empty((T, system.n_x))
     us = np.empty((T, system.n_u))
     reasons: Counter[str] = Counter()
@@ -186,16 +201,42 @@ def simulate_closed_loop(
         if not np.all(np.isfinite(state)):
             diverged_at, steps = t, t + 1
             break
-    xs, us = xs[:steps], us[:steps]
+    return _closed_loop(
+        system,
+        xs[:steps],
+        us[:steps],
+        w=w,
+        reference=ref,
+        loose=loose,
+        failures=failures,
+        failure_reasons=dict(sorted(reasons.items())),
+        diverged_at=diverged_at,
+    )
+
+
+def _closed_loop(
+    system: System,
+    xs: np.ndarray,
+    us: np.ndarray,
+    *,
+    w: np.ndarray,
+    reference: np.ndarray,
+    loose: np.ndarray,
+    failures: int = 0,
+    failure_reasons: dict[str, int] | None = None,
+    diverged_at: int | None = None,
+) -> ClosedLoop:
+    """The flight of states ``xs`` and inputs ``us`` (the first ``len(xs)`` samples)."""
+    steps = xs.shape[0]
     y_clean = system.h_batch(xs, us)
     return ClosedLoop(
         x=xs,
         u=us,
         y_clean=y_clean,
         y=y_clean + w[:steps],
-        reference=ref[:steps],
+        reference=reference[:steps],
         failures=failures,
-        failure_reasons=dict(sorted(reasons.items())),
+        failure_reasons=failure_reasons or {},
         loose_steps=int(loose[:steps].sum()),
         diverged_at=diverged_at,
     )

@@ -78,7 +78,7 @@ def test_local_cluster_and_scheduler_address_give_the_same_results():
                 "drone2d",
                 seed=2,
                 counts={"train": 5, "val": 1, "test": 1},
-                T=45,
+                T=60,  # one compiled-loop chunk of 50 steps and 10 single steps
                 controller_options={"horizon": 10},
             ),
             marks=pytest.mark.slow,

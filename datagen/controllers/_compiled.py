@@ -1,12 +1,17 @@
-"""Turn a CasADi ``Function`` (e.g. a fatrop ``nlpsol``) into compiled C, cached on disk.
+"""Turn CasADi ``Function``s (e.g. a fatrop ``nlpsol`` and loops around it) into compiled C,
+cached on disk.
 
-The C source CasADi generates for the function is hashed together with the compiler command
+The functions go into one C file (shared parts such as the solver are generated once). The C
+source CasADi generates for them is hashed together with the compiler command
 and the CasADi version; the shared library lives at ``<cache_dir>/<name>-<hash>.so`` and is
 built on first use only (in a temporary file renamed into place, so concurrent workers that
 build the same library at once are harmless). The default cache folder is
 ``$CANONID_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/canonid`` (``~/.cache/canonid``), never
-the working directory. When no C compiler is found or the build fails, :func:`compile_function`
-returns ``None`` and the caller keeps the pure-CasADi function.
+the working directory. When no C compiler is found or the build fails, :func:`compile_functions`
+returns ``None`` and the caller keeps the pure-CasADi functions.
+
+The compiler runs with ``-ffp-contract=off``: no fused multiply-adds, so the compiled functions
+round exactly as CasADi's own evaluation of the same expressions (bit-identical results).
 """
 
 from __future__ import annotations
@@ -17,11 +22,12 @@ import os
 import shutil
 import subprocess
 import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 
 import casadi as ca
 
-__all__ = ["compile_function", "default_cache_dir"]
+__all__ = ["compile_functions", "default_cache_dir"]
 
 log = logging.getLogger(__name__)
 
@@ -37,20 +43,21 @@ def default_cache_dir() -> Path:
     return Path(base).expanduser() / "canonid"
 
 
-def compile_function(
-    function: ca.Function,
+def compile_functions(
+    functions: Sequence[ca.Function],
     *,
     name: str,
     cache_dir: str | os.PathLike[str] | None = None,
     libraries: tuple[str, ...] = (),
     compiler: str = "gcc",
-    flags: tuple[str, ...] = ("-O2",),
-) -> ca.Function | None:
-    """``function`` generated to C, compiled and loaded with ``ca.external``; ``None`` when no
-    compiler is available or the build fails (logged as a warning).
+    flags: tuple[str, ...] = ("-O2", "-ffp-contract=off"),
+) -> tuple[ca.Function, ...] | None:
+    """``functions`` generated to one C file, compiled and loaded with ``ca.external`` (in the
+    same order); ``None`` when no compiler is available or the build fails (logged as a
+    warning).
 
     Args:
-        function: the function to generate (its inputs and outputs are kept).
+        functions: the functions to generate (names distinct; inputs and outputs are kept).
         name: file-name prefix of the cached library.
         cache_dir: where libraries are kept (default :func:`default_cache_dir`).
         libraries: shared libraries of the CasADi wheel to link (e.g. ``("fatrop", "blasfeo")``);
@@ -62,7 +69,8 @@ def compile_function(
         log.warning("no C compiler %r found: using the pure-CasADi solver", compiler)
         return None
     generator = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-    generator.add(function)
+    for function in functions:
+        generator.add(function)
     source = generator.dump()
     compile_args = [exe, *flags, "-fPIC", "-shared", f"-I{_CASADI_DIR / 'include'}"]
     # libraries after the source: linkers that drop unneeded libraries read left to right
@@ -83,7 +91,7 @@ def compile_function(
             detail = getattr(exc, "stderr", "") or exc
             log.warning("building %s failed, using the pure-CasADi solver: %s", library, detail)
             return None
-    return ca.external(function.name(), str(library))
+    return tuple(ca.external(function.name(), str(library)) for function in functions)
 
 
 def _build(

@@ -10,15 +10,22 @@ A flight is run as::
 ``reference`` has one row per sample (``(T, n_r)``); what its columns mean is the controller's
 documented choice (the tank's PID reads column 0 as the level set-point; the drone's NMPC reads
 position and velocity targets).
+
+A controller whose decision is one CasADi function may also offer a :class:`CompiledLoop`
+(:meth:`Controller.compiled_loop`): the simulator then runs whole chunks of a flight in single
+CasADi calls, with the same result as the step loop above.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from datagen.compiled_loop import CompiledLoop
 
 __all__ = ["ControlStep", "Controller"]
 
@@ -57,3 +64,8 @@ class Controller(ABC):
     @abstractmethod
     def settings(self) -> dict[str, Any]:
         """JSON-ready settings (gains, horizon, weights, solver) for dataset metadata."""
+
+    def compiled_loop(self) -> CompiledLoop | None:
+        """The closed loop of this controller as CasADi functions (see
+        :mod:`datagen.compiled_loop`), or ``None`` (the default): flights go step by step."""
+        return None

@@ -7,7 +7,8 @@ end of the reference repeat its last row), the controller solves::
     s.t.  x_0 = x[t],   x_{k+1} − f(x_k, u_k) = 0  (k = 0 … N−1),   u_k ∈ U
 
 and applies ``u_0``. ``f`` is the system's own discrete map; Q and R are diagonal; P is the
-Riccati solution of the LQR of the linearisation at ``(x_eq, u_eq)`` (python-control ``dlqr``)
+Riccati solution of the LQR of the linearisation at ``(x_eq, u_eq)`` (SciPy
+``solve_discrete_are``, what python-control's ``dlqr`` calls without slycot)
 with ``terminal="lqr"``, or Q with ``terminal="none"``.
 
 Decision vector and constraint order are the stage order fatrop's structure detection needs:
@@ -19,11 +20,18 @@ repeated). A solve that fails (solver status, or a non-finite plan) returns
 ``ControlStep(ok=False)`` with the *shifted previous plan*'s next input (``u_eq`` if there is no
 plan yet); the next solve is warm-started from that plan shifted again.
 
-Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver to C, compiles it on
-first use and caches the library (see :mod:`datagen.controllers._compiled`); ``"fatrop"`` is the
-plugin of the CasADi wheel; ``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found
-and the build succeeds, else ``"fatrop"``; ``"ipopt"`` solves the same NLP with IPOPT (for
-comparisons). :meth:`NMPC.settings` names the solver actually used.
+Compiled loop (:meth:`NMPC.compiled_loop`): the same solve, warm start and shift as one CasADi
+policy ``(warm start, x[t], reference rows) -> (u_0, shifted plan, plan finite)`` around which
+:mod:`datagen.compiled_loop` builds whole chunks of a flight; the simulator uses it for flights
+of the NMPC's own system and falls back on the step loop (and the failure handling above) for a
+flight in which a solve fails.
+
+Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver, with the step and the
+compiled loop around it, to C, compiles it on first use and caches the library (see
+:mod:`datagen.controllers._compiled`); ``"fatrop"`` is the plugin of the CasADi wheel;
+``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found and the build succeeds, else
+``"fatrop"``; ``"ipopt"`` solves the same NLP with IPOPT (for comparisons).
+:meth:`NMPC.settings` names the solver actually used.
 """
 
 from __future__ import annotations
@@ -37,7 +45,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from datagen.controllers._compiled import compile_function
+from datagen.compiled_loop import CompiledLoop, loop_functions
+from datagen.controllers._compiled import compile_functions
 from datagen.controllers.base import Controller, ControlStep
 from models._validate import as_matrix, as_vector
 from models.base import System
@@ -122,7 +131,8 @@ class NMPC(Controller):
         self._zeros_g = np.zeros(self._ng)
 
         nlp = self._nlp()
-        self.solver_used, self._solve = self._build(nlp, solver, cache_dir)
+        self.solver_used, self._solve, loop = self._build(nlp, solver, cache_dir)
+        self._loop = CompiledLoop(system, *loop, window=N + 1, initial_memory=self._initial_guess)
         self._reference: np.ndarray | None = None
         self._guess = np.zeros(self._nw)
         self._plan: np.ndarray | None = None  # (N, nu) inputs of the last usable plan
@@ -130,15 +140,14 @@ class NMPC(Controller):
 
     # ------------------------------------------------------------------ construction
     def _terminal_weight(self) -> np.ndarray:
-        import control
+        from scipy.linalg import solve_discrete_are  # python-control would import matplotlib
 
         x = ca.SX.sym("x", self.system.n_x)
         u = ca.SX.sym("u", self.system.n_u)
         fx = self.system.f(x, u)
         linear = ca.Function("linearisation", [x, u], [ca.jacobian(fx, x), ca.jacobian(fx, u)])
         A, B = (np.asarray(m, dtype=np.float64) for m in linear(self.x_eq, self.u_eq))
-        _, P, _ = control.dlqr(A, B, self.Q, self.R)
-        P = np.asarray(P, dtype=np.float64)
+        P = np.asarray(solve_discrete_are(A, B, self.Q, self.R), dtype=np.float64)
         return 0.5 * (P + P.T)
 
     def _nlp(self) -> dict[str, Any]:
@@ -163,8 +172,9 @@ class NMPC(Controller):
 
     def _build(
         self, nlp: dict[str, Any], solver: str, cache_dir: str | os.PathLike[str] | None
-    ) -> tuple[str, ca.Function]:
-        """The step function ``(initial guess, parameters) -> plan`` for ``solver``.
+    ) -> tuple[str, ca.Function, tuple[ca.Function, ca.Function]]:
+        """The solver used, the step function ``(initial guess, parameters) -> plan`` and the
+        compiled loop's (step, chunk) functions for ``solver``.
 
         The bounds are baked in, so a step passes two arrays (fewer conversions than the six
         inputs of an ``nlpsol``), and ``error_on_fail`` makes a failed solve raise: the generated
@@ -182,7 +192,8 @@ class NMPC(Controller):
                     "max_iter": self.max_iter,
                 },
             }
-            return "ipopt", self._step_function(ca.nlpsol("nmpc", "ipopt", nlp, opts))
+            step = self._step_function(ca.nlpsol("nmpc", "ipopt", nlp, opts))
+            return "ipopt", step, self._loop_functions(step)
         fatrop_opts: dict[str, Any] = {
             **common,
             "structure_detection": "auto",
@@ -195,20 +206,21 @@ class NMPC(Controller):
             },
         }
         step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
+        loop = self._loop_functions(step)
         if solver in ("auto", "fatrop-c"):
-            compiled = compile_function(
-                step,
+            compiled = compile_functions(
+                (step, *loop),
                 name=f"nmpc_{self.system.name}_N{self.horizon}",
                 cache_dir=cache_dir,
                 libraries=("fatrop", "blasfeo"),
             )
             if compiled is not None:
-                return "fatrop-c", compiled
+                return "fatrop-c", compiled[0], (compiled[1], compiled[2])
             if solver == "fatrop-c":
                 raise ShapeError(
                     "solver 'fatrop-c' needs a working C compiler (gcc); use solver='fatrop'"
                 )
-        return "fatrop", step
+        return "fatrop", step, loop
 
     def _step_function(self, nlpsol: ca.Function) -> ca.Function:
         guess = ca.MX.sym("guess", self._nw)
@@ -217,6 +229,23 @@ class NMPC(Controller):
             x0=guess, p=params, lbx=self._lbx, ubx=self._ubx, lbg=self._zeros_g, ubg=self._zeros_g
         )["x"]
         return ca.Function("nmpc_step", [guess, params], [plan], ["guess", "params"], ["plan"])
+
+    def _loop_functions(self, step: ca.Function) -> tuple[ca.Function, ca.Function]:
+        """The compiled loop around one call of ``step``, written as :meth:`__call__` on a
+        successful solve: first state of the guess replaced by ``x``, parameters ``(x, rows
+        t … t+N)``, ``u_0`` applied, the plan shifted (:meth:`_shifted`) for the next guess."""
+        nx, nu, nw = self.system.n_x, self.system.n_u, self._nw
+        guess = ca.MX.sym("guess", nw)
+        x = ca.MX.sym("x", nx)
+        window = ca.MX.sym("window", nx * (self.horizon + 1))
+        w = step(ca.vertcat(x, guess[nx:]), ca.vertcat(x, window))
+        first, last = int(self._u_index[0, 0]), int(self._u_index[-1, 0])
+        shifted = ca.vertcat(w[nx + nu :], w[last : last + nu], w[nw - nx :])
+        finite = ca.sum1(ca.fabs(w)) < np.inf  # false if any entry is nan or ±inf
+        policy = ca.Function(
+            "nmpc_policy", [guess, x, window], [w[first : first + nu], shifted, finite]
+        )
+        return loop_functions(self.system, policy, name="nmpc_loop")
 
     # ------------------------------------------------------------------ the controller
     def reset(self, reference: np.ndarray, x0: np.ndarray) -> None:
@@ -253,6 +282,14 @@ class NMPC(Controller):
             u = self._plan[min(self._since_plan, N - 1)].copy()
             self._guess = self._shifted(self._guess)
         return ControlStep(u=u, ok=False, info={"status": status, "solve_time": elapsed})
+
+    def _initial_guess(self, reference: np.ndarray, x0: np.ndarray) -> np.ndarray:
+        """The warm start of a new flight (what :meth:`reset` sets)."""
+        self.reset(reference, x0)
+        return self._guess.copy()
+
+    def compiled_loop(self) -> CompiledLoop:
+        return self._loop
 
     def _solve_once(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
         try:
