@@ -33,7 +33,7 @@ from datagen.dataset import Dataset, Trajectory
 from models.errors import DataError, ShapeError
 from models.io import read_npz
 
-__all__ = ["from_io_data", "load_csv", "load_data", "load_npz", "split_train_val"]
+__all__ = ["from_io_data", "is_dataset", "load_csv", "load_data", "load_npz", "split_train_val"]
 
 PathLike = str | os.PathLike[str]
 
@@ -293,6 +293,15 @@ def from_io_data(
 
 
 # ---------------------------------------------------------------------------------- dispatch
+def is_dataset(path: PathLike) -> bool:
+    """Whether :func:`load_data` reads ``path`` as a canonid dataset (with its own names and
+    sampling time) rather than as CSV or an ``.npz`` of arrays."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / "dataset.npz").is_file()
+    return p.suffix.lower() in (".npz", ".json") and p.with_suffix(".json").is_file()
+
+
 def load_data(
     path: PathLike,
     *,
@@ -305,9 +314,9 @@ def load_data(
     folder holding ``dataset.npz``), a CSV file or a folder of CSV files (one experiment each,
     in name order), or an ``.npz`` of arrays."""
     p = Path(path)
+    if is_dataset(p):
+        return Dataset.load(p)
     if p.is_dir():
-        if (p / "dataset.npz").is_file():
-            return Dataset.load(p)
         files = sorted(p.glob("*.csv"))
         if not files:
             raise DataError(f"{p}: a folder without dataset.npz or CSV files")
@@ -316,9 +325,7 @@ def load_data(
         raise DataError(f"data file not found: {p}")
     if p.suffix.lower() == ".csv":
         return _csv([p], inputs, outputs, dt, experiment_column)
-    if p.suffix.lower() in (".npz", ".json"):
-        if p.with_suffix(".json").is_file():
-            return Dataset.load(p)
+    if p.suffix.lower() == ".npz":
         return load_npz(p, dt=dt)
     raise DataError(f"{p}: unknown data format (expected a dataset, .csv or .npz)")
 

@@ -17,9 +17,8 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data
-from canonid.commands.evaluate import RUN_FILE, evaluate_run, table
+from canonid.commands.evaluate import RUN_FILE, eval_defaults, evaluate_run, table
 from canonid.profiles import profile_names, train_options
-from datagen.loaders import split_train_val
 from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names
 from learning.nets.base import ACTIVATIONS
 from learning.plots import plot_training_curve
@@ -28,6 +27,9 @@ from models.errors import CheckpointError, DataError
 from models.io import atomic_write_json, atomic_write_text, read_json
 
 __all__ = ["register", "run"]
+
+DEFAULT_PROFILE = "quick"
+DEFAULT_VAL_FRACTION = 0.2
 
 
 def register(sub: Any) -> None:
@@ -46,7 +48,6 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--profile",
         choices=profile_names(),
-        default="quick",
         help="training budget (default quick)",
     )
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
@@ -76,8 +77,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--val-fraction",
         type=float,
-        default=0.2,
-        help="share of DATA held out for validation when it has no val split",
+        help="share of DATA held out for validation when it has no val split (default 0.2)",
     )
     p.add_argument(
         "--hidden",
@@ -96,9 +96,9 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--eval-horizon",
         type=int,
-        default=100,
         metavar="H",
-        help="rollout length of the final evaluation (default 100)",
+        help="rollout length of the final evaluation (default 100, or the final training "
+        "rollout length when that is shorter, or what the scored records hold)",
     )
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -111,8 +111,11 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         raise DataError("give the training DATA (or --resume RUN)")
     if args.model is None or args.window is None:
         raise DataError("--model and --window are required for a new run")
+    if args.val_fraction is not None and not 0 < args.val_fraction < 1:
+        raise OptionError(f"--val-fraction must be in (0, 1), got {args.val_fraction}")
+    profile = args.profile or DEFAULT_PROFILE
     opts = train_options(
-        args.profile,
+        profile,
         epochs=args.epochs,
         lr=args.lr,
         batch_size=args.batch_size,
@@ -136,11 +139,11 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         "data": str(args.data),
         "data_options": _data.data_options(args),
         "val": args.val,
-        "val_fraction": args.val_fraction,
+        "val_fraction": DEFAULT_VAL_FRACTION if args.val_fraction is None else args.val_fraction,
         "model": args.model,
         "window": args.window,
         "net_options": net_options,
-        "profile": args.profile,
+        "profile": profile,
         "train_options": opts.to_dict(),
         "command": ["canonid", *sys.argv[1:]],
     }
@@ -186,11 +189,33 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
     recipe = read_json(run_dir / RUN_FILE, what="run recipe")
     if not isinstance(recipe, dict) or recipe.get("format") != "canonid-run":
         raise CheckpointError(f"{run_dir / RUN_FILE} is not a canonid run recipe")
+    if args.out is not None and args.out.resolve() != run_dir.resolve():
+        raise CheckpointError(f"--out does not apply with --resume: the run continues in {run_dir}")
     diffs = [
         f"{key}: {recipe.get(key)!r} there, {value!r} here"
-        for key, value in (("model", args.model), ("window", args.window), ("data", args.data))
+        for key, value in (
+            ("model", args.model),
+            ("window", args.window),
+            ("data", args.data),
+            ("profile", args.profile),
+            ("val", args.val),
+            ("val_fraction", args.val_fraction),
+        )
         if value is not None and recipe.get(key) != value
     ]
+    recorded = recipe.get("data_options") or {}
+    diffs += [
+        f"{key}: {recorded.get(key)!r} there, {value!r} here"
+        for key, value in _data.data_options(args).items()
+        if value is not None and recorded.get(key) != value
+    ]
+    net_options = recipe.get("net_options") or {}
+    for flag, key, value in (
+        ("--residual", "residual", True),
+        ("--no-feedthrough", "feedthrough", False),
+    ):
+        if getattr(args, flag[2:].replace("-", "_")) and net_options.get(key) != value:
+            diffs.append(f"{flag}: the run was trained without it")
     if args.hidden is not None:
         option = _hidden_option(recipe["model"])
         default = inspect.signature(NETS[recipe["model"]]).parameters[option].default
@@ -213,18 +238,9 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
 
 
 def _splits(recipe: dict[str, Any]) -> tuple[Any, list[Any], list[Any], str, str]:
-    data_path, options = recipe["data"], recipe["data_options"]
-    dataset = _data.load(data_path, options)
-    if recipe["val"] is not None:
-        val_set = _data.load(recipe["val"], options)
-        val = list(val_set.split("val") if "val" in val_set.splits else val_set.split("train"))
-    elif "val" in dataset.splits:
-        val = list(dataset.split("val"))
-    else:
-        dataset = split_train_val(dataset, val_fraction=recipe["val_fraction"])
-        val = list(dataset.split("val"))
-    train = list(dataset.split("train"))
-    return dataset, train, val, "test" if "test" in dataset.splits else "val", data_path
+    dataset, test_name = _data.run_data(recipe)
+    train, val = list(dataset.split("train")), list(dataset.split("val"))
+    return dataset, train, val, test_name, recipe["data"]
 
 
 def _write_history(run_dir: Path, history: list[dict[str, Any]]) -> None:
@@ -241,6 +257,9 @@ def _write_history(run_dir: Path, history: list[dict[str, Any]]) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    for flag, value in (("--threads", args.threads), ("--eval-horizon", args.eval_horizon)):
+        if value is not None and value < 1:
+            raise OptionError(f"{flag} must be an integer >= 1, got {value}")
     if args.threads is not None:
         import torch
 
@@ -257,6 +276,13 @@ def run(args: argparse.Namespace) -> int:
             )
     dataset, train, val, test_name, data_path = _splits(recipe)
     opts = TrainOptions.from_dict(recipe["train_options"])
+    eval_horizon = eval_defaults(
+        dataset.split(test_name),
+        recipe["window"],
+        args.eval_horizon or min(100, opts.rollout_horizon),
+        where=f"{data_path} [{test_name}]",
+        fit=args.eval_horizon is None,
+    )
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_json(run_dir / RUN_FILE, recipe)
 
@@ -311,7 +337,7 @@ def run(args: argparse.Namespace) -> int:
         dataset,
         data_path=data_path,
         split=test_name,
-        horizon=100 if opts.rollout_horizon >= 100 else opts.rollout_horizon,
+        horizon=eval_horizon,
         stride=1,
         n_init=None,
     )
