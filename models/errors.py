@@ -12,6 +12,7 @@ __all__ = [
     "CheckpointError",
     "DataError",
     "NotImplementedYetError",
+    "OutputError",
     "SetError",
     "ShapeError",
     "UnknownSystemError",
@@ -47,3 +48,8 @@ class CheckpointError(CanonidError, ValueError):
 
 class NotImplementedYetError(CanonidError, NotImplementedError):
     """A feature whose issue has not landed yet."""
+
+
+class OutputError(CanonidError, OSError):
+    """A file or folder cannot be written: a file where a folder is expected, a full disk, a
+    read-only file system, missing permissions."""

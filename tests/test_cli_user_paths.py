@@ -9,6 +9,7 @@ import shutil
 
 import numpy as np
 import pytest
+from cli_helpers import one_line_error
 
 from canonid.cli import main
 from models.registry import get_system
@@ -56,15 +57,6 @@ def trained(csv_files, tmp_path_factory):
     return run
 
 
-def _one_line_error(capsys, code, *needles):
-    err = capsys.readouterr().err
-    assert code == 1, err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
-    for needle in needles:
-        assert needle in err, err
-    return err
-
-
 def test_train_with_a_val_csv_scores_the_val_file(trained, csv_files):
     metrics = json.loads((trained / "metrics.json").read_text())
     assert metrics["data"]["split"] == "val" and metrics["data"]["n_trajectories"] == 1
@@ -98,9 +90,9 @@ def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
     assert metrics["data"] == {"path": str(test_csv), "split": "all", "n_trajectories": 2}
     assert metrics["n_rollouts"] == 2 * (RECORD - 3 - 100 + 1)
     code = main(["evaluate", str(trained), "--data", str(test_csv), "--dt", "1.0"])
-    _one_line_error(capsys, code, str(test_csv), "dt = 1 s, the run's is 2 s")
+    one_line_error(capsys, code, str(test_csv), "dt = 1 s, the run's is 2 s")
     code = main(["evaluate", str(trained), "--dt", "1.0"])
-    _one_line_error(capsys, code, "--dt apply to --data FILE")
+    one_line_error(capsys, code, "--dt apply to --data FILE")
 
 
 def test_analyze_run_checks_a_csv_trained_tank_model(trained, tmp_path, capsys):
@@ -108,7 +100,7 @@ def test_analyze_run_checks_a_csv_trained_tank_model(trained, tmp_path, capsys):
     argv = ["analyze", "tank", "--run", str(trained), "--window", "3", "--trials", "5"]
     quick = ["--boxes", "40", "--budget", "5", "--quiet", "--out", str(out)]
     # CSV records carry no noise-free outputs: refused before the analysis runs
-    _one_line_error(capsys, main([*argv, *quick]), "needs the noise w = y − y_clean", "[val]")
+    one_line_error(capsys, main([*argv, *quick]), "needs the noise w = y − y_clean", "[val]")
     assert not out.exists()
     # the same records with y_clean, as an .npz the run's options read
     system, rng = get_system("tank"), np.random.default_rng(8)
@@ -121,7 +113,7 @@ def test_analyze_run_checks_a_csv_trained_tank_model(trained, tmp_path, capsys):
     assert learned["window"] == 3 and learned["split"] == "all"
     assert learned["data"] == str(test_npz) and learned["residual"]["rows"] == 128 - 3
     code = main(["analyze", "drone2d", "--run", str(trained), "--window", "3", "--quiet"])
-    _one_line_error(capsys, code, "the run has n_u=1, n_y=1; drone2d has 2, 3")
+    one_line_error(capsys, code, "the run has n_u=1, n_y=1; drone2d has 2, 3")
 
 
 def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, capsys):
@@ -140,7 +132,7 @@ def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, ca
     assert metrics["n_init"] == 39 and metrics["rollout_horizon"] == 40 - 3
     # a split too short for the window is refused before any training
     code = main([*argv, "--window", "120", "--out", str(tmp_path / "x")])
-    _one_line_error(capsys, code, "[val]", "window ℓ = 120 needs at least ℓ + 1 = 121")
+    one_line_error(capsys, code, "[val]", "window ℓ = 120 needs at least ℓ + 1 = 121")
     assert not (tmp_path / "x").exists()
 
 
@@ -161,7 +153,7 @@ def test_resume_refuses_what_it_would_ignore(trained, tmp_path, capsys, extra, n
     shutil.copytree(trained, run)
     before = {p.name: p.read_bytes() for p in run.iterdir()}
     code = main(["train", "--resume", str(run), "--epochs", "3", "--no-progress", *extra])
-    _one_line_error(capsys, code, needle)
+    one_line_error(capsys, code, needle)
     assert {p.name: p.read_bytes() for p in run.iterdir()} == before
 
 

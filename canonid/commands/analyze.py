@@ -18,7 +18,7 @@ from analysis.bound import BoundConstants
 from analysis.estimate import Budget
 from analysis.learned import residual_check, state_probe
 from analysis.report import AnalysisReport, analyze
-from canonid.commands import _data
+from canonid.commands import _data, _paths
 from datagen.dataset import Dataset
 from models.errors import DataError, NotImplementedYetError, SetError
 from models.registry import get_system
@@ -79,7 +79,7 @@ def register(sub: Any) -> None:
         help="data for --run: a canonid dataset, or CSV / .npz read with the run's data options "
         "(default: the run's own data, split as training split them)",
     )
-    p.add_argument("--out", type=Path, help="output folder (default runs/analyze-SYSTEM)")
+    p.add_argument("--out", type=_paths.folder, help="output folder (default runs/analyze-SYSTEM)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -213,7 +213,7 @@ def run(args: argparse.Namespace) -> int:
     X = parse_box(args.X, system.n_x, "X") if args.X else system.X
     U = parse_box(args.U, system.n_u, "U") if args.U else system.U
     W = parse_box(args.W, system.n_y, "W") if args.W else system.W
-    out: Path = args.out or Path("runs") / f"analyze-{system.name}"
+    out = _paths.check_folder(args.out or Path("runs") / f"analyze-{system.name}")
     if args.boxes is not None and args.boxes < 1:
         raise SetError(f"--boxes must be an integer >= 1, got {args.boxes}")
     budget = Budget(seconds=args.budget, boxes=args.boxes or 10**9)

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _data
+from canonid.commands import _data, _paths, _progress
 from canonid.commands.evaluate import RUN_FILE, eval_defaults, evaluate_run, table
 from canonid.profiles import profile_names, train_options
 from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names
@@ -67,7 +67,9 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
-    p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/MODEL-lL)")
+    p.add_argument(
+        "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/MODEL-lL)"
+    )
     p.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in RUN")
     p.add_argument(
         "--val",
@@ -256,6 +258,14 @@ def _write_history(run_dir: Path, history: list[dict[str, Any]]) -> None:
     plot_training_curve(history, run_dir / "training_curve.png")
 
 
+def _discard(run_dir: Path, created: bool) -> None:
+    """Remove what a new run wrote before it failed without a checkpoint: its recipe, and the
+    folder when this run created it and nothing else is in it."""
+    (run_dir / RUN_FILE).unlink(missing_ok=True)
+    if created and not any(run_dir.iterdir()):
+        run_dir.rmdir()
+
+
 def run(args: argparse.Namespace) -> int:
     for flag, value in (("--threads", args.threads), ("--eval-horizon", args.eval_horizon)):
         if value is not None and value < 1:
@@ -270,6 +280,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         recipe = _recipe(args)
         run_dir = args.out or Path("runs") / f"{recipe['model']}-l{recipe['window']}"
+        _paths.check_folder(run_dir)
         if (run_dir / CHECKPOINT_FILE).exists():
             raise CheckpointError(
                 f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
@@ -283,29 +294,20 @@ def run(args: argparse.Namespace) -> int:
         where=f"{data_path} [{test_name}]",
         fit=args.eval_horizon is None,
     )
+    created = not run_dir.exists()
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_json(run_dir / RUN_FILE, recipe)
 
-    bar = None
-    if not args.no_progress:
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=opts.epochs,
-            desc=f"train {recipe['model']}",
-            unit="epoch",
-            file=sys.stderr,
-            dynamic_ncols=True,
-        )
+    bar = _progress.LazyBar(
+        opts.epochs, f"train {recipe['model']}", enabled=not args.no_progress, dynamic_ncols=True
+    )
 
     def progress(report: EpochReport) -> None:
-        if bar is None:
-            return
-        bar.n = report.epoch
         val_text = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
-        bar.set_postfix_str(
+        bar.show(
+            report.epoch,
             f"H={report.horizon} train={report.train_loss:.3g} val={val_text} "
-            f"best={report.best_val_loss:.3g}@{report.best_epoch}"
+            f"best={report.best_val_loss:.3g}@{report.best_epoch}",
         )
 
     try:
@@ -327,9 +329,12 @@ def run(args: argparse.Namespace) -> int:
                 "dt": dataset.dt,
             },
         )
+    except BaseException:
+        if args.resume is None and not (run_dir / CHECKPOINT_FILE).exists():
+            _discard(run_dir, created)
+        raise
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     _write_history(run_dir, result.history)
     metrics = evaluate_run(
         run_dir,
