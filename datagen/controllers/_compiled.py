@@ -3,7 +3,10 @@
 The C source CasADi generates for the function is hashed together with the compiler command
 and the CasADi version; the shared library lives at ``<cache_dir>/<name>-<hash>.so`` and is
 built on first use only (in a temporary file renamed into place, so concurrent workers that
-build the same library at once are harmless). The default cache folder is
+build the same library at once are harmless). Beside it, ``<name>-<hash>.so.sha256`` holds the
+SHA-256 of the library's bytes: a cached library that does not match it (truncated, damaged,
+replaced) or lacks it is rebuilt rather than loaded, since loading a damaged shared library can
+kill the process without a message (SIGBUS). The default cache folder is
 ``$CANONID_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/canonid`` (``~/.cache/canonid``), never
 the working directory. When no C compiler is found or the build fails, :func:`compile_function`
 returns ``None`` and the caller keeps the pure-CasADi function.
@@ -20,6 +23,8 @@ import tempfile
 from pathlib import Path
 
 import casadi as ca
+
+from models.io import atomic_write_text, sha256_file
 
 __all__ = ["compile_function", "default_cache_dir"]
 
@@ -76,14 +81,36 @@ def compile_function(
     ).hexdigest()[:20]
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     library = folder / f"{name}-{digest}.so"
-    if not library.exists():
+    if not _verified(library):
         try:
             _build(source, compile_args, link_args, folder, library)
         except (OSError, subprocess.CalledProcessError) as exc:
             detail = getattr(exc, "stderr", "") or exc
             log.warning("building %s failed, using the pure-CasADi solver: %s", library, detail)
             return None
-    return ca.external(function.name(), str(library))
+    try:
+        return ca.external(function.name(), str(library))
+    except RuntimeError as exc:
+        log.warning("loading %s failed, using the pure-CasADi solver: %s", library, exc)
+        return None
+
+
+def _checksum_file(library: Path) -> Path:
+    return library.with_name(library.name + ".sha256")
+
+
+def _verified(library: Path) -> bool:
+    """Whether ``library`` exists and matches the checksum written when it was built."""
+    if not library.exists():
+        return False
+    try:
+        expected = _checksum_file(library).read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        expected = ""
+    if expected and expected == sha256_file(library):
+        return True
+    log.warning("cached library %s does not match its checksum: rebuilding it", library)
+    return False
 
 
 def _build(
@@ -100,5 +127,7 @@ def _build(
             capture_output=True,
             text=True,
         )
+        checksum = sha256_file(target)
         os.replace(target, library)
+    atomic_write_text(_checksum_file(library), checksum + "\n")
     log.info("compiled %s", library)
