@@ -405,3 +405,10 @@ def test_random_npz_arrays_give_a_clean_error_or_valid_data(arrays, dt, tmp_path
     path = tmp_path_factory.mktemp("fuzz") / "f.npz"
     np.savez(path, **arrays)
     _clean_or_valid(path, dt=dt)
+
+
+def test_reduce_into_a_training_run_names_it_a_training_run(good, capsys):
+    before = files_under(good["run"])
+    code = main(["reduce", str(good["run"]), "--compression", "0.5", "--out", str(good["run"])])
+    one_line_error(capsys, code, f"{good['run']} already holds a training run")
+    assert files_under(good["run"]) == before
