@@ -174,3 +174,16 @@ def test_analyze_tank_for_windows_3_to_10_on_the_default_sets(tmp_path, capsys):
     assert "Sampled bounds:" in out and "samples have no finite ∂O_ℓ/∂x" in out
     data = json.loads((tmp_path / "a" / "analysis.json").read_text())
     assert data["windows"] == list(range(3, 11))
+
+
+def test_validation_data_of_another_sampling_time_or_shape_are_refused(csv_files, tmp_path, capsys):
+    train_csv = csv_files[0]
+    argv = ["train", str(train_csv), *CSV_OPTIONS, "--dt", str(DT), "--model", "mlp"]
+    argv += ["--window", "3", *QUICK, "--out", str(tmp_path / "run")]
+    other_dt, two_outputs = tmp_path / "dt.npz", tmp_path / "wide.npz"
+    np.savez(other_dt, u=np.ones((150, 1)), y=np.ones((150, 1)), dt=1.0)
+    np.savez(two_outputs, u=np.ones((150, 1)), y=np.ones((150, 2)))
+    one_line_error(capsys, main([*argv, "--val", str(other_dt)]), "dt.npz: holds dt = 1.0")
+    code = main([*argv, "--val", str(two_outputs)])
+    one_line_error(capsys, code, "wide.npz: 2 output(s) ['y1', 'y2'],", "train.csv's are ['level']")
+    assert not (tmp_path / "run").exists()

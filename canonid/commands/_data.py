@@ -72,7 +72,11 @@ def load(path: str | Path, options: Mapping[str, Any]) -> Dataset:
 
 
 def check_compatible(
-    dataset: Dataset, reference: Dataset | Mapping[str, Any], *, where: str
+    dataset: Dataset,
+    reference: Dataset | Mapping[str, Any],
+    *,
+    where: str,
+    whose: str = "the run's",
 ) -> None:
     """Refuse data whose sampling time or signals differ from ``reference`` (a dataset, or a
     model's ``info`` with ``dt``, ``input_names`` and ``output_names``)."""
@@ -86,14 +90,12 @@ def check_compatible(
         ref = reference
     dt = ref.get("dt")
     if isinstance(dt, (int, float)) and not math.isclose(dataset.dt, dt, rel_tol=1e-9):
-        raise DataError(f"{where}: sampling time dt = {dataset.dt:g} s, the run's is {dt:g} s")
+        raise DataError(f"{where}: sampling time dt = {dataset.dt:g} s, {whose} is {dt:g} s")
     for key, kind in (("input_names", "input"), ("output_names", "output")):
         names = ref.get(key)
         have = list(getattr(dataset, key))
         if isinstance(names, list) and len(names) != len(have):
-            raise DataError(
-                f"{where}: {len(have)} {kind}(s) {have}, the run has {len(names)} {names}"
-            )
+            raise DataError(f"{where}: {len(have)} {kind}(s) {have}, {whose} are {names}")
 
 
 def run_data(recipe: Mapping[str, Any]) -> tuple[Dataset, str]:
@@ -112,7 +114,7 @@ def run_data(recipe: Mapping[str, Any]) -> tuple[Dataset, str]:
     if recipe.get("val") is not None:
         val_path = str(recipe["val"])
         val_set = load(val_path, options)
-        check_compatible(val_set, dataset, where=val_path)
+        check_compatible(val_set, dataset, where=val_path, whose=f"{data_path}'s")
         if "val" in val_set.splits:
             val = val_set.split("val")
         elif len(val_set.splits) == 1:
