@@ -265,11 +265,12 @@ def run_jobs(
     retried = 0
     if total == 0:
         return []
-    bar = tqdm(total=total, desc=description, unit="job", disable=not progress, leave=True)
+    bar = None  # shown once the executor runs, so that a failed start prints one line
     try:
         with _executor(
             int(workers), scheduler, connect_timeout=connect_timeout, processes=processes
         ) as (executor, window):
+            bar = tqdm(total=total, desc=description, unit="job", disable=not progress, leave=True)
             queue = list(range(total - 1, -1, -1))  # pop() from the end: job order
             running: dict[cf.Future[Any], int] = {}
             while queue or running:
@@ -303,7 +304,8 @@ def run_jobs(
                         refresh=False,
                     )
     finally:
-        bar.close()
+        if bar is not None:
+            bar.close()
     if failed:
         raise JobsFailedError(sorted(failed, key=lambda f: f.position), total)
     return results

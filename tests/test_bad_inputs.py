@@ -412,3 +412,11 @@ def test_reduce_into_a_training_run_names_it_a_training_run(good, capsys):
     code = main(["reduce", str(good["run"]), "--compression", "0.5", "--out", str(good["run"])])
     one_line_error(capsys, code, f"{good['run']} already holds a training run")
     assert files_under(good["run"]) == before
+
+
+def test_a_runner_that_cannot_start_prints_its_error_alone(tmp_path, capsys):
+    """No progress bar before the error: the bar appears once the jobs run."""
+    out = tmp_path / "data"
+    code = main(["generate", "tank", "--scheduler", "tcp://127.0.0.1:1", "--out", str(out)])
+    one_line_error(capsys, code, "tcp://127.0.0.1:1' refused the connection")
+    assert not out.exists()
