@@ -420,3 +420,37 @@ def test_a_runner_that_cannot_start_prints_its_error_alone(tmp_path, capsys):
     code = main(["generate", "tank", "--scheduler", "tcp://127.0.0.1:1", "--out", str(out)])
     one_line_error(capsys, code, "tcp://127.0.0.1:1' refused the connection")
     assert not out.exists()
+
+
+JSON = st.recursive(
+    st.none() | st.booleans() | st.integers(-3, 3) | st.floats(-2, 2) | st.text(max_size=3),
+    lambda inner: (
+        st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=5), inner, max_size=3)
+    ),
+    max_leaves=6,
+)
+HEADER_FIELDS = [
+    "format_version",
+    "checksum_sha256",
+    "dt",
+    "input_names",
+    "output_names",
+    "state_names",
+    "counts",
+    "trajectory_info",
+    "metadata",
+]
+
+
+@FUZZ
+@given(field=st.sampled_from(HEADER_FIELDS), value=JSON)
+def test_random_dataset_json_fields_give_a_clean_error_or_valid_data(
+    field, value, good, tmp_path_factory
+):
+    folder = tmp_path_factory.mktemp("fuzz") / "ds"
+    shutil.copytree(good["data"], folder)
+    meta = folder / "dataset.json"
+    header = json.loads(meta.read_text())
+    header[field] = value
+    meta.write_text(json.dumps(header))
+    _clean_or_valid(folder)
