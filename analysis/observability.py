@@ -41,7 +41,7 @@ import casadi as ca
 import numpy as np
 
 from analysis._local import local_minima
-from analysis.enclosure import Enclosure, RangeEnclosure
+from analysis.enclosure import Enclosure, RangeEnclosure, describe_flags
 from analysis.estimate import Bracket, Budget, Estimate
 from analysis.interval import Interval, _sum_upper, norm_lower, norm_upper, quotient_lower
 from analysis.maps import Horizon, batched, check_window, varying_dims
@@ -64,10 +64,38 @@ def _sets(X: Box, U: Box) -> dict[str, Box]:
 
 
 def _smin(j: np.ndarray) -> np.ndarray:
-    """Smallest of the ``n`` singular values of each ``(m, n)`` matrix (0 when ``m < n``)."""
+    """Smallest of the ``n`` singular values of each ``(m, n)`` matrix (0 when ``m < n``).
+
+    A matrix with a non-finite entry (a Jacobian sampled at a singularity, e.g. the tank's √ at
+    level 0) attains no ratio: its value is ``inf``, which keeps it out of every minimum.
+    """
+    out = np.full(j.shape[0], np.inf)
+    with np.errstate(invalid="ignore"):
+        finite = np.all(np.isfinite(j), axis=(1, 2))
     if j.shape[1] < j.shape[2]:
-        return np.zeros(j.shape[0])
-    return np.linalg.svd(j, compute_uv=False)[:, -1]
+        out[finite] = 0.0
+    elif finite.any():
+        out[finite] = np.linalg.svd(j[finite], compute_uv=False)[:, -1]
+    return out
+
+
+def _short(values: np.ndarray) -> str:
+    return "[" + ", ".join(f"{v:.4g}" for v in values) + "]"
+
+
+def _nonfinite_note(hz: Horizon, point: np.ndarray, count: int, total: int) -> dict[str, object]:
+    """The label of a sampled bound that skipped ``count`` of ``total`` points where the
+    Jacobian is not finite, with the reason the interval evaluator gives at the first one."""
+    n = hz.system.n_x
+    res = Enclosure(hz.O, wrt=0)([Interval.point(point[None, :n]), Interval.point(point[None, n:])])
+    flags = int(res.jac_flags[0])
+    return {
+        "nonfinite_samples": count,
+        "samples": total,
+        "nonfinite_reason": (describe_flags(flags) if flags else "it is not finite there")
+        + f" (first at x = {_short(point[:n])}, ū = {_short(point[n:])}); those points are "
+        "left out of the minimum, which stays an upper bound",
+    }
 
 
 def _interior_dim(X: Box) -> int:
@@ -105,8 +133,9 @@ def _uniform_rows(rng: np.random.Generator, boxes: Sequence[Box], count: int) ->
 
 def _upper_smin(
     hz: Horizon, X: Box, U: Box, budget: Budget, rng: np.random.Generator
-) -> tuple[float, np.ndarray]:
-    """Smallest ``σ_min(∂O/∂x)`` over samples and local minimisations of ``‖J d‖²/‖d‖²``."""
+) -> tuple[float, np.ndarray, dict[str, object]]:
+    """Smallest ``σ_min(∂O/∂x)`` over samples and local minimisations of ``‖J d‖²/‖d‖²``;
+    samples where the Jacobian is not finite are left out and counted in the returned notes."""
     n, ubox = hz.system.n_x, input_box(U, hz.window)
     pts = _uniform_rows(rng, (X, ubox), budget.samples)
 
@@ -115,12 +144,15 @@ def _upper_smin(
         return jac.reshape(points.shape[0], hz.n_obs, n)
 
     values = _smin(jacobians(pts))
+    skipped = np.flatnonzero(~np.isfinite(values))
+    notes = {} if not skipped.size else _nonfinite_note(hz, pts[skipped[0]], skipped.size, len(pts))
     best = int(np.argmin(values))
-    if hz.n_obs < n or values[best] <= 0:
-        return float(values[best]), pts[best]
+    if hz.n_obs < n or not 0 < values[best] < np.inf:
+        return float(values[best]), pts[best], notes
     x, ub, d = ca.SX.sym("x", n), ca.SX.sym("u", ubox.dim), ca.SX.sym("d", n)
     jd = ca.jtimes(hz.O(x, ub), x, d)
     order = np.argsort(values)[: budget.starts]
+    order = order[np.isfinite(values[order])]
     weakest = np.linalg.svd(jacobians(pts[order]))[2][:, -1, :]  # right singular vectors
     ends = local_minima(
         ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
@@ -131,12 +163,12 @@ def _upper_smin(
     every = np.concatenate([pts, np.array(ends)[:, : n + ubox.dim]])
     all_values = np.concatenate([values, _smin(jacobians(every[len(pts) :]))])
     best = int(np.argmin(all_values))
-    return float(all_values[best]), every[best]
+    return float(all_values[best]), every[best], notes
 
 
 def _upper_pairs(
     hz: Horizon, X: Box, U: Box, budget: Budget, rng: np.random.Generator
-) -> tuple[float, np.ndarray]:
+) -> tuple[float, np.ndarray, dict[str, object]]:
     """Smallest pair ratio over samples and local minimisations of the squared ratio."""
     n, ubox = hz.system.n_x, input_box(U, hz.window)
     pairs = _uniform_rows(rng, (X, X, ubox), budget.samples)
@@ -159,7 +191,7 @@ def _upper_pairs(
     every = np.concatenate([pairs, np.array(ends)])
     all_values = np.concatenate([values, ratios(every[len(pairs) :])])
     best = int(np.argmin(all_values))
-    return float(all_values[best]), every[best]
+    return float(all_values[best]), every[best], {}
 
 
 def alpha_upper(
@@ -193,8 +225,8 @@ def alpha_upper(
     results = []
     for search, method, key in searches:
         t0 = time.perf_counter()
-        value, point = search(hz, X, U, budget, rng)
-        details = {key: point.tolist(), "seed": seed}
+        value, point, notes = search(hz, X, U, budget, rng)
+        details = {key: point.tolist(), "seed": seed, **notes}
         results.append(_upper(ell, X, U, value, method, budget, t0, details))
     return results
 

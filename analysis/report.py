@@ -298,7 +298,25 @@ class AnalysisReport:
         if limits:
             lines.append("Certified bounds out of reach:")
             lines.extend(f"  - {line}" for line in limits)
+        skipped = self._skipped_samples()
+        if skipped:
+            lines.append("Sampled bounds:")
+            lines.extend(f"  - {line}" for line in skipped)
         return "\n".join(lines)
+
+    def _skipped_samples(self) -> list[str]:
+        """One line per window whose sampled α_ℓ upper bound left out points where ∂O_ℓ/∂x is
+        not finite (the label the estimator put in its details)."""
+        lines = []
+        for r in self.results:
+            details = r.alpha.upper.details
+            if "nonfinite_samples" in details:
+                lines.append(
+                    f"α_ℓ upper, ℓ = {r.window}: {details['nonfinite_samples']} of "
+                    f"{details['samples']} samples have no finite ∂O_ℓ/∂x — "
+                    f"{details['nonfinite_reason']}"
+                )
+        return lines
 
     def figure(self, path: str | Path) -> Path:
         """Write the figure "bound and observed error versus ℓ" (PNG, log scale)."""

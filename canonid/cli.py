@@ -3,8 +3,10 @@
 Each subcommand lives in its own module under :mod:`canonid.commands` and exposes
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> int``. Only the module of
 the command being run is imported: ``canonid --help`` and ``canonid systems`` load neither torch
-nor CasADi. Errors raised on purpose (:class:`models.errors.CanonidError`) print as one line on
-stderr with a non-zero exit; ``--debug`` shows the traceback instead.
+nor CasADi. Errors raised on purpose (:class:`models.errors.CanonidError`) and errors of the file
+system (``OSError``: a full disk, a read-only folder) print as one line on stderr with a non-zero
+exit; ``--debug`` shows the traceback instead. Any other exception is a bug and keeps its
+traceback.
 """
 
 from __future__ import annotations
@@ -67,6 +69,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.debug:
             raise
         print(f"canonid {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except OSError as exc:  # a file system that refuses a read or a write: not a bug of ours
+        if args.debug:
+            raise
+        where = f"{exc.filename}: " if exc.filename is not None else ""
+        print(f"canonid {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
         return EXIT_ERROR
     except KeyboardInterrupt:
         print(f"canonid {args.command}: interrupted", file=sys.stderr)

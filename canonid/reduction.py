@@ -205,8 +205,12 @@ def reduce_run(
         before = read_json(out / RUN_FILE, what="run recipe")
         check_same(before if isinstance(before, dict) else {}, key, what=f"run {out}")
     elif (out / CHECKPOINT_FILE).exists():
+        there = read_json(out / RUN_FILE, what="run recipe") if (out / RUN_FILE).is_file() else {}
+        is_reduction = isinstance(there, dict) and there.get("kind") == "reduction"
         raise CheckpointError(
             f"{out} already holds a reduction run; resume it or choose another output folder"
+            if is_reduction
+            else f"{out} already holds a training run; choose another output folder"
         )
     dataset, train, val, test_name, data_path = load_splits(recipe)
     out.mkdir(parents=True, exist_ok=True)

@@ -17,7 +17,8 @@ The three go through one loop: jobs are submitted to a ``concurrent.futures``-st
 inline one, or ``dask.distributed.Client.get_executor``), a bounded number at a time, and are
 collected as they complete. ``on_result(position, result)`` is called in this process as each
 job finishes (generation writes its resumable parts there); the return value is the list of
-results in job order. A job that raises is retried ``retries`` times; if it still fails, the
+results in job order. A job that raises is retried ``retries`` times (not for a
+:class:`~models.errors.CanonidError`, which is deterministic); if it still fails, the
 other jobs finish and :class:`JobsFailedError` lists every failed job with its error — a job is
 never dropped silently. The progress bar (tqdm, on stderr) shows jobs done, the sum of
 ``tally(result)`` over finished jobs as ``tally_name`` (e.g. solver failures), failed attempts
@@ -96,12 +97,16 @@ def _dask_logs_at_warning() -> Iterator[None]:
     unless debug logging is on."""
     logger = logging.getLogger("distributed")
     old = logger.level
-    if logging.getLogger().getEffectiveLevel() > logging.DEBUG:
-        logger.setLevel(logging.WARNING)
+    _dask_at_warning()
     try:
         yield
     finally:
         logger.setLevel(old)
+
+
+def _dask_at_warning() -> None:
+    if logging.getLogger().getEffectiveLevel() > logging.DEBUG:
+        logging.getLogger("distributed").setLevel(logging.WARNING)
 
 
 def _probe_scheduler(address: str, timeout: float) -> None:
@@ -126,25 +131,54 @@ def _probe_scheduler(address: str, timeout: float) -> None:
                 timeout=timeout + 2
             )
     except Exception as exc:  # any failure (refused, timeout, garbage, bad address) is one error
+        what = (
+            "refused the connection (nothing listens there)"
+            if isinstance(exc, ConnectionRefusedError)
+            else f"did not answer within {timeout:g} s"
+        )
         raise RunnerError(
-            f"the Dask scheduler at {address!r} did not answer within {timeout:g} s "
-            f"({type(exc).__name__}: {exc}); expected the address of a running scheduler, "
-            "e.g. tcp://host:8786"
+            f"the Dask scheduler at {address!r} {what} ({type(exc).__name__}: {exc}); "
+            "expected the address of a running scheduler, e.g. tcp://host:8786"
         ) from exc
 
 
 @contextmanager
-def _workers_ignore_ctrl_c() -> Iterator[None]:
-    """Start worker processes with SIGINT ignored (Python keeps an inherited "ignore"), so that
-    Ctrl-C interrupts only this process, which then closes the cluster cleanly."""
+def _ctrl_c_deferred() -> Iterator[list[bool]]:
+    """Start a local cluster with Ctrl-C deferred: the yielded list turns true when it was
+    pressed, and a start-up failure it caused becomes the KeyboardInterrupt.
+
+    In this process a handler only notes the key (raising in the middle of Dask's start-up
+    leaves a half-built cluster that cannot be closed; ignoring it, as before, lost it).
+    SIGINT is also blocked in this thread meanwhile: worker processes started from threads
+    created now inherit the blocked signal and never see Ctrl-C (those started otherwise
+    ignore it from :func:`dask_setup` on), so that it interrupts only this process.
+    """
+    pressed: list[bool] = []
     if threading.current_thread() is not threading.main_thread():
-        yield
+        yield pressed
         return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: pressed.append(True))
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+
+    def restore() -> None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)  # a pending Ctrl-C is noted here
         signal.signal(signal.SIGINT, previous)
+
+    try:
+        yield pressed
+    except Exception:
+        restore()
+        if pressed:
+            raise KeyboardInterrupt from None
+        raise
+    restore()
+
+
+def dask_setup(worker: Any) -> None:
+    """Dask preload of the local workers (this module): they ignore Ctrl-C, so that it
+    interrupts only the main process, which then closes the cluster cleanly."""
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 @contextmanager
@@ -155,15 +189,20 @@ def _executor(
     if scheduler is None and workers == 0:
         yield _InlineExecutor(), 1
         return
-    from dask.distributed import Client, LocalCluster
 
     with _dask_logs_at_warning():
         cluster = None
         if scheduler is not None:
+            from dask.distributed import Client
+
             _probe_scheduler(scheduler, connect_timeout)
             client = Client(scheduler, timeout=connect_timeout, set_as_default=False)
         else:
-            with _workers_ignore_ctrl_c(), warnings.catch_warnings():
+            with _ctrl_c_deferred() as pressed, warnings.catch_warnings():
+                # imported here: the threads Dask starts at import inherit the blocked SIGINT
+                from dask.distributed import Client, LocalCluster
+
+                _dask_at_warning()  # the first import sets Dask's configured levels
                 # the scheduler's HTTP server moves to a free port when 8787 is taken: not news
                 warnings.filterwarnings("ignore", message="Port .* is already in use")
                 cluster = LocalCluster(
@@ -172,8 +211,13 @@ def _executor(
                     processes=processes,
                     dashboard_address=None,
                     silence_logs=logging.CRITICAL,  # job errors come back through futures
+                    preload=[__name__] if processes else [],
                 )
-            client = Client(cluster, set_as_default=False)
+                client = Client(cluster, set_as_default=False)
+            if pressed:
+                client.close()
+                cluster.close()
+                raise KeyboardInterrupt
         try:
             threads = sum(client.nthreads().values()) or 1
             yield client.get_executor(pure=False), 2 * threads
@@ -221,11 +265,12 @@ def run_jobs(
     retried = 0
     if total == 0:
         return []
-    bar = tqdm(total=total, desc=description, unit="job", disable=not progress, leave=True)
+    bar = None  # shown once the executor runs, so that a failed start prints one line
     try:
         with _executor(
             int(workers), scheduler, connect_timeout=connect_timeout, processes=processes
         ) as (executor, window):
+            bar = tqdm(total=total, desc=description, unit="job", disable=not progress, leave=True)
             queue = list(range(total - 1, -1, -1))  # pop() from the end: job order
             running: dict[cf.Future[Any], int] = {}
             while queue or running:
@@ -238,7 +283,8 @@ def run_jobs(
                     position = running.pop(future)
                     exc = future.exception()
                     if exc is not None:
-                        if attempts[position] <= retries:
+                        # canonid's own errors are deterministic: a retry would fail the same way
+                        if attempts[position] <= retries and not isinstance(exc, CanonidError):
                             retried += 1
                             log.warning("job %d failed (%s); retrying", position, exc)
                             queue.append(position)
@@ -258,7 +304,8 @@ def run_jobs(
                         refresh=False,
                     )
     finally:
-        bar.close()
+        if bar is not None:
+            bar.close()
     if failed:
         raise JobsFailedError(sorted(failed, key=lambda f: f.position), total)
     return results

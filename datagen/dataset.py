@@ -38,6 +38,61 @@ _FIELDS = ("u", "y", "y_clean", "x", "reference")
 SPLITS = ("train", "val", "test")
 
 
+def _check_header(header: Mapping[str, Any], where: Path) -> None:
+    """Refuse dataset metadata whose fields have the wrong types, naming the field."""
+
+    def names(value: Any) -> bool:
+        return isinstance(value, list) and all(isinstance(v, str) for v in value)
+
+    def count(value: Any) -> bool:
+        return isinstance(value, int) and not isinstance(value, bool) and value >= 0
+
+    version = header.get("format_version")
+    if version != FORMAT_VERSION:
+        raise DataError(
+            f"{where}: field 'format_version' is {version!r}; this canonid reads version "
+            f"{FORMAT_VERSION}"
+        )
+    checks = (
+        ("checksum_sha256", "a SHA-256 hex string", lambda v: isinstance(v, str) and len(v) == 64),
+        (
+            "dt",
+            "a number of seconds",
+            lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
+        ),
+        ("input_names", "a list of strings", names),
+        ("output_names", "a list of strings", names),
+        ("state_names", "null or a list of strings", lambda v: v is None or names(v)),
+        (
+            "counts",
+            "an object of split name → trajectory count",
+            lambda v: isinstance(v, dict) and all(count(n) for n in v.values()),
+        ),
+        ("metadata", "an object", lambda v: isinstance(v, dict)),
+    )
+    for key, expected, ok in checks:
+        if key not in header and key in ("metadata", "state_names"):
+            continue
+        if key not in header:
+            raise DataError(f"{where}: missing field {key!r}")
+        if not ok(header[key]):
+            raise DataError(f"{where}: field {key!r} must be {expected}, got {header[key]!r:.60}")
+    infos = header.get("trajectory_info")
+    if infos is None:
+        return
+    counts = header["counts"]
+    if not isinstance(infos, dict) or any(
+        not isinstance(infos[k], list)
+        or len(infos[k]) != counts.get(k)
+        or not all(isinstance(i, dict) for i in infos[k])
+        for k in infos
+    ):
+        raise DataError(
+            f"{where}: field 'trajectory_info' must map each split to a list of one object per "
+            "trajectory (as many as 'counts' says)"
+        )
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """One experiment (a flight, a run) of ``T`` samples; see the module docstring for alignment.
@@ -260,9 +315,7 @@ class Dataset:
         header = read_json(meta_path, what="dataset metadata")
         if not isinstance(header, dict) or header.get("format") != "canonid-dataset":
             raise DataError(f"{meta_path} is not canonid dataset metadata (field 'format')")
-        for key in ("checksum_sha256", "dt", "input_names", "output_names", "counts"):
-            if key not in header:
-                raise DataError(f"{meta_path}: missing field {key!r}")
+        _check_header(header, meta_path)
         actual = sha256_file(p)
         if actual != header["checksum_sha256"]:
             raise DataError(
@@ -271,7 +324,18 @@ class Dataset:
                 "corrupt, truncated or was modified"
             )
         arrays = read_npz(p, what="dataset")
-        infos = header.get("trajectory_info", {})
+        stored = {key.rsplit("/", 1)[0] for key in arrays}
+        counted = {f"{split}/{i:05d}" for split, n in header["counts"].items() for i in range(n)}
+        if stored != counted:
+            extra = sorted(stored - counted)
+            raise DataError(
+                f"dataset {p} holds trajectories {extra[:3]} that {meta_path.name}'s field "
+                "'counts' does not count"
+                if extra
+                else f"dataset {p} lacks trajectories {sorted(counted - stored)[:3]} that "
+                f"{meta_path.name}'s field 'counts' counts"
+            )
+        infos = header.get("trajectory_info") or {}
         splits: dict[str, tuple[Trajectory, ...]] = {}
         for split, count in header["counts"].items():
             trajs = []
@@ -280,7 +344,12 @@ class Dataset:
                 fields = {k[len(prefix) :]: v for k, v in arrays.items() if k.startswith(prefix)}
                 if "u" not in fields or "y" not in fields:
                     raise DataError(f"dataset {p}: trajectory {prefix[:-1]} lacks 'u' or 'y'")
-                info = infos.get(split, [{}] * int(count))[i] if infos else {}
+                unknown = sorted(set(fields) - set(_FIELDS))
+                if unknown:
+                    raise DataError(
+                        f"dataset {p}: trajectory {prefix[:-1]} has unknown arrays {unknown}"
+                    )
+                info = infos.get(split, [{}] * int(count))[i]
                 try:
                     trajs.append(Trajectory(**fields, info=info))
                 except ShapeError as exc:

@@ -436,6 +436,21 @@ def _check_parts(parts: Path, config: GenerationConfig | None) -> None:
             )
 
 
+def _check_existing(dataset_path: Path, config: GenerationConfig) -> None:
+    """Refuse to replace a finished dataset of another configuration (the same configuration
+    gives the same bytes again)."""
+    meta = dataset_path.with_suffix(".json")
+    if not meta.is_file():
+        return
+    header = read_json(meta, what="dataset metadata")
+    found = header.get("metadata", {}).get("generation") if isinstance(header, dict) else None
+    if found != config.to_json():
+        raise DataError(
+            f"{dataset_path.parent} already holds a dataset of another configuration "
+            f"({found}); generate into another --out, or delete it first"
+        )
+
+
 def generate_dataset(
     config: GenerationConfig,
     out: str | Path,
@@ -467,6 +482,7 @@ def generate_dataset(
             found = _load_part(parts, job)
             if found is not None:
                 finished[job.name] = found
+    _check_existing(dataset_path, config)
     todo = [job for job in jobs if job.name not in finished]
     resumed = len(finished)
     # Build the controller here first: bad options fail before any job runs, and a compiled

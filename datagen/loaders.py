@@ -8,7 +8,8 @@ split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
 * :func:`load_csv` — one file or several. Columns are named; ``inputs`` and ``outputs`` pick
   them. Either every file is one experiment, or ``experiment_column`` names a column whose value
   identifies the experiment of each row (experiments in order of first appearance, rows in file
-  order). ``dt`` (seconds) is required: CSV files carry no sampling time.
+  order; the rows of one experiment must be contiguous). ``dt`` (seconds) is required: CSV files
+  carry no sampling time. Files are UTF-8 text.
 * :func:`load_npz` — arrays ``u`` and ``y``, each ``(T, n)`` for one experiment or ``(N, T, n)``
   for ``N`` of equal length, or pairs ``u_0, y_0, u_1, y_1, …`` for experiments of any length;
   optional ``y_clean`` (same layout) and a scalar ``dt`` (else the ``dt`` argument).
@@ -20,6 +21,7 @@ split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 import re
@@ -33,7 +35,7 @@ from datagen.dataset import Dataset, Trajectory
 from models.errors import DataError, ShapeError
 from models.io import read_npz
 
-__all__ = ["from_io_data", "load_csv", "load_data", "load_npz", "split_train_val"]
+__all__ = ["from_io_data", "is_dataset", "load_csv", "load_data", "load_npz", "split_train_val"]
 
 PathLike = str | os.PathLike[str]
 
@@ -104,41 +106,63 @@ def _read_csv(
 ) -> tuple[list[str], np.ndarray]:
     if not path.is_file():
         raise DataError(f"CSV file not found: {path}")
-    with path.open(newline="", encoding="utf-8") as fh:
-        reader = csv.reader(fh)
-        try:
-            header = [h.strip() for h in next(reader)]
-        except StopIteration:
-            raise DataError(f"{path}: empty file (expected a header row)") from None
-        wanted = [*columns, *([experiment_column] if experiment_column else [])]
-        missing = [c for c in wanted if c not in header]
-        if missing:
-            raise DataError(f"{path}: no column(s) {missing}; the header has {header}")
-        index = [header.index(c) for c in columns]
-        exp_index = header.index(experiment_column) if experiment_column else None
-        ids: list[str] = []
-        rows: list[list[float]] = []
-        for line, row in enumerate(reader, start=2):
-            if not row or all(not cell.strip() for cell in row):
-                continue
-            if len(row) != len(header):
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        raise DataError(f"{path}, line {line}: not UTF-8 text") from None
+    reader = csv.reader(io.StringIO(text, newline=""))
+    try:
+        return _parse_csv(path, reader, columns, experiment_column)
+    except csv.Error as exc:
+        raise DataError(f"{path}, line {reader.line_num}: not CSV text ({exc})") from None
+
+
+def _parse_csv(
+    path: Path, reader: Any, columns: Sequence[str], experiment_column: str | None
+) -> tuple[list[str], np.ndarray]:
+    try:
+        header = [h.strip() for h in next(reader)]
+    except StopIteration:
+        raise DataError(f"{path}: empty file (expected a header row)") from None
+    wanted = [*columns, *([experiment_column] if experiment_column else [])]
+    missing = [c for c in wanted if c not in header]
+    if missing:
+        raise DataError(f"{path}: no column(s) {missing}; the header has {header}")
+    index = [header.index(c) for c in columns]
+    exp_index = header.index(experiment_column) if experiment_column else None
+    ids: list[str] = []
+    first_line: dict[str, int] = {}
+    rows: list[list[float]] = []
+    for row in reader:
+        line = reader.line_num
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        if len(row) != len(header):
+            raise DataError(f"{path}, line {line}: {len(row)} fields, the header has {len(header)}")
+        values = []
+        for col, j in zip(columns, index):
+            cell = row[j].strip()
+            try:
+                value = float(cell)
+            except ValueError:
                 raise DataError(
-                    f"{path}, line {line}: {len(row)} fields, the header has {len(header)}"
-                )
-            values = []
-            for col, j in zip(columns, index):
-                cell = row[j].strip()
-                try:
-                    value = float(cell)
-                except ValueError:
-                    raise DataError(
-                        f"{path}, line {line}, column {col!r}: {cell!r} is not a number"
-                    ) from None
-                if not math.isfinite(value):
-                    raise DataError(f"{path}, line {line}, column {col!r}: {cell!r} is not finite")
-                values.append(value)
-            rows.append(values)
-            ids.append(row[exp_index].strip() if exp_index is not None else "")
+                    f"{path}, line {line}, column {col!r}: {cell!r} is not a number"
+                ) from None
+            if not math.isfinite(value):
+                raise DataError(f"{path}, line {line}, column {col!r}: {cell!r} is not finite")
+            values.append(value)
+        key = row[exp_index].strip() if exp_index is not None else ""
+        if ids and key != ids[-1] and key in first_line:
+            raise DataError(
+                f"{path}, line {line}: experiment {key!r} (column {experiment_column!r}) "
+                f"started on line {first_line[key]} and other experiments came between; "
+                "each experiment's rows must be contiguous, in time order"
+            )
+        first_line.setdefault(key, line)
+        rows.append(values)
+        ids.append(key)
     if not rows:
         raise DataError(f"{path}: no data rows under the header")
     return ids, np.asarray(rows, dtype=np.float64)
@@ -200,7 +224,12 @@ def load_npz(
     p = Path(path)
     arrays = read_npz(p, what="array file")
     if "dt" in arrays:
-        file_dt = _check_dt(np.asarray(arrays.pop("dt")).reshape(-1)[0], str(p))
+        stored = arrays.pop("dt")
+        if stored.size != 1:
+            raise DataError(
+                f"{p}: array 'dt' must hold one number (seconds), got shape {stored.shape}"
+            )
+        file_dt = _check_dt(stored.reshape(-1)[0], str(p))
         if dt is not None and not math.isclose(_check_dt(dt, str(p)), file_dt):
             raise DataError(f"{p}: holds dt = {file_dt} but dt = {dt} was given")
         dt = file_dt
@@ -293,6 +322,15 @@ def from_io_data(
 
 
 # ---------------------------------------------------------------------------------- dispatch
+def is_dataset(path: PathLike) -> bool:
+    """Whether :func:`load_data` reads ``path`` as a canonid dataset (with its own names and
+    sampling time) rather than as CSV or an ``.npz`` of arrays."""
+    p = Path(path)
+    if p.is_dir():
+        return (p / "dataset.npz").is_file()
+    return p.suffix.lower() in (".npz", ".json") and p.with_suffix(".json").is_file()
+
+
 def load_data(
     path: PathLike,
     *,
@@ -305,9 +343,9 @@ def load_data(
     folder holding ``dataset.npz``), a CSV file or a folder of CSV files (one experiment each,
     in name order), or an ``.npz`` of arrays."""
     p = Path(path)
+    if is_dataset(p):
+        return Dataset.load(p)
     if p.is_dir():
-        if (p / "dataset.npz").is_file():
-            return Dataset.load(p)
         files = sorted(p.glob("*.csv"))
         if not files:
             raise DataError(f"{p}: a folder without dataset.npz or CSV files")
@@ -316,9 +354,7 @@ def load_data(
         raise DataError(f"data file not found: {p}")
     if p.suffix.lower() == ".csv":
         return _csv([p], inputs, outputs, dt, experiment_column)
-    if p.suffix.lower() in (".npz", ".json"):
-        if p.with_suffix(".json").is_file():
-            return Dataset.load(p)
+    if p.suffix.lower() == ".npz":
         return load_npz(p, dt=dt)
     raise DataError(f"{p}: unknown data format (expected a dataset, .csv or .npz)")
 

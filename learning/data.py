@@ -122,7 +122,18 @@ class Normalisation:
             sd = a.std(axis=0)
             return np.where(sd > _STD_FLOOR, sd, 1.0)
 
-        return cls(u.mean(axis=0), std(u), y.mean(axis=0), std(y), std(dy))
+        with np.errstate(over="ignore", invalid="ignore"):
+            stats = (u.mean(axis=0), std(u), y.mean(axis=0), std(y), std(dy))
+        # values near the float64 limit (1e308) overflow the mean or the spread
+        for name, data, parts in (("input", u, stats[:2]), ("output", y, stats[2:])):
+            bad = np.flatnonzero(~np.all(np.isfinite(np.stack(parts)), axis=0))
+            if bad.size:
+                k = int(bad[0])
+                raise DataError(
+                    f"training data: {name} {k + 1} (values up to {np.abs(data[:, k]).max():g}) "
+                    "overflows float64 in its mean, spread or increments; rescale it"
+                )
+        return cls(*stats)
 
     @property
     def n_u(self) -> int:

@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import io
 import os
+import pickle
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -229,10 +231,35 @@ def load_weights(
     """Load a ``state_dict`` file into ``net`` (``weights_only=True``), naming any mismatch."""
     if not path.is_file():
         raise CheckpointError(f"weights file not found: {path}")
+    if not zipfile.is_zipfile(path):  # torch.save writes a zip archive
+        raise CheckpointError(
+            f"cannot read weights {path}: not a torch file (corrupt or truncated)"
+        )
     try:
         state = torch.load(path, map_location=map_location, weights_only=True)
-    except Exception as exc:  # torch raises several types for corrupt or unsafe files
-        raise CheckpointError(f"cannot read weights {path}: {exc}") from exc
+    except pickle.UnpicklingError as exc:  # torch's advice to unpickle is wrong for user files
+        raise CheckpointError(
+            f"cannot read weights {path}: it holds Python objects besides tensors, which canonid "
+            "never unpickles (a file not written by canonid, or tampered with)"
+        ) from exc
+    except Exception as exc:  # torch raises several types for corrupt files
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CheckpointError(
+            f"cannot read weights {path}: corrupt or truncated ({first})"
+        ) from exc
+    if isinstance(state, Mapping):
+        bad = [
+            k
+            for k, v in state.items()
+            if isinstance(v, torch.Tensor)
+            and v.is_floating_point()
+            and not bool(v.isfinite().all())
+        ]
+        if bad:
+            raise CheckpointError(
+                f"weights {path}: tensor(s) {bad[:3]} hold NaN or infinite values (a diverged "
+                "or damaged model)"
+            )
     load_state(net, state, where=str(path))
 
 

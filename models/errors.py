@@ -11,6 +11,7 @@ __all__ = [
     "CanonidError",
     "CheckpointError",
     "DataError",
+    "OutputError",
     "SetError",
     "ShapeError",
     "UnknownSystemError",
@@ -42,3 +43,8 @@ class DataError(CanonidError, ValueError):
 
 class CheckpointError(CanonidError, ValueError):
     """A checkpoint or saved model cannot be used (corrupt, or from another model)."""
+
+
+class OutputError(CanonidError, OSError):
+    """A file or folder cannot be written: a file where a folder is expected, a full disk, a
+    read-only file system, missing permissions."""

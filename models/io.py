@@ -7,6 +7,8 @@ They live in ``models`` because it is the root of the dependency graph; they nee
 * Deterministic: :func:`write_npz` fixes every zip timestamp and writes arrays in sorted key
   order, so the same arrays always give the same bytes (``np.savez`` stamps the current time).
 * No pickle: arrays are written and read with ``allow_pickle=False``.
+* A write that fails (a file where a folder should be, a full disk, a read-only file system)
+  raises :class:`~models.errors.OutputError` naming the file, and leaves no temporary file.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import DataError
+from models.errors import DataError, OutputError
 
 __all__ = [
     "atomic_write_bytes",
@@ -45,8 +47,11 @@ _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file + rename); return the path."""
     target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
+    except OSError as exc:
+        raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from exc
     try:
         # mkstemp creates the file 0600; give it the mode a plain open() would (0666 & ~umask)
         os.fchmod(fd, 0o666 & ~_umask())
@@ -55,6 +60,9 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, target)
+    except OSError as exc:
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from exc
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -134,15 +142,24 @@ def write_npz(path: str | os.PathLike[str], arrays: Mapping[str, np.ndarray]) ->
 
 
 def read_npz(path: str | os.PathLike[str], *, what: str = "array file") -> dict[str, np.ndarray]:
-    """Read every array of an ``.npz`` (no pickle); corrupt or truncated files raise DataError."""
+    """Read every array of an ``.npz`` (no pickle) of real numbers; anything else (not a zip,
+    corrupt, truncated, complex or text arrays) raises DataError."""
     p = Path(path)
     if not p.is_file():
         raise DataError(f"{what} not found: {p}")
+    if not zipfile.is_zipfile(p):
+        raise DataError(f"{what} {p} is not an .npz archive (a zip of .npy arrays)")
     try:
         with np.load(p, allow_pickle=False) as npz:
-            return {key: npz[key] for key in npz.files}
+            arrays = {key: npz[key] for key in npz.files}
     except (zipfile.BadZipFile, ValueError, OSError, EOFError, KeyError) as exc:
         raise DataError(f"{what} {p} is corrupt or truncated: {exc}") from exc
+    for key, arr in arrays.items():
+        if arr.dtype.kind not in "biuf":  # complex, text, bytes, dates, records
+            raise DataError(
+                f"{what} {p}: array {key!r} has dtype {arr.dtype}; expected real numbers"
+            )
+    return arrays
 
 
 def sha256_bytes(data: bytes) -> str:

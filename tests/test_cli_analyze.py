@@ -89,7 +89,8 @@ def test_bad_arguments_are_one_line_errors(argv, message, tmp_path, capsys):
 
 def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, monkeypatch):
     """A stand-in for learning.Model with the export contract of the identification layer:
-    ``Model.load(run).export()`` has ``H(z, u)`` and ``window``. Its H is the exact canonical
+    ``Model.load(run)`` has ``info`` and ``export()``, with ``H(z, u)``, ``window``, ``n_u`` and
+    ``n_y``. Its H is the exact canonical
     map of the linear system, so every residual is within the noise-induced level."""
     system = get_system("linear")
     window = 2
@@ -112,14 +113,14 @@ def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, m
 
     class Exported:
         def __init__(self):
-            self.window = window
+            self.window, self.n_u, self.n_y = window, system.n_u, system.n_y
             self.H = canonical_regressor(system, window)
 
     class Model:
         @staticmethod
         def load(folder):
             assert folder == run_dir
-            return types.SimpleNamespace(export=Exported)
+            return types.SimpleNamespace(export=Exported, info={"dt": 1.0})
 
     fake = types.ModuleType("learning")
     fake.Model = Model

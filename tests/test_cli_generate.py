@@ -30,7 +30,7 @@ def test_generate_tank_prints_where_the_dataset_went(tmp_path, capsys):
         (["tank", "--horizon", "10"], "do not apply to tank"),
         (["drone2d", "--horizon", "0"], "horizon must be an integer >= 1"),
         (["tank", "--noise", "0,0"], "one half-width >= 0 or 1 of them"),
-        (["tank", "--scheduler", "tcp://127.0.0.1:1"], "did not answer"),
+        (["tank", "--scheduler", "tcp://127.0.0.1:1"], "refused the connection"),
     ],
 )
 def test_bad_input_is_one_line(args, message, tmp_path, capsys):

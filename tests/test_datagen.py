@@ -312,6 +312,15 @@ def test_resume_refuses_parts_of_another_configuration(tmp_path):
         generate_dataset(other, tmp_path / "a", resume=True)
 
 
+def test_a_dataset_of_another_configuration_is_not_replaced_silently(tmp_path):
+    first = _small(tmp_path, "a").path
+    before = first.read_bytes()
+    other = GenerationConfig("tank", seed=8, counts={"train": 4, "val": 2, "test": 2})
+    with pytest.raises(DataError, match="already holds a dataset of another configuration"):
+        generate_dataset(other, tmp_path / "a")
+    assert first.read_bytes() == before
+
+
 def test_truncated_generated_dataset_is_refused_naming_it(tmp_path):
     path = _small(tmp_path, "a").path
     path.write_bytes(path.read_bytes()[:1000])

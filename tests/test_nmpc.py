@@ -140,3 +140,37 @@ def test_settings_and_bad_arguments(drone, plugin):
         _nmpc(drone, None, state_weights=(1.0, 1.0))
     with pytest.raises(ShapeError, match="before reset"):
         _nmpc(drone, None, solver="fatrop")(0, np.zeros(6))
+
+
+def _replace(library, data: bytes) -> None:
+    """New bytes under the library's name (a new file: this process still maps the old one)."""
+    tmp = library.with_suffix(".new")
+    tmp.write_bytes(data)
+    tmp.replace(library)
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        lambda lib: _replace(lib, lib.read_bytes()[:4096]),  # truncated: SIGBUS when loaded
+        lambda lib: _replace(lib, b"\x7fELF" + bytes(200)),  # garbage
+        lambda lib: compiled._checksum_file(lib).unlink(),  # no checksum beside it
+    ],
+    ids=["truncated", "garbage", "no-checksum"],
+)
+def test_a_damaged_cached_library_is_rebuilt_not_loaded(damage, tmp_path, caplog):
+    import casadi as ca
+
+    x = ca.SX.sym("x")
+    square = ca.Function("square", [x], [x**2 + 1])
+    first = compiled.compile_functions([square], name="sq", cache_dir=tmp_path)
+    assert first is not None and float(first[0](3.0)) == 10.0
+    (library,) = tmp_path.glob("sq-*.so")
+    intact = library.read_bytes()
+    assert compiled._checksum_file(library).read_text().strip() == compiled.sha256_file(library)
+    damage(library)
+    again = compiled.compile_functions([square], name="sq", cache_dir=tmp_path)
+    assert again is not None and float(again[0](4.0)) == 17.0
+    assert "does not match its checksum: rebuilding it" in caplog.text
+    assert compiled.sha256_file(library) == compiled._checksum_file(library).read_text().strip()
+    assert len(library.read_bytes()) == len(intact)

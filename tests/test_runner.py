@@ -50,9 +50,24 @@ def test_bad_arguments_and_unreachable_scheduler_are_clear_errors():
         run_jobs(abs, [1], workers=2, scheduler="tcp://127.0.0.1:1", progress=False)
     with pytest.raises(RunnerError, match="workers must be"):
         run_jobs(abs, [1], workers=-1, progress=False)
-    for address in ("tcp://127.0.0.1:1", "not-an-address"):
-        with pytest.raises(RunnerError, match=r"scheduler at .* did not answer"):
-            run_jobs(abs, [1], scheduler=address, connect_timeout=1.0, progress=False)
+    with pytest.raises(RunnerError, match=r"scheduler at .* refused the connection"):
+        run_jobs(abs, [1], scheduler="tcp://127.0.0.1:1", connect_timeout=1.0, progress=False)
+    with pytest.raises(RunnerError, match=r"scheduler at .* did not answer"):
+        run_jobs(abs, [1], scheduler="not-an-address", connect_timeout=1.0, progress=False)
+
+
+def test_canonid_errors_are_not_retried():
+    from models.errors import DataError
+
+    calls = []
+
+    def broken(x):
+        calls.append(x)
+        raise DataError(f"job {x}: bad data")
+
+    with pytest.raises(JobsFailedError, match="bad data"):
+        run_jobs(broken, [1], progress=False, retries=3)
+    assert calls == [1]
 
 
 def test_local_cluster_and_scheduler_address_give_the_same_results():
@@ -98,3 +113,35 @@ def test_same_seed_same_bytes_serially_and_on_two_dask_workers(config, tmp_path,
     for path in paths:
         assert path.read_bytes() == serial.read_bytes()
         assert path.with_suffix(".json").read_bytes() == serial.with_suffix(".json").read_bytes()
+
+
+def test_ctrl_c_during_cluster_start_up_is_deferred_not_lost():
+    """Start-up is not cut in the middle (a half-built cluster cannot be closed), and the key
+    is not lost either: the caller sees it once start-up is over."""
+    import os
+    import signal
+
+    from canonid.runner import _ctrl_c_deferred
+
+    before = signal.getsignal(signal.SIGINT)
+    with _ctrl_c_deferred() as pressed:
+        os.kill(os.getpid(), signal.SIGINT)  # blocked here: noted when the block ends
+    assert pressed == [True] and signal.getsignal(signal.SIGINT) is before
+    with pytest.raises(KeyboardInterrupt), _ctrl_c_deferred():
+        os.kill(os.getpid(), signal.SIGINT)
+        raise RuntimeError("a start-up that the key broke")
+    with pytest.raises(RuntimeError), _ctrl_c_deferred():
+        raise RuntimeError("a start-up failure of its own")
+
+
+def test_local_workers_ignore_ctrl_c():
+    import signal
+
+    from canonid.runner import dask_setup
+
+    before = signal.getsignal(signal.SIGINT)
+    try:
+        dask_setup(None)
+        assert signal.getsignal(signal.SIGINT) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGINT, before)

@@ -16,9 +16,9 @@ from typing import Any
 
 from analysis.estimate import Budget
 from analysis.report import AnalysisReport, analyze
+from canonid.commands import _data, _paths
 from datagen.dataset import Dataset
 from models.errors import DataError, SetError
-from models.io import read_json
 from models.registry import get_system
 from models.sets import Box
 
@@ -73,9 +73,10 @@ def register(sub: Any) -> None:
         "--data",
         type=Path,
         metavar="FILE",
-        help="canonid dataset (.npz) for --run (default: the data named in RUN/run.json)",
+        help="data for --run: a canonid dataset, or CSV / .npz read with the run's data options "
+        "(default: the run's own data, split as training split them)",
     )
-    p.add_argument("--out", type=Path, help="output folder (default runs/analyze-SYSTEM)")
+    p.add_argument("--out", type=_paths.folder, help="output folder (default runs/analyze-SYSTEM)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -116,22 +117,31 @@ def parse_box(text: str, dim: int, name: str) -> Box:
 
 
 def load_trained_model(run_dir: Path) -> Any:
-    """The numpy view (``H``, ``window``) of the model saved in ``run_dir``.
+    """The model saved in ``run_dir`` (``learning.Model``).
 
-    Uses the identification layer's contract: ``learning.Model.load(run_dir).export()`` returns
-    an object with ``H(z, u) -> y`` and ``window`` (see ``learning/export.py``).
+    Its ``export()`` is the identification layer's contract with the analysis: an object with
+    ``H(z, u) -> y``, ``window``, ``n_u`` and ``n_y`` (see ``learning/export.py``).
     """
     from learning import Model  # torch, only when a learned model is checked
 
-    return Model.load(run_dir).export()
+    return Model.load(run_dir)
 
 
 def learned_checks(
-    model: Any, dataset: Dataset, report: AnalysisReport, *, source: Mapping[str, str]
+    model: Any,
+    dataset: Dataset,
+    report: AnalysisReport,
+    *,
+    source: Mapping[str, str],
+    split: str | None = None,
 ) -> dict[str, Any]:
-    """The report's checks of ``model`` (:meth:`AnalysisReport.learned_checks`) on the test
-    split of ``dataset`` (its only split if it has no ``test``), as ``analysis.json`` holds them."""
-    test = list(dataset.split("test" if "test" in dataset.splits else next(iter(dataset.splits))))
+    """The report's checks of ``model`` (:meth:`AnalysisReport.learned_checks`) on split
+    ``split`` of ``dataset`` (default ``test``, else its only split), as ``analysis.json`` holds
+    them."""
+    ell = int(model.window)
+    if all(r.window != ell for r in report.results):
+        raise SetError(f"the model has window ℓ = {ell}, which the analysis did not cover")
+    _, test = _data.pick_split(dataset, split, where=source.get("data", "data"))
     checks = report.learned_checks([model], list(dataset.splits.get("train", ())), test)
     out: dict[str, Any] = {
         **source,
@@ -144,6 +154,31 @@ def learned_checks(
     return out
 
 
+def _learned_source(
+    run_dir: Path, data: Path | None, system: Any
+) -> tuple[Any, Dataset, str, dict[str, str]]:
+    """The run's exported model, the data that check it, their split and the source labels;
+    refuses a run whose signals do not match ``system``."""
+    trained = load_trained_model(run_dir)
+    model, info = trained.export(), trained.info
+    n_u, n_y = int(model.n_u), int(model.n_y)
+    if (n_u, n_y) != (system.n_u, system.n_y):
+        raise SetError(
+            f"--run {run_dir}: the run has n_u={n_u}, n_y={n_y}; {system.name} has "
+            f"{system.n_u}, {system.n_y}"
+        )
+    dataset, data_path, split = _data.scoring_data(
+        run_dir / "run.json", data, {}, split=None, model=info
+    )
+    name, test = _data.pick_split(dataset, split, where=data_path)
+    if any(tr.y_clean is None for tr in test):
+        raise DataError(
+            f"--run: the residual check needs the noise w = y − y_clean, which {data_path} "
+            f"[{name}] does not hold; give --data a canonid dataset or .npz with y_clean"
+        )
+    return model, dataset, name, {"run": str(run_dir), "data": data_path, "split": name}
+
+
 def run(args: argparse.Namespace) -> int:
     system = get_system(args.system)
     windows = [args.window] if args.window is not None else parse_windows(args.windows)
@@ -153,22 +188,21 @@ def run(args: argparse.Namespace) -> int:
         raise SetError(f"--trials must be >= 0, got {args.trials}")
     if not args.budget > 0:
         raise SetError(f"--budget must be a positive number of seconds, got {args.budget}")
-    model, dataset, source = None, None, {}
+    if not args.tol > 0:
+        raise SetError(f"--tol must be a positive relative tolerance, got {args.tol}")
+    if args.seed < 0:
+        raise SetError(f"--seed must be an integer >= 0, got {args.seed}")
+    if args.data is not None and args.run is None:
+        raise SetError("--data applies to --run RUN only")
+    model, dataset, split = None, None, None
+    source: dict[str, str] = {}
     if args.run is not None:
-        model = load_trained_model(args.run)
-        data = args.data
-        if data is None:
-            recipe = read_json(args.run / "run.json", what="run recipe")
-            if not isinstance(recipe, dict) or "data" not in recipe:
-                raise DataError(f"{args.run / 'run.json'}: no field 'data'; give --data FILE")
-            data = Path(recipe["data"])
-        dataset = Dataset.load(data)
-        source = {"run": str(args.run), "data": str(data)}
+        model, dataset, split, source = _learned_source(args.run, args.data, system)
         windows = sorted({*windows, int(model.window)})
     X = parse_box(args.X, system.n_x, "X") if args.X else system.X
     U = parse_box(args.U, system.n_u, "U") if args.U else system.U
     W = parse_box(args.W, system.n_y, "W") if args.W else system.W
-    out: Path = args.out or Path("runs") / f"analyze-{system.name}"
+    out = _paths.check_folder(args.out or Path("runs") / f"analyze-{system.name}")
     if args.boxes is not None and args.boxes < 1:
         raise SetError(f"--boxes must be an integer >= 1, got {args.boxes}")
     budget = Budget(seconds=args.budget, boxes=args.boxes or 10**9)
@@ -208,7 +242,7 @@ def run(args: argparse.Namespace) -> int:
         if bar is not None:
             bar.close()
     if model is not None and dataset is not None:
-        report.learned = learned_checks(model, dataset, report, source=source)
+        report.learned = learned_checks(model, dataset, report, source=source, split=split)
     json_path = report.write_json(out / "analysis.json")
     print(report.table())
     if report.learned:

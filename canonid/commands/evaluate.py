@@ -1,23 +1,26 @@
 """``canonid evaluate`` — score a trained run on test data; rewrite its ``metrics.json``.
 
-Reads the model of ``RUN`` and the data it was trained on (``RUN/run.json``) or ``--data FILE``;
-scores the ``test`` split (or ``--split``) with :func:`learning.evaluate.evaluate`, writes
-``RUN/metrics.json`` and ``RUN/rollouts.png`` and prints a short table.
+Reads the model of ``RUN`` and either the data it was trained on, split again exactly as
+training split them (``RUN/run.json``), or ``--data FILE`` read with the run's data options (a
+CSV or ``.npz`` file's records form the split ``all``); scores the ``test`` split (else ``val``,
+or ``--split``) with :func:`learning.evaluate.evaluate`, writes ``RUN/metrics.json`` and
+``RUN/rollouts.png`` and prints a short table.
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data
 from canonid.runfolder import METRICS_FILE, RUN_FILE, evaluate_run
+from datagen.dataset import Trajectory
 from learning import Model
 from models.errors import DataError
-from models.io import read_json
 
-__all__ = ["register", "run", "table"]
+__all__ = ["eval_defaults", "evaluate_run", "register", "run", "table"]
 
 
 def register(sub: Any) -> None:
@@ -30,13 +33,47 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("run", type=Path, metavar="RUN", help="run folder written by canonid train")
-    p.add_argument("--data", type=Path, metavar="FILE", help="data (default: the run's data)")
-    p.add_argument("--split", help="split to score (default: test, or the only split)")
-    p.add_argument("--horizon", type=int, default=100, help="rollout length H (default 100)")
+    p.add_argument(
+        "--data",
+        type=Path,
+        metavar="FILE",
+        help="data (default: the run's data, split as training split them); CSV options "
+        "default to the run's",
+    )
+    p.add_argument(
+        "--split",
+        help="split to score (default: test, else the run's validation split, or all the "
+        "records of a CSV / .npz --data file)",
+    )
+    p.add_argument(
+        "--horizon",
+        type=int,
+        help="rollout length H (default 100, or what the longest record holds after ℓ)",
+    )
     p.add_argument("--stride", type=int, default=1, help="stride of rollout starts (default 1)")
-    p.add_argument("--n-init", type=int, help="samples skipped by the scores (default max(ℓ, 50))")
+    p.add_argument(
+        "--n-init",
+        type=int,
+        help="samples skipped by the scores (default max(ℓ, 50), at most the longest record "
+        "minus one)",
+    )
     _data.add_data_options(p)
     p.set_defaults(func=run)
+
+
+def eval_defaults(
+    trajs: Sequence[Trajectory], window: int, horizon: int, *, where: str, fit: bool
+) -> int:
+    """The rollout length that scores ``trajs``: ``horizon``, or with ``fit`` at most what the
+    longest record holds after its ℓ-sample burn-in. Records too short to score at all (no
+    record of ℓ + 1 samples) are refused here, before any work is done."""
+    longest = max((tr.T for tr in trajs), default=0)
+    if longest < window + 1:
+        raise DataError(
+            f"{where}: the longest record has {longest} samples; scoring a model with window "
+            f"ℓ = {window} needs at least ℓ + 1 = {window + 1}"
+        )
+    return min(horizon, longest - window) if fit else horizon
 
 
 def table(metrics: dict[str, Any]) -> str:
@@ -76,23 +113,30 @@ def _worst_records(metrics: dict[str, Any], count: int = 3) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     run_dir: Path = args.run
+    for flag, value in (("--horizon", args.horizon), ("--stride", args.stride)):
+        if value is not None and value < 1:
+            raise DataError(f"{flag} must be an integer >= 1, got {value}")
+    if args.n_init is not None and args.n_init < 0:
+        raise DataError(f"--n-init must be an integer >= 0, got {args.n_init}")
     model = Model.load(run_dir)
-    options = _data.data_options(args)
-    if args.data is None:
-        recipe = read_json(run_dir / RUN_FILE, what="run recipe")
-        if not isinstance(recipe, dict) or "data" not in recipe:
-            raise DataError(f"{run_dir / RUN_FILE}: no field 'data'; give --data FILE")
-        data_path, options = recipe["data"], recipe.get("data_options", {})
-    else:
-        data_path = str(args.data)
-    dataset = _data.load(data_path, options)
+    dataset, data_path, split = _data.scoring_data(
+        run_dir / RUN_FILE, args.data, _data.data_options(args), split=args.split, model=model.info
+    )
+    name, trajs = _data.pick_split(dataset, split, where=data_path)
+    horizon = eval_defaults(
+        trajs,
+        model.window,
+        args.horizon or 100,
+        where=f"{data_path} [{name}]",
+        fit=args.horizon is None,
+    )
     metrics = evaluate_run(
         run_dir,
         model,
         dataset,
-        data_path=str(data_path),
-        split=args.split,
-        horizon=args.horizon,
+        data_path=data_path,
+        split=name,
+        horizon=horizon,
         stride=args.stride,
         n_init=args.n_init,
     )

@@ -12,6 +12,7 @@ import functools
 from pathlib import Path
 from typing import Any
 
+from canonid.commands import _paths
 from canonid.runner import run_jobs
 from datagen.dataset import Dataset
 from datagen.generate import FlightResult, GenerationConfig, generate_dataset
@@ -29,7 +30,10 @@ def register(sub: Any) -> None:
     )
     p.add_argument("system", help=f"the system ({', '.join(scenario_names())})")
     p.add_argument(
-        "--out", type=Path, metavar="DIR", help="output folder (default runs/data/SYSTEM-sSEED)"
+        "--out",
+        type=_paths.folder,
+        metavar="DIR",
+        help="output folder (default runs/data/SYSTEM-sSEED)",
     )
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     for split in ("train", "val", "test"):
@@ -103,7 +107,7 @@ def run(args: argparse.Namespace) -> int:
     )
     if args.workers < 0:
         raise ShapeError(f"--workers must be >= 0, got {args.workers}")
-    out = args.out or Path("runs") / "data" / f"{args.system}-s{args.seed}"
+    out = _paths.check_folder(args.out or Path("runs") / "data" / f"{args.system}-s{args.seed}")
     runner = functools.partial(
         run_jobs,
         workers=args.workers,

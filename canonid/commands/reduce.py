@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from canonid.commands import _paths, _progress
 from canonid.commands.evaluate import table
 from canonid.profiles import profile_names, reduce_options
 from canonid.reduction import (
@@ -62,7 +63,7 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--out",
-        type=Path,
+        type=_paths.folder,
         metavar="DIR",
         help="output folder (default: RUN-r<rate> beside RUN; runs/compression-sweep)",
     )
@@ -106,6 +107,7 @@ def _one(args: argparse.Namespace) -> int:
         raise DataError(f"--compression reduces one RUN, got {len(args.runs)} (use --sweep)")
     source: Path = args.runs[0]
     out = args.out or source.parent / f"{source.name}-{rate_label(args.compression)}"
+    _paths.check_folder(out)
     job = ReductionJob(
         source=str(source),
         compression=args.compression,
@@ -123,29 +125,22 @@ def _one(args: argparse.Namespace) -> int:
         args.profile, epochs=args.epochs, linear_skip=args.linear_skip
     )
     frozen = red_opts.frozen_epochs(train_opts.epochs)
-    bar = None
-    if not args.no_progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=train_opts.epochs, desc="reduce", unit="epoch", file=sys.stderr)
+    bar = _progress.LazyBar(train_opts.epochs, "reduce", enabled=not args.no_progress)
 
     def progress(report: EpochReport) -> None:
-        if bar is None:
-            return
-        bar.n = report.epoch
         phase = "Ĥ frozen" if report.epoch <= frozen else "Ĥ fine-tuned"
         val = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
         recon = report.parts.get("reconstruction", float("nan"))
-        bar.set_postfix_str(
+        bar.show(
+            report.epoch,
             f"{phase}, H={report.horizon}, recon={recon:.3g}, val rollout={val} "
-            f"(best {report.best_val_loss:.3g} at {report.best_epoch})"
+            f"(best {report.best_val_loss:.3g} at {report.best_epoch})",
         )
 
     try:
         result = reduce_run(job, callback=progress)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     print(
         f"{result.model} (ℓ = {result.window}) reduced at r = {result.compression:.0%}: "
         f"n̄ = {result.latent_dim} of dim z = {result.state_dim}; {result.stopped} after "
@@ -166,7 +161,7 @@ def _sweep(args: argparse.Namespace) -> int:
         raise DataError("--resume is for one reduction; a sweep always resumes its jobs")
     if args.seeds < 1:
         raise DataError(f"--seeds must be >= 1, got {args.seeds}")
-    out = args.out or Path("runs") / "compression-sweep"
+    out = _paths.check_folder(args.out or Path("runs") / "compression-sweep")
     plan = SweepPlan(
         runs=tuple(str(r) for r in args.runs),
         out=str(out),

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from canonid.commands import _paths
 from canonid.profiles import profile_names
 from canonid.reproduce import reproduce, settings_from_profile
 from models.errors import ShapeError
@@ -56,7 +57,7 @@ def register(sub: Any) -> None:
     p.add_argument("--seeds", type=int, metavar="N", help="training seeds per cell (0 … N−1)")
     p.add_argument(
         "--out",
-        type=Path,
+        type=_paths.folder,
         default=Path("runs/reproduce"),
         help="output folder (default runs/reproduce)",
     )
@@ -84,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         raise ShapeError(f"--workers must be >= 0, got {args.workers}")
     settings = settings_from_profile(
         args.profile,
-        out=args.out,
+        out=_paths.check_folder(args.out),
         systems=args.systems,
         windows=args.windows,
         models=args.models,

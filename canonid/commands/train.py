@@ -14,8 +14,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _data
-from canonid.commands.evaluate import table
+from canonid.commands import _data, _paths, _progress
+from canonid.commands.evaluate import eval_defaults, table
 from canonid.profiles import profile_names, train_options
 from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, write_history
 from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names, presets
@@ -25,6 +25,9 @@ from models.errors import CheckpointError, DataError
 from models.io import atomic_write_json, read_json
 
 __all__ = ["register", "run"]
+
+DEFAULT_PROFILE = "quick"
+DEFAULT_VAL_FRACTION = 0.2
 
 
 def register(sub: Any) -> None:
@@ -46,7 +49,6 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--profile",
         choices=profile_names(),
-        default="quick",
         help="training budget (default quick)",
     )
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
@@ -67,7 +69,9 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
-    p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/MODEL-lL)")
+    p.add_argument(
+        "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/MODEL-lL)"
+    )
     p.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in RUN")
     p.add_argument(
         "--val",
@@ -77,8 +81,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--val-fraction",
         type=float,
-        default=0.2,
-        help="share of DATA held out for validation when it has no val split",
+        help="share of DATA held out for validation when it has no val split (default 0.2)",
     )
     p.add_argument(
         "--hidden",
@@ -117,9 +120,9 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--eval-horizon",
         type=int,
-        default=100,
         metavar="H",
-        help="rollout length of the final evaluation (default 100)",
+        help="rollout length of the final evaluation (default 100, or the final training "
+        "rollout length when that is shorter, or what the scored records hold)",
     )
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -134,8 +137,11 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         raise DataError("--window is required for a new run (e.g. --window 10)")
     if args.model is None:
         args.model = "mlp"
+    if args.val_fraction is not None and not 0 < args.val_fraction < 1:
+        raise OptionError(f"--val-fraction must be in (0, 1), got {args.val_fraction}")
+    profile = args.profile or DEFAULT_PROFILE
     opts = train_options(
-        args.profile,
+        profile,
         epochs=args.epochs,
         lr=args.lr,
         batch_size=args.batch_size,
@@ -169,11 +175,11 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
         "data": str(args.data),
         "data_options": _data.data_options(args),
         "val": args.val,
-        "val_fraction": args.val_fraction,
+        "val_fraction": DEFAULT_VAL_FRACTION if args.val_fraction is None else args.val_fraction,
         "model": args.model,
         "window": args.window,
         "net_options": net_options,
-        "profile": args.profile,
+        "profile": profile,
         "train_options": opts.to_dict(),
         "command": ["canonid", *sys.argv[1:]],
     }
@@ -230,10 +236,25 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
     recipe = read_json(run_dir / RUN_FILE, what="run recipe")
     if not isinstance(recipe, dict) or recipe.get("format") != "canonid-run":
         raise CheckpointError(f"{run_dir / RUN_FILE} is not a canonid run recipe")
+    if args.out is not None and args.out.resolve() != run_dir.resolve():
+        raise CheckpointError(f"--out does not apply with --resume: the run continues in {run_dir}")
     diffs = [
         f"{key}: {recipe.get(key)!r} there, {value!r} here"
-        for key, value in (("model", args.model), ("window", args.window), ("data", args.data))
+        for key, value in (
+            ("model", args.model),
+            ("window", args.window),
+            ("data", args.data),
+            ("profile", args.profile),
+            ("val", args.val),
+            ("val_fraction", args.val_fraction),
+        )
         if value is not None and recipe.get(key) != value
+    ]
+    recorded = recipe.get("data_options") or {}
+    diffs += [
+        f"{key}: {recorded.get(key)!r} there, {value!r} here"
+        for key, value in _data.data_options(args).items()
+        if value is not None and recorded.get(key) != value
     ]
     if args.hidden is not None:
         option = _hidden_option(recipe["model"])
@@ -256,7 +277,18 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
     return recipe
 
 
+def _discard(run_dir: Path, created: bool) -> None:
+    """Remove what a new run wrote before it failed without a checkpoint: its recipe, and the
+    folder when this run created it and nothing else is in it."""
+    (run_dir / RUN_FILE).unlink(missing_ok=True)
+    if created and not any(run_dir.iterdir()):
+        run_dir.rmdir()
+
+
 def run(args: argparse.Namespace) -> int:
+    for flag, value in (("--threads", args.threads), ("--eval-horizon", args.eval_horizon)):
+        if value is not None and value < 1:
+            raise OptionError(f"{flag} must be an integer >= 1, got {value}")
     if args.threads is not None:
         import torch
 
@@ -267,35 +299,34 @@ def run(args: argparse.Namespace) -> int:
     else:
         recipe = _recipe(args)
         run_dir = args.out or Path("runs") / f"{recipe['model']}-l{recipe['window']}"
+        _paths.check_folder(run_dir)
         if (run_dir / CHECKPOINT_FILE).exists():
             raise CheckpointError(
                 f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
             )
     dataset, train, val, test_name, data_path = load_splits(recipe)
     opts = TrainOptions.from_dict(recipe["train_options"])
+    eval_horizon = eval_defaults(
+        dataset.split(test_name),
+        recipe["window"],
+        args.eval_horizon or min(100, opts.rollout_horizon),
+        where=f"{data_path} [{test_name}]",
+        fit=args.eval_horizon is None,
+    )
+    created = not run_dir.exists()
     run_dir.mkdir(parents=True, exist_ok=True)
     atomic_write_json(run_dir / RUN_FILE, recipe)
 
-    bar = None
-    if not args.no_progress:
-        from tqdm import tqdm
-
-        bar = tqdm(
-            total=opts.epochs,
-            desc=f"train {recipe['model']}",
-            unit="epoch",
-            file=sys.stderr,
-            dynamic_ncols=True,
-        )
+    bar = _progress.LazyBar(
+        opts.epochs, f"train {recipe['model']}", enabled=not args.no_progress, dynamic_ncols=True
+    )
 
     def progress(report: EpochReport) -> None:
-        if bar is None:
-            return
-        bar.n = report.epoch
         val_text = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
-        bar.set_postfix_str(
+        bar.show(
+            report.epoch,
             f"H={report.horizon} train={report.train_loss:.3g} val={val_text} "
-            f"best={report.best_val_loss:.3g}@{report.best_epoch}"
+            f"best={report.best_val_loss:.3g}@{report.best_epoch}",
         )
 
     try:
@@ -317,9 +348,12 @@ def run(args: argparse.Namespace) -> int:
                 "dt": dataset.dt,
             },
         )
+    except BaseException:
+        if args.resume is None and not (run_dir / CHECKPOINT_FILE).exists():
+            _discard(run_dir, created)
+        raise
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     write_history(run_dir, result.history)
     metrics = evaluate_run(
         run_dir,
@@ -327,7 +361,7 @@ def run(args: argparse.Namespace) -> int:
         dataset,
         data_path=data_path,
         split=test_name,
-        horizon=100 if opts.rollout_horizon >= 100 else opts.rollout_horizon,
+        horizon=eval_horizon,
         stride=1,
         n_init=None,
     )

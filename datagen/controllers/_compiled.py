@@ -5,7 +5,10 @@ The functions go into one C file (shared parts such as the solver are generated 
 source CasADi generates for them is hashed together with the compiler command
 and the CasADi version; the shared library lives at ``<cache_dir>/<name>-<hash>.so`` and is
 built on first use only (in a temporary file renamed into place, so concurrent workers that
-build the same library at once are harmless). The default cache folder is
+build the same library at once are harmless). Beside it, ``<name>-<hash>.so.sha256`` holds the
+SHA-256 of the library's bytes: a cached library that does not match it (truncated, damaged,
+replaced) or lacks it is rebuilt rather than loaded, since loading a damaged shared library can
+kill the process without a message (SIGBUS). The default cache folder is
 ``$CANONID_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/canonid`` (``~/.cache/canonid``), never
 the working directory. When no C compiler is found or the build fails, :func:`compile_functions`
 returns ``None`` and the caller keeps the pure-CasADi functions.
@@ -26,6 +29,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import casadi as ca
+
+from models.io import atomic_write_text, sha256_file
 
 __all__ = ["compile_functions", "default_cache_dir"]
 
@@ -84,14 +89,36 @@ def compile_functions(
     ).hexdigest()[:20]
     folder = Path(cache_dir) if cache_dir is not None else default_cache_dir()
     library = folder / f"{name}-{digest}.so"
-    if not library.exists():
+    if not _verified(library):
         try:
             _build(source, compile_args, link_args, folder, library)
         except (OSError, subprocess.CalledProcessError) as exc:
             detail = getattr(exc, "stderr", "") or exc
             log.warning("building %s failed, using the pure-CasADi solver: %s", library, detail)
             return None
-    return tuple(ca.external(function.name(), str(library)) for function in functions)
+    try:
+        return tuple(ca.external(function.name(), str(library)) for function in functions)
+    except RuntimeError as exc:
+        log.warning("loading %s failed, using the pure-CasADi solver: %s", library, exc)
+        return None
+
+
+def _checksum_file(library: Path) -> Path:
+    return library.with_name(library.name + ".sha256")
+
+
+def _verified(library: Path) -> bool:
+    """Whether ``library`` exists and matches the checksum written when it was built."""
+    if not library.exists():
+        return False
+    try:
+        expected = _checksum_file(library).read_text(encoding="utf-8").strip()
+    except (OSError, UnicodeDecodeError):
+        expected = ""
+    if expected and expected == sha256_file(library):
+        return True
+    log.warning("cached library %s does not match its checksum: rebuilding it", library)
+    return False
 
 
 def _build(
@@ -108,5 +135,7 @@ def _build(
             capture_output=True,
             text=True,
         )
+        checksum = sha256_file(target)
         os.replace(target, library)
+    atomic_write_text(_checksum_file(library), checksum + "\n")
     log.info("compiled %s", library)

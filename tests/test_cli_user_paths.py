@@ -1,0 +1,189 @@
+"""The main user path end to end, each command exactly as a user types it:
+CSV in → ``train --val`` → ``evaluate --data`` → ``analyze --run``; and ``train --resume``
+refusing what it would otherwise ignore."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+from cli_helpers import one_line_error
+
+from canonid.cli import main
+from models.registry import get_system
+
+DT = 2.0
+RECORD = 120
+
+
+def _write_tank_csv(path, seeds, *, T=RECORD, noise=0.005):
+    """Tank records under pump levels held for 8 samples, one experiment per seed, rows of each
+    experiment contiguous; columns run, time, pump, level (the lower tank's level)."""
+    system = get_system("tank")
+    rows = ["run,time,pump,level"]
+    for seed in seeds:
+        rng = np.random.default_rng(seed)
+        u = np.repeat(rng.uniform(1, 3, size=(T // 8 + 1, 1)), 8, axis=0)[:T]
+        y = system.simulate(rng.uniform(0.5, 2, 2), u).y
+        y = y + rng.uniform(-noise, noise, size=y.shape)
+        rows += [f"r{seed},{t * DT},{float(u[t, 0])!r},{float(y[t, 0])!r}" for t in range(T)]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def csv_files(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("csv")
+    return (
+        _write_tank_csv(folder / "train.csv", [1, 2, 3]),
+        _write_tank_csv(folder / "val.csv", [4]),
+        _write_tank_csv(folder / "test.csv", [5, 6]),
+    )
+
+
+CSV_OPTIONS = ["--inputs", "pump", "--outputs", "level", "--experiment-column", "run"]
+QUICK = ["--epochs", "2", "--device", "cpu", "--no-progress"]
+
+
+@pytest.fixture(scope="module")
+def trained(csv_files, tmp_path_factory):
+    """``canonid train train.csv --val val.csv …`` (the run is shared by the tests below)."""
+    train_csv, val_csv, _ = csv_files
+    run = tmp_path_factory.mktemp("runs") / "mlp"
+    argv = ["train", str(train_csv), "--val", str(val_csv), *CSV_OPTIONS, "--dt", str(DT)]
+    assert main([*argv, "--model", "mlp", "--window", "3", *QUICK, "--out", str(run)]) == 0
+    return run
+
+
+def test_train_with_a_val_csv_scores_the_val_file(trained, csv_files):
+    metrics = json.loads((trained / "metrics.json").read_text())
+    assert metrics["data"]["split"] == "val" and metrics["data"]["n_trajectories"] == 1
+    recipe = json.loads((trained / "run.json").read_text())
+    assert recipe["val"] == str(csv_files[1]) and recipe["data_options"]["dt"] == DT
+    config = json.loads((trained / "config.json").read_text())
+    assert config["info"]["data"]["splits"] == {"train": 3, "val": 1}
+
+
+def test_evaluate_rebuilds_the_runs_split_and_keeps_the_held_out_score(trained, capsys):
+    written = json.loads((trained / "metrics.json").read_text())
+    capsys.readouterr()
+    assert main(["evaluate", str(trained)]) == 0
+    again = json.loads((trained / "metrics.json").read_text())
+    assert again["data"]["split"] == "val" and "[val]" in capsys.readouterr().out
+    assert again["rollout_mse"] == pytest.approx(written["rollout_mse"], rel=1e-12)
+    assert main(["evaluate", str(trained), "--split", "train"]) == 0
+    scored = json.loads((trained / "metrics.json").read_text())["data"]
+    assert scored["split"] == "train" and scored["n_trajectories"] == 3
+
+
+def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
+    trained, csv_files, capsys
+):
+    test_csv = csv_files[2]
+    capsys.readouterr()
+    assert main(["evaluate", str(trained), "--data", str(test_csv)]) == 0
+    out = capsys.readouterr().out
+    assert f"{test_csv} [all]" in out
+    metrics = json.loads((trained / "metrics.json").read_text())
+    assert metrics["data"] == {"path": str(test_csv), "split": "all", "n_trajectories": 2}
+    assert metrics["n_rollouts"] == 2 * (RECORD - 3 - 100 + 1)
+    code = main(["evaluate", str(trained), "--data", str(test_csv), "--dt", "1.0"])
+    one_line_error(capsys, code, str(test_csv), "dt = 1 s, the run's is 2 s")
+    code = main(["evaluate", str(trained), "--dt", "1.0"])
+    one_line_error(capsys, code, "--dt apply to --data FILE")
+
+
+def test_analyze_run_checks_a_csv_trained_tank_model(trained, tmp_path, capsys):
+    out = tmp_path / "analysis"
+    argv = ["analyze", "tank", "--run", str(trained), "--window", "3", "--trials", "5"]
+    quick = ["--boxes", "40", "--budget", "5", "--quiet", "--out", str(out)]
+    # CSV records carry no noise-free outputs: refused before the analysis runs
+    one_line_error(capsys, main([*argv, *quick]), "needs the noise w = y − y_clean", "[val]")
+    assert not out.exists()
+    # the same records with y_clean, as an .npz the run's options read
+    system, rng = get_system("tank"), np.random.default_rng(8)
+    u = np.repeat(rng.uniform(1, 3, size=(16, 1)), 8, axis=0)
+    clean = system.simulate(np.array([1.0, 1.5]), u).y
+    test_npz = tmp_path / "test.npz"
+    np.savez(test_npz, u=u, y=clean + rng.uniform(-0.005, 0.005, clean.shape), y_clean=clean)
+    assert main([*argv, "--data", str(test_npz), *quick]) == 0
+    learned = json.loads((out / "analysis.json").read_text())["learned"]
+    assert learned["window"] == 3 and learned["split"] == "all"
+    assert learned["data"] == str(test_npz) and learned["residual"]["rows"] == 128 - 3
+    code = main(["analyze", "drone2d", "--run", str(trained), "--window", "3", "--quiet"])
+    one_line_error(capsys, code, "the run has n_u=1, n_y=1; drone2d has 2, 3")
+
+
+def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, capsys):
+    data = _write_tank_csv(tmp_path / "one.csv", [7], T=600)
+    run = tmp_path / "run"
+    argv = ["train", str(data), "--inputs", "pump", "--outputs", "level", "--dt", str(DT)]
+    argv += ["--model", "mlp", *QUICK]
+    assert main([*argv, "--window", "3", "--out", str(run)]) == 0
+    metrics = json.loads((run / "metrics.json").read_text())
+    # the validation part is samples 480…599 (the last 20 %)
+    assert metrics["data"]["split"] == "val" and metrics["n_scored_samples"] == 120 - 50
+    # records shorter than the default n_init and horizon are scored on what they hold
+    short = _write_tank_csv(tmp_path / "short.csv", [8], T=40)
+    assert main(["evaluate", str(run), "--data", str(short)]) == 0
+    metrics = json.loads((run / "metrics.json").read_text())
+    assert metrics["n_init"] == 39 and metrics["rollout_horizon"] == 40 - 3
+    # a split too short for the window is refused before any training
+    code = main([*argv, "--window", "120", "--out", str(tmp_path / "x")])
+    one_line_error(capsys, code, "[val]", "window ℓ = 120 needs at least ℓ + 1 = 121")
+    assert not (tmp_path / "x").exists()
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--residual"], "--residual: the run was trained without it"),
+        (["--no-feedthrough"], "--no-feedthrough: the run was trained without it"),
+        (["--profile", "paper"], "profile: 'quick' there, 'paper' here"),
+        (["--val", "other.csv"], "val: "),
+        (["--val-fraction", "0.5"], "val_fraction: 0.2 there, 0.5 here"),
+        (["--dt", "1.0"], "dt: 2.0 there, 1.0 here"),
+        (["--out", "elsewhere"], "--out does not apply with --resume"),
+    ],
+)
+def test_resume_refuses_what_it_would_ignore(trained, tmp_path, capsys, extra, needle):
+    run = tmp_path / "run"
+    shutil.copytree(trained, run)
+    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    code = main(["train", "--resume", str(run), "--epochs", "3", "--no-progress", *extra])
+    one_line_error(capsys, code, needle)
+    assert {p.name: p.read_bytes() for p in run.iterdir()} == before
+
+
+def test_resume_with_the_same_options_and_an_eval_horizon_runs(trained, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(trained, run)
+    resume = ["train", "--resume", str(run), "--epochs", "3", "--no-progress", "--device", "cpu"]
+    assert main([*resume, "--dt", str(DT), "--eval-horizon", "20"]) == 0
+    assert json.loads((run / "metrics.json").read_text())["rollout_horizon"] == 20
+
+
+@pytest.mark.slow
+def test_analyze_tank_for_windows_3_to_10_on_the_default_sets(tmp_path, capsys):
+    """Was `LinAlgError: SVD did not converge`: some sampled ∂O_ℓ/∂x are not finite."""
+    argv = ["analyze", "tank", "--windows", "3-10", "--trials", "3", "--boxes", "20"]
+    assert main([*argv, "--budget", "5", "--quiet", "--out", str(tmp_path / "a")]) == 0
+    out = capsys.readouterr().out
+    assert "Sampled bounds:" in out and "samples have no finite ∂O_ℓ/∂x" in out
+    data = json.loads((tmp_path / "a" / "analysis.json").read_text())
+    assert data["windows"] == list(range(3, 11))
+
+
+def test_validation_data_of_another_sampling_time_or_shape_are_refused(csv_files, tmp_path, capsys):
+    train_csv = csv_files[0]
+    argv = ["train", str(train_csv), *CSV_OPTIONS, "--dt", str(DT), "--model", "mlp"]
+    argv += ["--window", "3", *QUICK, "--out", str(tmp_path / "run")]
+    other_dt, two_outputs = tmp_path / "dt.npz", tmp_path / "wide.npz"
+    np.savez(other_dt, u=np.ones((150, 1)), y=np.ones((150, 1)), dt=1.0)
+    np.savez(two_outputs, u=np.ones((150, 1)), y=np.ones((150, 2)))
+    one_line_error(capsys, main([*argv, "--val", str(other_dt)]), "dt.npz: holds dt = 1.0")
+    code = main([*argv, "--val", str(two_outputs)])
+    one_line_error(capsys, code, "wide.npz: 2 output(s) ['y1', 'y2'],", "train.csv's are ['level']")
+    assert not (tmp_path / "run").exists()
