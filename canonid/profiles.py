@@ -49,7 +49,11 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "drone2d": {"seed": 0, "counts": {"train": 60, "val": 10, "test": 10}},
                 "quadrotor": {"seed": 0, "counts": {"train": 40, "val": 10, "test": 10}},
             },
-            "train": {"epochs": 150, "horizon": 50, "per_model": {"gru": {"epochs": 30}}},
+            "train": {
+                "epochs": 150,
+                "horizon": 50,
+                "per_model": {"gru": {"epochs": 30}, "mlp": {"epochs": 300}},
+            },
             "evaluation": {"horizon": 100, "stride": 5},
             "analysis": {
                 "tank": {
