@@ -25,7 +25,10 @@ inputs, W the hull of the training noise ``y − y_clean`` when the data has cle
 
 from __future__ import annotations
 
+import os
+import tempfile
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 import casadi as ca
@@ -34,10 +37,17 @@ import numpy as np
 from models.base import System
 from models.canonical import cut_windows
 from models.errors import DataError, ShapeError
+from models.io import atomic_write_bytes
 from models.network import CanonicalNet, Layer, ReducedNet
 from models.sets import Box
 
-__all__ = ["LearnedSystem", "network_expr"]
+__all__ = [
+    "LearnedSystem",
+    "load_function",
+    "model_function",
+    "network_expr",
+    "save_function",
+]
 
 _ACTIVATIONS: dict[str, Callable[[ca.SX], ca.SX]] = {
     "linear": lambda v: v,
@@ -145,9 +155,9 @@ class LearnedSystem(System):
                 "activation": reg.layers[0].activation if len(reg.layers) > 1 else "linear",
             },
         )
-        self._encoder: ca.Function | None = None
-        if isinstance(net, ReducedNet):
-            self._encoder = _encoder(net)
+        z = ca.SX.sym("z", reg.state_dim)
+        #: ``x[t]`` of a measured window ``z_t`` (physical units): ``z_t`` itself, or ``E(z̃_t)``
+        self.encoder = ca.Function("encode", [z], [self._state_expr(z)], ["z"], ["x"])
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -184,8 +194,10 @@ class LearnedSystem(System):
                 W = Box(np.zeros(reg.n_y), np.zeros(reg.n_y))
         states = windows
         if isinstance(net, ReducedNet):
+            zn = ca.SX.sym("zn", reg.state_dim)
+            encode = ca.Function("encode", [zn], [_encode_reduced(net, zn)])
             normalised = (windows - reg.z_mean) / reg.z_std
-            states = np.asarray(_encoder(net).map(windows.shape[0])(normalised.T)).T
+            states = np.asarray(encode.map(windows.shape[0])(normalised.T)).T
         X = Box(states.min(axis=0), states.max(axis=0))
         return cls(
             net,
@@ -198,7 +210,17 @@ class LearnedSystem(System):
             **options,
         )
 
+    @property
+    def reduced(self) -> bool:
+        """Whether the state is a reduced model's ``x̄`` (else the canonical ``z_t``)."""
+        return isinstance(self.network, ReducedNet)
+
     # ------------------------------------------------------------------ symbolic definition
+    def _state_expr(self, z: ca.SX) -> ca.SX:
+        if isinstance(self.network, ReducedNet):
+            return _encode_reduced(self.network, (z - self._z_mean) / self._z_std)
+        return z
+
     def _f_expr(self, x: ca.SX, u: ca.SX) -> ca.SX:
         reg = self.regressor
         un = (u - reg.u_mean) / reg.u_std
@@ -233,11 +255,7 @@ class LearnedSystem(System):
                 f"{self.name}: a window z must have {reg.state_dim} entries (ℓ = {reg.window} "
                 f"pairs of {reg.n_u + reg.n_y}), got shape {np.shape(z)}"
             )
-        if self._encoder is None:
-            out = za.copy()
-        else:
-            zn = (za - self._z_mean) / self._z_std
-            out = np.asarray(self._encoder.map(za.shape[0])(zn.T)).T
+        out = np.asarray(self.encoder.map(za.shape[0])(za.T)).T.reshape(za.shape[0], self.n_x)
         return out[0] if single else out
 
 
@@ -245,7 +263,47 @@ def _encode_reduced(net: ReducedNet, zn: ca.SX) -> ca.SX:
     return _skip(net.encoder, net.encoder_skip, zn)
 
 
-def _encoder(net: ReducedNet) -> ca.Function:
-    """``x̄ = E(z̃)`` as a function of the normalised window."""
-    zn = ca.SX.sym("zn", net.regressor.state_dim)
-    return ca.Function("encode", [zn], [_encode_reduced(net, zn)], ["z"], ["x"])
+#: the signature of an exported model function: ``(x, u) -> (x_next, y)``
+FUNCTION_INPUTS, FUNCTION_OUTPUTS = ("x", "u"), ("x_next", "y")
+
+
+def model_function(system: System, name: str = "learned_model") -> ca.Function:
+    """``(x, u) -> (f(x, u), h(x, u))`` of ``system`` as one SX ``casadi.Function``."""
+    x = ca.SX.sym("x", system.n_x)
+    u = ca.SX.sym("u", system.n_u)
+    return ca.Function(
+        name,
+        [x, u],
+        [system.f(x, u), system.h(x, u)],
+        list(FUNCTION_INPUTS),
+        list(FUNCTION_OUTPUTS),
+    )
+
+
+def save_function(fun: ca.Function, path: str | os.PathLike[str]) -> Path:
+    """Write ``fun`` in CasADi's serialised format (``Function.save``), atomically."""
+    target = Path(path)
+    with tempfile.TemporaryDirectory() as tmp:
+        scratch = Path(tmp) / "function.casadi"
+        fun.save(str(scratch))
+        return atomic_write_bytes(target, scratch.read_bytes())
+
+
+def load_function(path: str | os.PathLike[str]) -> ca.Function:
+    """Read a function written by :func:`save_function` (or ``canonid export --casadi``).
+
+    Raises:
+        DataError: the file is missing or is not a serialised ``casadi.Function``.
+    """
+    source = Path(path)
+    if not source.is_file():
+        raise DataError(f"{source}: no such file (expected a .casadi function)")
+    try:
+        fun = ca.Function.load(str(source))
+    except RuntimeError as exc:
+        why = str(exc).strip().splitlines()[-1]
+        raise DataError(
+            f"{source} is not a serialised CasADi Function (as written by `canonid export "
+            f"--casadi` or casadi.Function.save): {why}"
+        ) from None
+    return fun

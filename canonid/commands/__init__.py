@@ -3,6 +3,7 @@
 from canonid.commands import (
     analyze,
     evaluate,
+    export,
     generate,
     reduce,
     reproduce,
@@ -11,6 +12,6 @@ from canonid.commands import (
 )
 
 #: registration order is the order shown by ``canonid --help``
-COMMANDS = (systems, generate, train, reduce, evaluate, analyze, reproduce)
+COMMANDS = (systems, generate, train, reduce, evaluate, export, analyze, reproduce)
 
 __all__ = ["COMMANDS"]
