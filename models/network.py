@@ -41,10 +41,10 @@ import numpy as np
 from models._validate import require_finite
 from models.errors import ShapeError
 
-__all__ = ["ACTIVATIONS", "CanonicalNet", "Layer", "ReducedNet", "network_slope"]
+__all__ = ["ACTIVATIONS", "CanonicalNet", "Layer", "ReducedNet"]
 
-#: activation name → an upper bound of |σ'| over R (SiLU's slope peaks at 1.0998 near x = 2.4;
-#: 1.1 is that peak rounded up, so products of these bounds are valid Lipschitz bounds)
+#: activation name → an upper bound of |σ'| over R, for Lipschitz bounds (SiLU's slope peaks at
+#: 1.0998 near x = 2.4, rounded up here)
 ACTIVATIONS: dict[str, float] = {"linear": 1.0, "relu": 1.0, "tanh": 1.0, "silu": 1.1}
 
 
@@ -106,18 +106,6 @@ def _check_chain(layers: Sequence[Layer], n_in: int, n_out: int, name: str) -> t
     if layers[-1].activation != "linear":
         raise ShapeError(f"{name}: the last layer must be linear, got {layers[-1].activation!r}")
     return layers
-
-
-def network_slope(layers: Sequence[Layer]) -> float:
-    """``∏_k ‖W_k‖₂ · max|σ_k'|``: a Lipschitz constant of the network in the 2-norm (loose).
-
-    Norms are computed in float64 and the product is rounded up by a relative 1e-12, well above
-    the rounding error of an SVD of the sizes used here.
-    """
-    out = 1.0
-    for layer in layers:
-        out *= float(np.linalg.norm(layer.weight, 2)) * ACTIVATIONS[layer.activation]
-    return out * (1.0 + 1e-12)
 
 
 @dataclass(frozen=True)

@@ -129,3 +129,27 @@ def test_a_file_that_is_not_a_casadi_function_is_refused(tmp_path, content):
         load_function(path)
     with pytest.raises(DataError, match="no such file"):
         load_function(tmp_path / "missing.casadi")
+
+
+def test_analyze_run_reports_the_learned_models_gamma_beside_the_true_systems(
+    runs, tmp_path, capsys
+):
+    out = tmp_path / "analysis"
+    argv = ["analyze", "linear", "--window", "3", "--trials", "5", "--budget", "30"]
+    argv += ["--boxes", "40", "--run", str(runs / "mlp"), "--out", str(out), "--quiet"]
+    assert main(argv) == 0
+    printed = capsys.readouterr().out
+    assert "γ_f at ℓ = 3: true system [" in printed
+    assert "γ_f of the learned model (its state z, dim 6" in printed
+    gamma = json.loads((out / "analysis.json").read_text())["learned"]["gamma_f"]
+    lower = gamma["lower"]["value"]
+    assert gamma["lower"]["kind"] == "lower" and gamma["branch_and_bound"]["kind"] == "upper"
+    assert lower <= gamma["branch_and_bound"]["value"] and lower <= gamma["layer_norms"]["value"]
+    assert gamma["best_upper"] == min(
+        gamma["branch_and_bound"]["value"], gamma["layer_norms"]["value"]
+    )
+    assert "product of layer norms" in gamma["layer_norms"]["method"]
+    # a non-canonical model: the residual check as before, γ_f says why it is missing
+    argv[argv.index(str(runs / "mlp"))] = str(runs / "classic-gru")
+    assert main(argv) == 0
+    assert "not computed (only canonical models export" in capsys.readouterr().out
