@@ -10,6 +10,12 @@ and applies ``u_0``. ``f`` is the system's own discrete map; Q and R are diagona
 Riccati solution of the LQR of the linearisation at ``(x_eq, u_eq)`` (python-control ``dlqr``)
 with ``terminal="lqr"``, or Q with ``terminal="none"``.
 
+Output reference (``track="output"``): the reference rows are targets for the outputs and the
+tracking terms become ``‖h(x_k, u_k) − r_{t+k}‖²_Q`` (Q from ``output_weights``), the terminal
+one ``‖h(x_N, u_eq) − r_{t+N}‖²_Q`` (``terminal="none"`` only: the LQR weight is a state weight).
+This is the form for a learned model, whose state (a window of past signals) has no target of
+its own.
+
 Decision vector and constraint order are the stage order fatrop's structure detection needs:
 ``w = (x_0, u_0, x_1, u_1, …, x_{N−1}, u_{N−1}, x_N)``, ``g = (x_0 − x[t], x_1 − f(x_0, u_0), …)``
 (the dynamics as ``x_{k+1} − f`` — the other sign is a "structure mismatch" for fatrop).
@@ -51,16 +57,19 @@ SOLVERS = ("auto", "fatrop-c", "fatrop", "ipopt")
 
 
 class NMPC(Controller):
-    """Nonlinear MPC tracking a full-state reference (see the module docstring).
+    """Nonlinear MPC tracking a full-state or an output reference (see the module docstring).
 
     Args:
-        system: the true system (its ``f`` is the prediction model and its U the input bounds).
+        system: the prediction model (its ``f``, and ``h`` for an output reference) and its U
+            the input bounds: a true system or a learned one (``models.learned``).
         u_eq: the input the ``R`` term pulls towards and the LQR linearises at (e.g. hover).
         x_eq: the state the LQR linearises at (default 0).
         horizon: N, the number of predicted inputs.
-        state_weights: diagonal of Q, one per state.
+        state_weights: diagonal of Q, one per state (``track="state"``).
         input_weights: diagonal of R, one per input.
         terminal: ``"lqr"`` or ``"none"``.
+        track: ``"state"`` (a reference row per state) or ``"output"`` (per output).
+        output_weights: diagonal of Q, one per output (``track="output"``).
         solver: one of :data:`SOLVERS`.
         tol: solver tolerance. The default 1e-4 was chosen by measurement: on drone flights
             the applied rotor speeds differed from those of IPOPT at tolerance 1e-10 by at most
@@ -81,9 +90,11 @@ class NMPC(Controller):
         u_eq: Sequence[float],
         x_eq: Sequence[float] | None = None,
         horizon: int = 20,
-        state_weights: Sequence[float],
+        state_weights: Sequence[float] | None = None,
         input_weights: Sequence[float],
         terminal: str = "lqr",
+        track: str = "state",
+        output_weights: Sequence[float] | None = None,
         solver: str = "auto",
         tol: float = 1e-4,
         mu_init: float = 1e-3,
@@ -96,12 +107,27 @@ class NMPC(Controller):
             raise ShapeError(f"NMPC solver must be one of {SOLVERS}, got {solver!r}")
         if terminal not in ("lqr", "none"):
             raise ShapeError(f"NMPC terminal must be 'lqr' or 'none', got {terminal!r}")
+        if track not in ("state", "output"):
+            raise ShapeError(f"NMPC track must be 'state' or 'output', got {track!r}")
+        tracked, weights = (
+            ("state", state_weights) if track == "state" else ("output", output_weights)
+        )
+        other = output_weights if track == "state" else state_weights
+        if weights is None or other is not None:
+            raise ShapeError(
+                f"NMPC with track={track!r} needs {tracked}_weights (one per {tracked}) and no "
+                f"{'output' if track == 'state' else 'state'}_weights"
+            )
+        if track == "output" and terminal == "lqr":
+            raise ShapeError("NMPC track='output' needs terminal='none' (LQR weighs states)")
         self.system = system
+        self.track = track
         self.horizon = N = int(horizon)
         nx, nu = system.n_x, system.n_u
+        self._n_ref = nx if track == "state" else system.n_y
         self.u_eq = as_vector(u_eq, nu, "NMPC u_eq")
         self.x_eq = np.zeros(nx) if x_eq is None else as_vector(x_eq, nx, "NMPC x_eq")
-        q = as_vector(state_weights, nx, "NMPC state_weights")
+        q = as_vector(weights, self._n_ref, f"NMPC {tracked}_weights")
         r = as_vector(input_weights, nu, "NMPC input_weights")
         if np.any(q < 0) or np.any(r <= 0):
             raise ShapeError("NMPC weights: state weights must be >= 0 and input weights > 0")
@@ -146,18 +172,22 @@ class NMPC(Controller):
         X = [ca.MX.sym(f"x{k}", nx) for k in range(N + 1)]
         U = [ca.MX.sym(f"u{k}", nu) for k in range(N)]
         x_now = ca.MX.sym("x_now", nx)
-        ref = ca.MX.sym("ref", nx, N + 1)
+        ref = ca.MX.sym("ref", self._n_ref, N + 1)
         Q, R, P = ca.DM(self.Q), ca.DM(self.R), ca.DM(self.P)
         u_eq = ca.DM(self.u_eq)
+
+        def tracked(x: ca.MX, u: Any) -> ca.MX:
+            return x if self.track == "state" else self.system.h(x, u)
+
         w, g = [], [X[0] - x_now]
         cost: Any = 0
         for k in range(N):
             w += [X[k], U[k]]
-            e, du = X[k] - ref[:, k], U[k] - u_eq
+            e, du = tracked(X[k], U[k]) - ref[:, k], U[k] - u_eq
             cost += ca.bilin(Q, e, e) + ca.bilin(R, du, du)
             g.append(X[k + 1] - self.system.f(X[k], U[k]))
         w.append(X[N])
-        e = X[N] - ref[:, N]
+        e = tracked(X[N], u_eq) - ref[:, N]
         cost += ca.bilin(P, e, e)
         return {"x": ca.vcat(w), "f": cost, "g": ca.vcat(g), "p": ca.vertcat(x_now, ca.vec(ref))}
 
@@ -221,7 +251,9 @@ class NMPC(Controller):
     # ------------------------------------------------------------------ the controller
     def reset(self, reference: np.ndarray, x0: np.ndarray) -> None:
         nx, N = self.system.n_x, self.horizon
-        self._reference = as_matrix(reference, nx, "NMPC reference (one target per state)")
+        self._reference = as_matrix(
+            reference, self._n_ref, f"NMPC reference (one target per {self.track})"
+        )
         x = as_vector(x0, nx, "NMPC x0")
         stage = np.concatenate([x, self.u_eq])
         self._guess = np.concatenate([np.tile(stage, N), x])
@@ -276,8 +308,9 @@ class NMPC(Controller):
         return {
             "type": self.name,
             "solver": self.solver_used,
+            "track": self.track,
             "horizon": self.horizon,
-            "state_weights": np.diag(self.Q).tolist(),
+            f"{self.track}_weights": np.diag(self.Q).tolist(),
             "input_weights": np.diag(self.R).tolist(),
             "u_eq": self.u_eq.tolist(),
             "x_eq": self.x_eq.tolist(),
