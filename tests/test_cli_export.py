@@ -153,3 +153,35 @@ def test_analyze_run_reports_the_learned_models_gamma_beside_the_true_systems(
     argv[argv.index(str(runs / "mlp"))] = str(runs / "classic-gru")
     assert main(argv) == 0
     assert "not computed (only canonical models export" in capsys.readouterr().out
+
+
+def _python_blocks(markdown: str) -> list[str]:
+    parts = markdown.split("```python\n")[1:]
+    return [part.split("```", 1)[0] for part in parts]
+
+
+@pytest.mark.slow
+def test_the_docs_examples_run(runs, tmp_path):
+    """docs/casadi-export.md: the MPC step on the exported file (CasADi only, in a fresh
+    process) and the recipe inside canonid, exactly as written (the run path replaced)."""
+    from pathlib import Path
+
+    docs = (Path(__file__).resolve().parents[1] / "docs" / "casadi-export.md").read_text()
+    standalone, inside = _python_blocks(docs)
+    assert main(["export", str(runs / "mlp"), "--casadi", str(tmp_path / "tank.casadi")]) == 0
+    (tmp_path / "step.py").write_text(standalone)
+    res = subprocess.run(
+        [sys.executable, "step.py"], cwd=tmp_path, capture_output=True, text=True, timeout=300
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert res.stdout.startswith("apply u = [")
+    code = inside.replace('"runs/mlp-l5"', repr(str(runs / "mlp")))
+    res = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=Path(__file__).resolve().parents[1],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    assert "apply u = [" in res.stdout

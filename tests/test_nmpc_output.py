@@ -74,3 +74,18 @@ def test_bad_output_options_are_refused(kwargs, message):
     options = {"u_eq": [0.0], "input_weights": [1.0], "terminal": "none", "solver": "fatrop"}
     with pytest.raises(ShapeError, match=message):
         NMPC(system, **{**options, **kwargs})
+
+
+def test_auto_does_not_compile_a_large_prediction_model(monkeypatch):
+    """Above COMPILE_LIMIT SX instructions "auto" keeps the plugin (no gcc run at all)."""
+    import datagen.controllers.nmpc as nmpc_module
+
+    def no_compiler(*args, **kwargs):
+        raise AssertionError("compile_function was called")
+
+    monkeypatch.setattr(nmpc_module, "compile_function", no_compiler)
+    monkeypatch.setattr(nmpc_module, "COMPILE_LIMIT", 1)
+    system = LinearSystem(A, B, [[1.0, 0.0]])
+    options = {"u_eq": [0.0], "input_weights": [1.0], "terminal": "none", "solver": "auto"}
+    nmpc = NMPC(system, track="output", output_weights=[1.0], **options)
+    assert nmpc.solver_used == "fatrop"

@@ -28,7 +28,9 @@ plan yet); the next solve is warm-started from that plan shifted again.
 Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver to C, compiles it on
 first use and caches the library (see :mod:`datagen.controllers._compiled`); ``"fatrop"`` is the
 plugin of the CasADi wheel; ``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found
-and the build succeeds, else ``"fatrop"``; ``"ipopt"`` solves the same NLP with IPOPT (for
+and the build succeeds and the model is small (``f`` and ``h`` below :data:`COMPILE_LIMIT` SX
+instructions: the C of a learned MLP's exact Hessian is too large for gcc), else ``"fatrop"``;
+``"ipopt"`` solves the same NLP with IPOPT (for
 comparisons). :meth:`NMPC.settings` names the solver actually used.
 """
 
@@ -49,11 +51,15 @@ from models._validate import as_matrix, as_vector
 from models.base import System
 from models.errors import ShapeError
 
-__all__ = ["NMPC", "SOLVERS"]
+__all__ = ["COMPILE_LIMIT", "NMPC", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
 SOLVERS = ("auto", "fatrop-c", "fatrop", "ipopt")
+
+#: ``solver="auto"`` compiles only prediction models with fewer SX instructions than this (a
+#: 64 × 64 MLP has ~15,000; gcc had not finished its solver after 5 min and 9 GB)
+COMPILE_LIMIT = 2_000
 
 
 class NMPC(Controller):
@@ -225,7 +231,10 @@ class NMPC(Controller):
             },
         }
         step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
-        if solver in ("auto", "fatrop-c"):
+        size = self.system.f.n_instructions() + self.system.h.n_instructions()
+        if solver == "auto" and size >= COMPILE_LIMIT:
+            log.info("NMPC: %d SX instructions in f and h, not compiled (plugin)", size)
+        elif solver in ("auto", "fatrop-c"):
             compiled = compile_function(
                 step,
                 name=f"nmpc_{self.system.name}_N{self.horizon}",
