@@ -23,6 +23,7 @@ Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -139,13 +140,16 @@ def main() -> int:
     true_rmse = float(np.mean(rows["true model"][0]))
     learned_rmse = float(np.mean(rows["learned model"][0]))
     info = run.model.info
+    recipe = json.loads((args.run / "run.json").read_text())
     net = learned.regressor
     lines = [
         f"Learned model: `{args.run}` — Ours (MLP), ℓ = {ell}, hidden "
         f"{[layer.n_out for layer in net.layers[:-1]]}, activation "
         f"{learned.parameters['activation']}, residual {learned.parameters['residual']}, "
-        f"profile `{info.get('profile')}` (a short training: see the run's command in "
-        f"run.json). NMPC for both: output reference, N = {HORIZON}, Q = {OUTPUT_WEIGHT}, "
+        f"profile `{info.get('profile')}`, a short training on the default tank dataset "
+        f"(`canonid generate tank`): `{' '.join(recipe['command'])}` "
+        f"({recipe['train_options'].get('epochs')} epochs). NMPC for both: output "
+        f"reference, N = {HORIZON}, Q = {OUTPUT_WEIGHT}, "
         f"R = {INPUT_WEIGHT} on u − u_eq(level {LEVEL_EQ}), U = [0, 6], solver "
         + ", ".join(f"`{s}` ({n}, built in {b:.0f} s)" for n, (s, b) in build.items())
         + f". Test references: the first {len(flights)} of the test split, "

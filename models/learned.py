@@ -2,7 +2,7 @@
 
 The weights arrive as a plain description (:mod:`models.network`, exported by
 ``learning.NumpyModel.network()``), so this module never sees torch. The SX graph is written out
-layer by layer — ReLU as ``fmax(v, 0)``, SiLU as ``v / (1 + exp(−v))``, tanh as ``tanh`` — which
+layer by layer — ReLU as ``fmax(v, 0)``, SiLU as ``v (1 + tanh(v/2)) / 2``, tanh as ``tanh`` — which
 keeps it open to the interval evaluator of :mod:`analysis.enclosure` (a wrapped torch function
 would be opaque to it).
 
@@ -53,7 +53,8 @@ _ACTIVATIONS: dict[str, Callable[[ca.SX], ca.SX]] = {
     "linear": lambda v: v,
     "relu": lambda v: ca.fmax(v, 0),
     "tanh": ca.tanh,
-    "silu": lambda v: v / (1 + ca.exp(-v)),
+    # v σ(v) with σ(v) = (1 + tanh(v/2)) / 2: bounded, so interval enclosures never overflow
+    "silu": lambda v: 0.5 * v * (1 + ca.tanh(0.5 * v)),
 }
 
 

@@ -71,3 +71,29 @@ def test_the_reduced_model_bound_is_above_its_sampled_jacobians(rng):
     assert 0 < max(sampled) <= bound.value
     gamma = learned_gamma(system, budget=BUDGET)
     assert gamma.bracket.lower.value <= gamma.bracket.upper.value
+
+
+@pytest.mark.parametrize("name", ["tanh", "exp", "atan", "sinh"])
+def test_increasing_functions_are_enclosed_by_the_images_of_the_ends(name, rng):
+    """A wide interval's image is [g(lo), g(hi)] (one arb ball over it would be far looser:
+    the SiLU layers' interval bounds depend on it), and it contains every sampled value."""
+    from analysis.enclosure import Enclosure
+    from analysis.interval import Interval
+
+    x = ca.SX.sym("x")
+    g = getattr(ca, name)
+    enclosure = Enclosure(ca.Function("g", [x], [g(x)]), wrt=0)
+    lo, hi = np.array([[-10.0], [-1.0], [2.0]]), np.array([[10.0], [1.0], [30.0]])
+    res = enclosure([Interval(lo, hi)])
+    value, slope = res.values[0], res.jacobians[0]
+    exact_lo, exact_hi = (
+        np.asarray(getattr(np, name.replace("atan", "arctan"))(v)) for v in (lo, hi)
+    )
+    np.testing.assert_allclose(value.lo, exact_lo, rtol=1e-12)
+    np.testing.assert_allclose(value.hi, exact_hi, rtol=1e-12)
+    assert np.all(value.lo <= exact_lo) and np.all(value.hi >= exact_hi)
+    for row in range(3):
+        points = rng.uniform(lo[row, 0], hi[row, 0], size=200)
+        derivative = np.asarray(ca.Function("d", [x], [ca.jacobian(g(x), x)]).map(200)(points))
+        assert np.all(slope.lo[row].min() <= derivative + 1e-12)
+        assert np.all(derivative <= slope.hi[row].max() + 1e-12)
