@@ -8,8 +8,9 @@ of the training windows and the training inputs U:
 * ``upper`` — **certified upper bound**: interval branch-and-bound on the SX graph
   (:func:`lipschitz_upper`), valid whenever it stops; on a large network in ℓ(n_u+n_y)
   dimensions the budget usually ends long before the bracket closes;
-* ``layer_norms`` — **certified upper bound, loose, always available**: the product of the layer
-  norms (below), a Lipschitz constant on the whole space, so also on X × U.
+* ``layer_norms`` — **certified upper bound, loose**: the product of the layer norms (below), a
+  Lipschitz constant on the whole space, so also on X × U; always available for Ours (MLP) and
+  its reduced model (for a GRU regressor it is the trivial ``∞``).
 
 Layer-norm bound. With ``Ĥ = y_mean + D_y ỹ``, ``ỹ = C a + diag(s) MLP(a)``, ``a`` the normalised
 ``[z; u]`` (``C``: the residual and affine terms, :meth:`models.network.CanonicalNet.linear_part`),
@@ -90,6 +91,15 @@ def layer_norm_bound(system: LearnedSystem) -> Estimate:
     t0 = time.perf_counter()
     net = system.network
     reg = system.regressor
+    if reg.recurrent:
+        return Estimate(
+            quantity="gamma_f",
+            value=math.inf,
+            kind="upper",
+            sets={"X": system.X, "U": system.U},
+            method="trivial: no layer-norm bound for a GRU regressor",
+            window=reg.window,
+        )
     shift = 1.0 if reg.window >= 2 else 0.0
     if isinstance(net, ReducedNet):
         inner = _regressor_z(reg, np.ones(reg.state_dim), np.ones(reg.n_y))

@@ -1,7 +1,7 @@
 """A run folder's trained model as a CasADi system, with its sets from the run's training data.
 
 ``learned_system(RUN)`` reads the model of ``RUN`` (``learning.Model.load``), exports its weights
-(``NumpyModel.network()``: Ours (MLP) and its reduced model only) and builds a
+(``NumpyModel.network()``: Ours (MLP), Ours (GRU) and their reduced models) and builds a
 :class:`models.learned.LearnedSystem` with
 
 * ``dt``, input and output names from the data the run was trained on (``RUN/run.json``), units
@@ -52,7 +52,7 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
     all of it when it has no such split).
 
     Raises:
-        NotExportableError: the run's model is not Ours (MLP) or its reduced model.
+        NotExportableError: the run's model is not a canonical model (or a reduced one).
         DataError: the run has no recipe naming its data and ``data`` is not given.
     """
     from canonid.commands import _data

@@ -38,9 +38,9 @@ The object holds a float64 copy of the network on the CPU; it never changes the 
 from.
 
 ``network()`` returns the weights themselves as plain numpy (:mod:`models.network`): a
-:class:`~models.network.CanonicalNet` for Ours (MLP), a :class:`~models.network.ReducedNet` for
-its reduced model. :mod:`models.learned` builds CasADi expressions from it; the other models
-raise :class:`NotExportableError`.
+:class:`~models.network.CanonicalNet` for Ours (MLP) and Ours (GRU), a
+:class:`~models.network.ReducedNet` for their reduced models. :mod:`models.learned` builds
+CasADi expressions from it; the other models raise :class:`NotExportableError`.
 """
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ import torch
 from torch import nn
 
 from learning.model import Model, load_state
-from learning.nets import ALL_NETS, OursMLP, ReducedNet, build_net
+from learning.nets import ALL_NETS, OursGRU, OursMLP, ReducedNet, build_net
 from learning.nets.base import ACTIVATIONS
 from models import network as plain
 from models._validate import require_finite
@@ -68,8 +68,8 @@ class NotExportableError(CanonidError, ValueError):
 def _not_exportable(name: str) -> NotExportableError:
     label = ALL_NETS[name].label if name in ALL_NETS else name
     return NotExportableError(
-        f"only canonical models export to CasADi: Ours (MLP) ('mlp') and its reduced model "
-        f"('reduced'); got {label} ({name!r})"
+        f"only canonical models export to CasADi: Ours (MLP) ('mlp'), Ours (GRU) ('gru') and "
+        f"their reduced models ('reduced'); got {label} ({name!r})"
     )
 
 
@@ -90,6 +90,25 @@ def _layer(linear: nn.Linear, activation: str = "linear") -> plain.Layer:
         linear.weight.detach().cpu().numpy().copy(),
         linear.bias.detach().cpu().numpy().copy(),
         activation,
+    )
+
+
+def _gru_layers(gru: nn.GRU) -> tuple[plain.GRULayer, ...]:
+    """The layers of a ``batch_first`` :class:`torch.nn.GRU` (PyTorch's gate order)."""
+    if gru.bidirectional or not gru.bias:
+        raise ShapeError("only unidirectional GRUs with biases export")
+
+    def weight(name: str, k: int) -> np.ndarray:
+        return getattr(gru, f"{name}_l{k}").detach().cpu().numpy().copy()
+
+    return tuple(
+        plain.GRULayer(
+            weight("weight_ih", k),
+            weight("weight_hh", k),
+            weight("bias_ih", k),
+            weight("bias_hh", k),
+        )
+        for k in range(gru.num_layers)
     )
 
 
@@ -174,7 +193,12 @@ class NumpyModel:
         return self._regressor(self._net)
 
     def _regressor(self, net: Any) -> plain.CanonicalNet:
-        if not isinstance(net, OursMLP):
+        recurrent: tuple[plain.GRULayer, ...]
+        if isinstance(net, OursMLP):
+            layers, recurrent, affine = _layers(net.net, net.activation), (), _affine_path(net)
+        elif isinstance(net, OursGRU):
+            layers, recurrent, affine = _layers(net.head, "relu"), _gru_layers(net.gru), None
+        else:
             raise _not_exportable(net.name)
         norm = self._norm
         return plain.CanonicalNet(
@@ -182,13 +206,14 @@ class NumpyModel:
             n_u=net.n_u,
             n_y=net.n_y,
             feedthrough=net.feedthrough,
-            layers=_layers(net.net, net.activation),
+            layers=layers,
             u_mean=norm.u_mean,
             u_std=norm.u_std,
             y_mean=norm.y_mean,
             y_std=norm.y_std,
             residual_scale=net.residual_scale.detach().cpu().numpy() if net.residual else None,
-            affine=_affine_path(net),
+            affine=affine,
+            recurrent=recurrent,
         )
 
 
@@ -224,8 +249,6 @@ class ReducedNumpyModel(NumpyModel):
     def network(self) -> plain.ReducedNet:
         """The regressor and the auto-encoder as plain numpy (see the module docstring)."""
         net = self._net
-        if not isinstance(net.regressor, OursMLP):
-            raise _not_exportable(net.regressor.name)
         return plain.ReducedNet(
             regressor=self._regressor(net.regressor),
             latent_dim=net.latent_dim,

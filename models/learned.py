@@ -38,7 +38,7 @@ from models.base import System
 from models.canonical import cut_windows
 from models.errors import DataError, ShapeError
 from models.io import atomic_write_bytes
-from models.network import CanonicalNet, Layer, ReducedNet
+from models.network import CanonicalNet, GRULayer, Layer, ReducedNet
 from models.sets import Box
 
 __all__ = [
@@ -70,9 +70,38 @@ def _skip(net: Sequence[Layer], skip: Layer | None, v: ca.SX) -> ca.SX:
     return out if skip is None else out + network_expr([skip], v)
 
 
+def _sigmoid(v: ca.SX) -> ca.SX:
+    return 0.5 * (1 + ca.tanh(0.5 * v))
+
+
+def _gru_step(layer: GRULayer, x: ca.SX, h: ca.SX) -> ca.SX:
+    """``h⁺`` of one GRU layer (:class:`models.network.GRULayer`)."""
+    n = layer.hidden
+    gi = ca.mtimes(ca.DM(layer.weight_ih), x) + layer.bias_ih
+    gh = ca.mtimes(ca.DM(layer.weight_hh), h) + layer.bias_hh
+    r = _sigmoid(gi[:n] + gh[:n])
+    z = _sigmoid(gi[n : 2 * n] + gh[n : 2 * n])
+    new = ca.tanh(gi[2 * n :] + r * gh[2 * n :])
+    return (1 - z) * new + z * h
+
+
+def _features(net: CanonicalNet, zn: ca.SX) -> ca.SX:
+    """``φ``: ``z̃``, or the GRU's last top-layer state after reading the pairs of ``z̃``."""
+    if not net.recurrent:
+        return zn
+    p = net.n_u + net.n_y
+    states = [ca.SX.zeros(layer.hidden) for layer in net.recurrent]
+    for k in range(net.window):
+        x = zn[k * p : (k + 1) * p]
+        for i, layer in enumerate(net.recurrent):
+            states[i] = x = _gru_step(layer, x, states[i])
+    return states[-1]
+
+
 def regressor_expr(net: CanonicalNet, zn: ca.SX, un: ca.SX) -> ca.SX:
     """``ỹ = Ĥ̃(z̃, ũ)`` in normalised units (see :mod:`models.network`)."""
-    a = ca.vertcat(zn, un) if net.feedthrough else zn
+    features = _features(net, zn)
+    a = ca.vertcat(features, un) if net.feedthrough else features
     raw = network_expr(net.layers, a)
     if net.affine is not None:
         raw = raw + ca.mtimes(ca.DM(net.affine[0]), a) + net.affine[1]
@@ -93,7 +122,7 @@ class LearnedSystem(System):
         name: the system's name (e.g. the run folder's).
     """
 
-    description = "A trained canonical model (Ours (MLP) or its reduced model), from its weights"
+    description = "A trained canonical model (Ours (MLP/GRU), or reduced), from its weights"
 
     def __init__(
         self,
@@ -134,6 +163,7 @@ class LearnedSystem(System):
             units = (*input_units, *output_units) * reg.window
             kind = "canonical model"
         self._z_mean, self._z_std = reg.z_mean, reg.z_std
+        regressor = "GRU" if reg.recurrent else "MLP"
         super().__init__(
             name=name,
             dt=dt,
@@ -146,13 +176,15 @@ class LearnedSystem(System):
             X=X,
             U=U,
             W=W,
-            discretisation=f"learned ({kind}: canonical shift + MLP regressor)",
+            discretisation=f"learned ({kind}: canonical shift + {regressor} regressor)",
             parameters={
                 "window": reg.window,
                 "feedthrough": reg.feedthrough,
                 "residual": reg.residual_scale is not None,
                 "affine": reg.affine is not None,
+                "regressor": regressor,
                 "hidden": [layer.n_out for layer in reg.layers[:-1]],
+                "gru_hidden": [layer.hidden for layer in reg.recurrent],
                 "activation": reg.layers[0].activation if len(reg.layers) > 1 else "linear",
             },
         )

@@ -13,11 +13,13 @@ and ``z̃`` the window of normalised pairs, in the :mod:`models.canonical` order
 ``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})`` (oldest pair first).
 
 A :class:`Layer` is ``v ↦ σ(W v + b)``; a network is a tuple of layers applied in order, the last
-one with ``activation="linear"``.
+one with ``activation="linear"``. A :class:`GRULayer` is one layer of a GRU (PyTorch's equations).
 
-:class:`CanonicalNet` is the regressor ``Ĥ`` of Ours (MLP), in normalised units::
+:class:`CanonicalNet` is the regressor ``Ĥ`` of Ours (MLP) or Ours (GRU), in normalised units::
 
-    a   = [z̃; ũ] with feedthrough, z̃ without
+    φ   = z̃ (Ours (MLP)), or the last top-layer state of the GRU layers reading the ℓ pairs of
+          z̃ oldest first from zero states (Ours (GRU))
+    a   = [φ; ũ] with feedthrough, φ without
     raw = layers(a) + (L a + c if affine is not None)
     ỹ   = ỹ_{t−1} + s ⊙ raw   with residual (ỹ_{t−1}: the newest y of z̃, s: residual_scale)
         = raw                 without
@@ -41,7 +43,7 @@ import numpy as np
 from models._validate import require_finite
 from models.errors import ShapeError
 
-__all__ = ["ACTIVATIONS", "CanonicalNet", "Layer", "ReducedNet"]
+__all__ = ["ACTIVATIONS", "CanonicalNet", "GRULayer", "Layer", "ReducedNet"]
 
 #: activation name → an upper bound of |σ'| over R, for Lipschitz bounds (SiLU's slope peaks at
 #: 1.0998 near x = 2.4, rounded up here)
@@ -89,6 +91,46 @@ class Layer:
         return int(self.weight.shape[0])
 
 
+@dataclass(frozen=True)
+class GRULayer:
+    """One GRU layer, gates in PyTorch's order (reset r, update z, new n), hidden size ``H``::
+
+        r = σ(W_ir x + b_ir + W_hr h + b_hr),   z = σ(W_iz x + b_iz + W_hz h + b_hz)
+        n = tanh(W_in x + b_in + r ⊙ (W_hn h + b_hn)),   h⁺ = (1 − z) ⊙ n + z ⊙ h
+
+    ``weight_ih`` ``(3H, n_in)``, ``weight_hh`` ``(3H, H)``, ``bias_ih`` and ``bias_hh`` ``(3H,)``.
+    """
+
+    weight_ih: np.ndarray
+    weight_hh: np.ndarray
+    bias_ih: np.ndarray
+    bias_hh: np.ndarray
+
+    def __post_init__(self) -> None:
+        w_ih = _array(self.weight_ih, 2, "GRU weight_ih")
+        w_hh = _array(self.weight_hh, 2, "GRU weight_hh")
+        hidden = w_hh.shape[1]
+        if w_ih.shape[0] != 3 * hidden or w_hh.shape != (3 * hidden, hidden):
+            raise ShapeError(
+                f"GRU weights must be (3H, n_in) and (3H, H); got {w_ih.shape} and {w_hh.shape}"
+            )
+        object.__setattr__(self, "weight_ih", w_ih)
+        object.__setattr__(self, "weight_hh", w_hh)
+        for name in ("bias_ih", "bias_hh"):
+            bias = _array(getattr(self, name), 1, f"GRU {name}")
+            if bias.shape != (3 * hidden,):
+                raise ShapeError(f"GRU {name} must have shape ({3 * hidden},), got {bias.shape}")
+            object.__setattr__(self, name, bias)
+
+    @property
+    def n_in(self) -> int:
+        return int(self.weight_ih.shape[1])
+
+    @property
+    def hidden(self) -> int:
+        return int(self.weight_hh.shape[1])
+
+
 def _check_chain(layers: Sequence[Layer], n_in: int, n_out: int, name: str) -> tuple[Layer, ...]:
     """``layers`` as a tuple, checked to map ``n_in`` to ``n_out`` and to end linear."""
     layers = tuple(layers)
@@ -116,6 +158,7 @@ class CanonicalNet:
         window, n_u, n_y: ``ℓ`` and the signal dimensions.
         feedthrough: the network reads ``ũ_t``.
         layers: the MLP on ``a`` (see the module docstring).
+        recurrent: the GRU layers of Ours (GRU); empty for Ours (MLP).
         u_mean, u_std, y_mean, y_std: the training statistics (physical units).
         residual_scale: ``s`` of the residual option, ``(n_y,)``, or ``None`` without it.
         affine: ``(L, c)`` of an affine path added to the MLP, ``L`` ``(n_y, dim a)``,
@@ -133,6 +176,7 @@ class CanonicalNet:
     y_std: np.ndarray
     residual_scale: np.ndarray | None = None
     affine: tuple[np.ndarray, np.ndarray] | None = None
+    recurrent: tuple[GRULayer, ...] = ()
 
     def __post_init__(self) -> None:
         for key in ("window", "n_u", "n_y"):
@@ -141,6 +185,13 @@ class CanonicalNet:
                 raise ShapeError(f"{key} must be an integer >= 1, got {value!r}")
             object.__setattr__(self, key, int(value))
         object.__setattr__(self, "feedthrough", bool(self.feedthrough))
+        recurrent = tuple(self.recurrent)
+        width = self.n_u + self.n_y
+        for i, layer in enumerate(recurrent):
+            if not isinstance(layer, GRULayer) or layer.n_in != width:
+                raise ShapeError(f"recurrent layer {i} must be a GRULayer reading {width} values")
+            width = layer.hidden
+        object.__setattr__(self, "recurrent", recurrent)
         object.__setattr__(
             self, "layers", _check_chain(self.layers, self.input_dim, self.n_y, "regressor")
         )
@@ -177,9 +228,14 @@ class CanonicalNet:
         return self.window * (self.n_u + self.n_y)
 
     @property
+    def feature_dim(self) -> int:
+        """``dim φ``: ``ℓ (n_u + n_y)``, or the top GRU layer's hidden size."""
+        return self.recurrent[-1].hidden if self.recurrent else self.state_dim
+
+    @property
     def input_dim(self) -> int:
-        """``dim a``: the network reads ``z̃`` and, with feedthrough, ``ũ``."""
-        return self.state_dim + (self.n_u if self.feedthrough else 0)
+        """``dim a``: the network reads ``φ`` and, with feedthrough, ``ũ``."""
+        return self.feature_dim + (self.n_u if self.feedthrough else 0)
 
     @property
     def z_mean(self) -> np.ndarray:
@@ -198,7 +254,9 @@ class CanonicalNet:
 
     def linear_part(self) -> np.ndarray:
         """``∂ỹ/∂a`` of the terms outside the MLP: ``s ⊙ L`` and, with residual, the identity
-        on the newest ``ỹ`` of ``z̃`` — ``(n_y, dim a)``."""
+        on the newest ``ỹ`` of ``z̃`` — ``(n_y, dim a)``; Ours (MLP) only (``φ = z̃``)."""
+        if self.recurrent:
+            raise ShapeError("linear_part: a GRU regressor does not read z̃ directly")
         out = np.zeros((self.n_y, self.input_dim))
         if self.affine is not None:
             out += self.output_scale[:, None] * self.affine[0]

@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 import pytest
 import torch
-from test_learned_system import as_system, mlp_model, reduced_model
+from test_learned_system import as_system, gru_model, mlp_model, reduced_model
 
 from analysis.certify import layer_norm_bound, learned_gamma
 from analysis.estimate import Budget
@@ -71,6 +71,18 @@ def test_the_reduced_model_bound_is_above_its_sampled_jacobians(rng):
     assert 0 < max(sampled) <= bound.value
     gamma = learned_gamma(system, budget=BUDGET)
     assert gamma.bracket.lower.value <= gamma.bracket.upper.value
+
+
+def test_a_gru_regressor_is_certified_by_branch_and_bound_only(rng):
+    model = gru_model(residual=True)
+    system = as_system(model)
+    gamma = learned_gamma(system, budget=BUDGET)
+    assert gamma.layer_norms.value == np.inf and gamma.layer_norms.method.startswith("trivial")
+    assert np.isfinite(gamma.bracket.upper.value) and gamma.upper is gamma.bracket.upper
+    A, _, S = shift_matrices(3, 2, 1)
+    z, u = system.X.sample(rng, 50), system.U.sample(rng, 50)
+    sampled = [np.linalg.norm(A + S @ _torch_jacobian_z(model, zi, ui), 2) for zi, ui in zip(z, u)]
+    assert max(sampled) <= gamma.bracket.upper.value
 
 
 @pytest.mark.parametrize("name", ["tanh", "exp", "atan", "sinh"])

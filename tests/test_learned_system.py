@@ -2,7 +2,7 @@
 
 The SX graph is built from the exported weights (learning.NumpyModel.network()); it must give
 the torch model's numbers in float64 on random points and along a 100-step open-loop rollout,
-for every option of Ours (MLP) and for the reduced model.
+for every option of Ours (MLP) and Ours (GRU) and for their reduced models.
 """
 
 from __future__ import annotations
@@ -57,8 +57,29 @@ def mlp_model(*, activation="relu", feedthrough=True, residual=False, hidden=(8,
     return Model(net, _norm())
 
 
-def reduced_model(*, residual=False, linear_skip=False, seed=0):
-    full = mlp_model(residual=residual, seed=seed)
+def gru_model(*, feedthrough=True, residual=False, seed=0):
+    """Ours (GRU), two GRU layers of 6 and a head of 5, random weights, float64."""
+    torch.manual_seed(seed)
+    net = build_net(
+        "gru",
+        window=ELL,
+        n_u=N_U,
+        n_y=N_Y,
+        feedthrough=feedthrough,
+        residual=residual,
+        hidden_size=6,
+        num_layers=2,
+        head_hidden=[5],
+    ).double()
+    with torch.no_grad():
+        for p in net.parameters():
+            p.normal_(0.0, 0.6)
+        net.residual_scale.fill_(0.3)
+    return Model(net, _norm())
+
+
+def reduced_model(*, residual=False, linear_skip=False, seed=0, regressor="mlp"):
+    full = (mlp_model if regressor == "mlp" else gru_model)(residual=residual, seed=seed)
     net = ReducedNet.around(
         full.net, latent_dim=4, encoder_hidden=(6,), decoder_hidden=(6,), linear_skip=linear_skip
     ).double()
@@ -85,7 +106,7 @@ def as_system(model: Model) -> LearnedSystem:
 
 
 MLP_CASES = list(itertools.product(("relu", "silu", "tanh"), (True, False), (True, False)))
-REDUCED_CASES = list(itertools.product((True, False), (True, False)))
+REDUCED_CASES = list(itertools.product((True, False), (True, False), ("mlp", "gru")))
 
 
 def _check_against_torch(model: Model, system: LearnedSystem, rng) -> None:
@@ -120,9 +141,19 @@ def test_mlp_system_equals_the_torch_model(activation, feedthrough, residual, rn
     np.testing.assert_array_equal(z_next[-N_Y:], system.output(z, u))
 
 
-@pytest.mark.parametrize(("residual", "linear_skip"), REDUCED_CASES)
-def test_reduced_system_equals_the_torch_model(residual, linear_skip, rng):
-    model = reduced_model(residual=residual, linear_skip=linear_skip)
+@pytest.mark.parametrize(
+    ("feedthrough", "residual"), list(itertools.product((True, False), repeat=2))
+)
+def test_gru_system_equals_the_torch_model(feedthrough, residual, rng):
+    model = gru_model(feedthrough=feedthrough, residual=residual)
+    system = as_system(model)
+    assert system.parameters["regressor"] == "GRU" and system.parameters["gru_hidden"] == [6, 6]
+    _check_against_torch(model, system, rng)
+
+
+@pytest.mark.parametrize(("residual", "linear_skip", "regressor"), REDUCED_CASES)
+def test_reduced_system_equals_the_torch_model(residual, linear_skip, regressor, rng):
+    model = reduced_model(residual=residual, linear_skip=linear_skip, regressor=regressor)
     system = as_system(model)
     assert system.n_x == 4 and system.state_names[0] == "xbar0"
     _check_against_torch(model, system, rng)
@@ -230,8 +261,8 @@ def test_from_data_takes_the_hulls_of_the_training_windows(rng):
     assert rsys.X.contains(reduced.export().encode(windows), atol=1e-12)
 
 
-@pytest.mark.parametrize("name", [n for n in NETS if n != "mlp"])
-def test_only_ours_mlp_exports(name):
+@pytest.mark.parametrize("name", [n for n in NETS if n not in ("mlp", "gru")])
+def test_only_canonical_models_export(name):
     net = build_net(name, window=ELL, n_u=N_U, n_y=N_Y)
     with pytest.raises(NotExportableError, match=f"only canonical models export.*'{name}'"):
         Model(net, _norm()).export().network()

@@ -5,7 +5,8 @@ Writes ``FILE``, the serialised ``casadi.Function`` ``learned_model(x, u) -> (x_
 ``FILE.json`` beside it: dimensions, names, units, ``dt``, the sets X, U, W and how the state is
 filled from measured data. For a reduced model it also writes ``FILE`` with the suffix
 ``.encoder.casadi``: ``encode(z) -> x``, the reduced state of a measured window (physical units).
-Only canonical models export (Ours (MLP) and its reduced model); the others are refused.
+Only canonical models export (Ours (MLP), Ours (GRU) and their reduced models); the others
+are refused.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ def register(sub: Any) -> None:
         "export",
         help="write a trained canonical model as a CasADi Function (.casadi)",
         description=(
-            "Build the trained model of RUN (Ours (MLP) or its reduced model) as CasADi SX "
+            "Build the trained canonical model of RUN (Ours MLP/GRU, or reduced) as CasADi SX "
             "expressions from its weights — x_next = f(x, u), y = h(x, u), the state x being "
             "the canonical window z_t (or the reduced state) — and write it as a serialised "
             "casadi.Function, with a JSON description beside it."
