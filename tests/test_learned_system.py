@@ -36,20 +36,11 @@ def _norm() -> Normalisation:
     )
 
 
-def mlp_model(*, activation="relu", feedthrough=True, residual=False, hidden=(8, 8), seed=0):
-    """Ours (MLP) in float64 with random weights (biases too) and a non-trivial residual
+def _random_model(name: str, seed: int, **config) -> Model:
+    """Network ``name`` in float64 with random weights (biases too) and a non-trivial residual
     scale."""
     torch.manual_seed(seed)
-    net = build_net(
-        "mlp",
-        window=ELL,
-        n_u=N_U,
-        n_y=N_Y,
-        feedthrough=feedthrough,
-        residual=residual,
-        hidden=list(hidden),
-        activation=activation,
-    ).double()
+    net = build_net(name, window=ELL, n_u=N_U, n_y=N_Y, **config).double()
     with torch.no_grad():
         for p in net.parameters():
             p.normal_(0.0, 0.6)
@@ -57,25 +48,29 @@ def mlp_model(*, activation="relu", feedthrough=True, residual=False, hidden=(8,
     return Model(net, _norm())
 
 
+def mlp_model(*, activation="relu", feedthrough=True, residual=False, hidden=(8, 8), seed=0):
+    """Ours (MLP), random weights."""
+    return _random_model(
+        "mlp",
+        seed,
+        feedthrough=feedthrough,
+        residual=residual,
+        hidden=list(hidden),
+        activation=activation,
+    )
+
+
 def gru_model(*, feedthrough=True, residual=False, seed=0):
-    """Ours (GRU), two GRU layers of 6 and a head of 5, random weights, float64."""
-    torch.manual_seed(seed)
-    net = build_net(
+    """Ours (GRU), two GRU layers of 6 and a head of 5, random weights."""
+    return _random_model(
         "gru",
-        window=ELL,
-        n_u=N_U,
-        n_y=N_Y,
+        seed,
         feedthrough=feedthrough,
         residual=residual,
         hidden_size=6,
         num_layers=2,
         head_hidden=[5],
-    ).double()
-    with torch.no_grad():
-        for p in net.parameters():
-            p.normal_(0.0, 0.6)
-        net.residual_scale.fill_(0.3)
-    return Model(net, _norm())
+    )
 
 
 def reduced_model(*, residual=False, linear_skip=False, seed=0, regressor="mlp"):
