@@ -112,10 +112,13 @@ def _gru_layers(gru: nn.GRU) -> tuple[plain.GRULayer, ...]:
     )
 
 
-def _affine_path(regressor: OursMLP) -> tuple[np.ndarray, np.ndarray] | None:
-    """``(L, c)`` of Ours (MLP)'s affine path (see :class:`models.network.CanonicalNet`), or
-    ``None``: the network has none."""
-    return None
+def _affine_path(regressor: nn.Module) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(L, c)`` of the regressor's affine path on ``[z̃; ũ]`` (its ``affine`` layer, see
+    :class:`models.network.CanonicalNet`), or ``None`` where it has none."""
+    affine = getattr(regressor, "affine", None)
+    if affine is None:
+        return None
+    return affine.weight.detach().cpu().numpy().copy(), affine.bias.detach().cpu().numpy().copy()
 
 
 def _batch(name: str, value: Any, cols: int) -> tuple[np.ndarray, bool]:
@@ -197,7 +200,8 @@ class NumpyModel:
         if isinstance(net, OursMLP):
             layers, recurrent, affine = _layers(net.net, net.activation), (), _affine_path(net)
         elif isinstance(net, OursGRU):
-            layers, recurrent, affine = _layers(net.head, "relu"), _gru_layers(net.gru), None
+            layers, recurrent = _layers(net.head, "relu"), _gru_layers(net.gru)
+            affine = _affine_path(net)
         else:
             raise _not_exportable(net.name)
         norm = self._norm

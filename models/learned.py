@@ -104,7 +104,8 @@ def regressor_expr(net: CanonicalNet, zn: ca.SX, un: ca.SX) -> ca.SX:
     a = ca.vertcat(features, un) if net.feedthrough else features
     raw = network_expr(net.layers, a)
     if net.affine is not None:
-        raw = raw + ca.mtimes(ca.DM(net.affine[0]), a) + net.affine[1]
+        x = ca.vertcat(zn, un) if net.feedthrough else zn
+        raw = raw + ca.mtimes(ca.DM(net.affine[0]), x) + net.affine[1]
     if net.residual_scale is None:
         return raw
     return zn[net.state_dim - net.n_y :] + raw * net.residual_scale

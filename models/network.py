@@ -20,7 +20,8 @@ one with ``activation="linear"``. A :class:`GRULayer` is one layer of a GRU (PyT
     φ   = z̃ (Ours (MLP)), or the last top-layer state of the GRU layers reading the ℓ pairs of
           z̃ oldest first from zero states (Ours (GRU))
     a   = [φ; ũ] with feedthrough, φ without
-    raw = layers(a) + (L a + c if affine is not None)
+    x   = [z̃; ũ] with feedthrough, z̃ without (the regression vector of the affine path)
+    raw = layers(a) + (L x + c if affine is not None)
     ỹ   = ỹ_{t−1} + s ⊙ raw   with residual (ỹ_{t−1}: the newest y of z̃, s: residual_scale)
         = raw                 without
 
@@ -161,8 +162,8 @@ class CanonicalNet:
         recurrent: the GRU layers of Ours (GRU); empty for Ours (MLP).
         u_mean, u_std, y_mean, y_std: the training statistics (physical units).
         residual_scale: ``s`` of the residual option, ``(n_y,)``, or ``None`` without it.
-        affine: ``(L, c)`` of an affine path added to the MLP, ``L`` ``(n_y, dim a)``,
-            ``c`` ``(n_y,)``, or ``None``.
+        affine: ``(L, c)`` of an affine path on ``x`` added to the network's output, ``L``
+            ``(n_y, dim x)``, ``c`` ``(n_y,)``, or ``None``.
     """
 
     window: int
@@ -209,9 +210,9 @@ class CanonicalNet:
                 raise ShapeError("affine must be a pair (L, c)")
             L = _array(self.affine[0], 2, "affine L")
             c = _array(self.affine[1], 1, "affine c")
-            if L.shape != (self.n_y, self.input_dim) or c.shape != (self.n_y,):
+            if L.shape != (self.n_y, self.regression_dim) or c.shape != (self.n_y,):
                 raise ShapeError(
-                    f"affine (L, c) must have shapes ({self.n_y}, {self.input_dim}) and "
+                    f"affine (L, c) must have shapes ({self.n_y}, {self.regression_dim}) and "
                     f"({self.n_y},), got {L.shape} and {c.shape}"
                 )
             object.__setattr__(self, "affine", (L, c))
@@ -226,6 +227,11 @@ class CanonicalNet:
     def state_dim(self) -> int:
         """``dim z = ℓ (n_u + n_y)``."""
         return self.window * (self.n_u + self.n_y)
+
+    @property
+    def regression_dim(self) -> int:
+        """``dim x``: ``z̃`` and, with feedthrough, ``ũ``."""
+        return self.state_dim + (self.n_u if self.feedthrough else 0)
 
     @property
     def feature_dim(self) -> int:
@@ -253,11 +259,9 @@ class CanonicalNet:
         return np.ones(self.n_y) if self.residual_scale is None else self.residual_scale
 
     def linear_part(self) -> np.ndarray:
-        """``∂ỹ/∂a`` of the terms outside the MLP: ``s ⊙ L`` and, with residual, the identity
-        on the newest ``ỹ`` of ``z̃`` — ``(n_y, dim a)``; Ours (MLP) only (``φ = z̃``)."""
-        if self.recurrent:
-            raise ShapeError("linear_part: a GRU regressor does not read z̃ directly")
-        out = np.zeros((self.n_y, self.input_dim))
+        """``∂ỹ/∂x`` of the terms outside the network: ``s ⊙ L`` and, with residual, the
+        identity on the newest ``ỹ`` of ``z̃`` — ``(n_y, dim x)``."""
+        out = np.zeros((self.n_y, self.regression_dim))
         if self.affine is not None:
             out += self.output_scale[:, None] * self.affine[0]
         if self.residual_scale is not None:

@@ -278,3 +278,24 @@ def test_a_description_that_does_not_chain_is_refused(rng):
         )
     with pytest.raises(ShapeError, match="activation must be one of"):
         Layer(np.ones((1, 1)), [0.0], "gelu")
+
+
+@pytest.mark.parametrize("feedthrough", [True, False])
+def test_the_affine_path_of_a_gru_regressor_reads_the_window_not_the_gru_state(feedthrough, rng):
+    """raw = head([h_ℓ; ũ]) + L x + c with x = [z̃; ũ] (or z̃): adding (L, c) to a description
+    adds y_std ⊙ s ⊙ (L x + c) to Ĥ."""
+    import dataclasses
+
+    plain = gru_model(feedthrough=feedthrough, residual=True).export().network()
+    L = rng.normal(size=(N_Y, plain.regression_dim))
+    c = rng.normal(size=N_Y)
+    with_affine = dataclasses.replace(plain, affine=(L, c))
+    z, u = rng.normal(size=(10, 9)), rng.normal(size=(10, 2))
+    x = (z - plain.z_mean) / plain.z_std
+    if feedthrough:
+        x = np.hstack([x, (u - plain.u_mean) / plain.u_std])
+    box = {"X": Box(-np.ones(9), np.ones(9)), "U": Box(-np.ones(2), np.ones(2)), "W": Box([0], [0])}
+    names = {"input_names": ("a", "b"), "output_names": ("y",)}
+    base = LearnedSystem(plain, dt=1.0, **names, **box).h_batch(z, u)
+    added = LearnedSystem(with_affine, dt=1.0, **names, **box).h_batch(z, u)
+    np.testing.assert_allclose(added - base, 3.0 * 0.3 * (x @ L.T + c), rtol=1e-10, atol=1e-12)
