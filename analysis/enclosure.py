@@ -21,7 +21,7 @@ into words for error messages.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import casadi as ca
@@ -100,6 +100,18 @@ _ARB_FUN = {
     ca.OP_COSH: arb.cosh,
 }
 _OP_NAMES = {getattr(ca, n): n for n in dir(ca) if n.startswith("OP_")}
+#: increasing on their domain: an interval's image is spanned by the images of its ends (one arb
+#: ball over a wide interval is far looser, e.g. tanh([−10, 10]) ⊆ [−6.5e8, 2])
+_INCREASING = {ca.OP_EXP, ca.OP_LOG, ca.OP_ATAN, ca.OP_TANH, ca.OP_SINH}
+
+
+def _increasing(func: Callable[[arb], arb], a: Interval) -> Interval:
+    """``func([lo, hi]) = [func(lo), func(hi)]`` for an increasing ``func``, each end enclosed
+    by arb and rounded outward; an undefined end makes both NaN (as :func:`arb_map`)."""
+    lo = arb_map(func, Interval.point(a.lo)).lo
+    hi = arb_map(func, Interval.point(a.hi)).hi
+    bad = np.isnan(lo) | np.isnan(hi)
+    return Interval(np.where(bad, np.nan, lo), np.where(bad, np.nan, hi))
 
 
 class Enclosure:
@@ -417,7 +429,7 @@ class _Run:
     ) -> tuple[Interval, Interval | None]:
         if op == ca.OP_LOG:
             self.flag_value(a.lo <= 0, DOMAIN)
-        v = arb_map(_ARB_FUN[op], a)
+        v = _increasing(_ARB_FUN[op], a) if op in _INCREASING else arb_map(_ARB_FUN[op], a)
         if ga is None:
             return v, None
         one = Interval.point(np.ones(self.batch))

@@ -78,7 +78,10 @@ SCHEMA: dict[str, Any] = {
             "ratio_quantiles, max_error, median_error, worst_case_bound, max_ratio_estimated, "
             "constants: the gamma_f/alpha records used and factor = gamma_f^ℓ/alpha}"
         ),
-        "learned": "optional: residual and probe checks of a trained model",
+        "learned": (
+            "optional: residual and probe checks of a trained model; gamma_f: its own γ_f in "
+            "its state on its training hull (lower, branch_and_bound, layer_norms, best_upper)"
+        ),
         "settings": "trials, budget, tolerances, seed",
         "software": "versions",
     },

@@ -36,6 +36,11 @@ followed by ``output``/``step``.
 
 The object holds a float64 copy of the network on the CPU; it never changes the model it came
 from.
+
+``network()`` returns the weights themselves as plain numpy (:mod:`models.network`): a
+:class:`~models.network.CanonicalNet` for Ours (MLP) and Ours (GRU), a
+:class:`~models.network.ReducedNet` for their reduced models. :mod:`models.learned` builds
+CasADi expressions from it; the other models raise :class:`NotExportableError`.
 """
 
 from __future__ import annotations
@@ -44,15 +49,78 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
+from torch import nn
 
-from learning.nets import ReducedNet, build_net
+from learning.nets import ALL_NETS, OursGRU, OursMLP, ReducedNet, build_net
+from learning.nets.base import ACTIVATIONS
+from models import network as plain
 from models._validate import require_finite
-from models.errors import ShapeError
+from models.errors import CanonidError, ShapeError
 
 if TYPE_CHECKING:  # learning.model imports this module for Model.export()
     from learning.model import Model
 
-__all__ = ["NumpyModel", "ReducedNumpyModel"]
+__all__ = ["NotExportableError", "NumpyModel", "ReducedNumpyModel"]
+
+
+class NotExportableError(CanonidError, ValueError):
+    """A model whose layers have no plain description (only canonical models export)."""
+
+
+def _not_exportable(name: str) -> NotExportableError:
+    label = ALL_NETS[name].label if name in ALL_NETS else name
+    return NotExportableError(
+        f"only canonical models export to CasADi: Ours (MLP) ('mlp'), Ours (GRU) ('gru') and "
+        f"their reduced models ('reduced'); got {label} ({name!r})"
+    )
+
+
+def _layers(seq: nn.Sequential, activation: str) -> tuple[plain.Layer, ...]:
+    """The layers of an :func:`learning.nets.base.mlp`: each ``Linear`` with the activation
+    that follows it (``"linear"`` for the output layer)."""
+    linears = [m for m in seq if isinstance(m, nn.Linear)]
+    expected = ACTIVATIONS[activation]
+    if any(not isinstance(m, (nn.Linear, expected)) for m in seq):
+        raise ShapeError(f"expected an MLP of Linear and {expected.__name__} layers, got {seq}")
+    return tuple(
+        _layer(m, activation if i < len(linears) - 1 else "linear") for i, m in enumerate(linears)
+    )
+
+
+def _layer(linear: nn.Linear, activation: str = "linear") -> plain.Layer:
+    return plain.Layer(
+        linear.weight.detach().cpu().numpy().copy(),
+        linear.bias.detach().cpu().numpy().copy(),
+        activation,
+    )
+
+
+def _gru_layers(gru: nn.GRU) -> tuple[plain.GRULayer, ...]:
+    """The layers of a ``batch_first`` :class:`torch.nn.GRU` (PyTorch's gate order)."""
+    if gru.bidirectional or not gru.bias:
+        raise ShapeError("only unidirectional GRUs with biases export")
+
+    def weight(name: str, k: int) -> np.ndarray:
+        return getattr(gru, f"{name}_l{k}").detach().cpu().numpy().copy()
+
+    return tuple(
+        plain.GRULayer(
+            weight("weight_ih", k),
+            weight("weight_hh", k),
+            weight("bias_ih", k),
+            weight("bias_hh", k),
+        )
+        for k in range(gru.num_layers)
+    )
+
+
+def _affine_path(regressor: nn.Module) -> tuple[np.ndarray, np.ndarray] | None:
+    """``(L, c)`` of the regressor's affine path on ``[z̃; ũ]`` (its ``affine`` layer, see
+    :class:`models.network.CanonicalNet`), or ``None`` where it has none."""
+    affine = getattr(regressor, "affine", None)
+    if affine is None:
+        return None
+    return affine.weight.detach().cpu().numpy().copy(), affine.bias.detach().cpu().numpy().copy()
 
 
 def _batch(name: str, value: Any, cols: int) -> tuple[np.ndarray, bool]:
@@ -117,6 +185,39 @@ class NumpyModel:
         """Open-loop simulation after a measured burn-in (see the module docstring)."""
         return self._model.simulate(u, y_burn_in)
 
+    def network(self) -> plain.CanonicalNet | plain.ReducedNet:
+        """The weights as plain numpy (see the module docstring).
+
+        Raises:
+            NotExportableError: the model is not Ours (MLP) or a reduced Ours (MLP).
+        """
+        return self._regressor(self._net)
+
+    def _regressor(self, net: Any) -> plain.CanonicalNet:
+        recurrent: tuple[plain.GRULayer, ...]
+        if isinstance(net, OursMLP):
+            layers, recurrent, affine = _layers(net.net, net.activation), (), _affine_path(net)
+        elif isinstance(net, OursGRU):
+            layers, recurrent = _layers(net.head, "relu"), _gru_layers(net.gru)
+            affine = _affine_path(net)
+        else:
+            raise _not_exportable(net.name)
+        norm = self._norm
+        return plain.CanonicalNet(
+            window=net.window,
+            n_u=net.n_u,
+            n_y=net.n_y,
+            feedthrough=net.feedthrough,
+            layers=layers,
+            u_mean=norm.u_mean,
+            u_std=norm.u_std,
+            y_mean=norm.y_mean,
+            y_std=norm.y_std,
+            residual_scale=net.residual_scale.detach().cpu().numpy() if net.residual else None,
+            affine=affine,
+            recurrent=recurrent,
+        )
+
 
 class ReducedNumpyModel(NumpyModel):
     """:class:`NumpyModel` of a reduced model, with ``encode``, ``step`` and ``output``."""
@@ -146,6 +247,18 @@ class ReducedNumpyModel(NumpyModel):
         if ua.shape[0] != xa.shape[0]:
             raise ShapeError(f"x has {xa.shape[0]} rows but u has {ua.shape[0]}")
         return torch.from_numpy(xa), torch.from_numpy(self._norm.norm_u(ua)), single
+
+    def network(self) -> plain.ReducedNet:
+        """The regressor and the auto-encoder as plain numpy (see the module docstring)."""
+        net = self._net
+        return plain.ReducedNet(
+            regressor=self._regressor(net.regressor),
+            latent_dim=net.latent_dim,
+            encoder=_layers(net.encoder, "relu"),
+            decoder=_layers(net.decoder, "relu"),
+            encoder_skip=None if net.encoder_skip is None else _layer(net.encoder_skip),
+            decoder_skip=None if net.decoder_skip is None else _layer(net.decoder_skip),
+        )
 
     def encode(self, z: Any) -> np.ndarray:
         """``x̄ = E(z)`` (see the module docstring)."""

@@ -20,6 +20,7 @@ _EXPORTS = {
     "SetError": "models.errors",
     "ShapeError": "models.errors",
     "UnknownSystemError": "models.errors",
+    "LearnedSystem": "models.learned",
     "LinearSystem": "models.linear",
     "linear_example": "models.linear",
     "get_system": "models.registry",

@@ -20,7 +20,8 @@ def test_version(capsys):
 
 
 @pytest.mark.parametrize(
-    "command", ["systems", "generate", "train", "reduce", "evaluate", "analyze", "reproduce"]
+    "command",
+    ["systems", "generate", "train", "reduce", "evaluate", "export", "analyze", "reproduce"],
 )
 def test_every_subcommand_has_help(command, capsys):
     with pytest.raises(SystemExit) as exc:

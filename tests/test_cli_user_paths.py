@@ -139,8 +139,8 @@ def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, ca
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        (["--residual"], "--residual: the run was trained without it"),
-        (["--no-feedthrough"], "--no-feedthrough: the run was trained without it"),
+        (["--residual"], "--residual cannot change when resuming"),
+        (["--no-feedthrough"], "--feedthrough cannot change when resuming"),
         (["--profile", "paper"], "profile: 'quick' there, 'paper' here"),
         (["--val", "other.csv"], "val: "),
         (["--val-fraction", "0.5"], "val_fraction: 0.2 there, 0.5 here"),

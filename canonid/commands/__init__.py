@@ -39,6 +39,7 @@ COMMANDS = (
         "reduce", "auto-encoder reduction of a trained canonical model (one rate, or the study)"
     ),
     Command("evaluate", "score a trained model: 100-step rollout MSE, RMSE / NRMSE / fit %%"),
+    Command("export", "write a trained canonical model as a CasADi Function (.casadi)"),
     Command(
         "analyze", "γ_f, α_ℓ brackets (certified and sampled) and the Proposition 2 bound check"
     ),

@@ -18,7 +18,7 @@ from analysis.estimate import Budget
 from analysis.report import AnalysisReport, analyze
 from canonid.commands import _data, _paths
 from datagen.dataset import Dataset
-from models.errors import DataError, SetError
+from models.errors import CanonidError, DataError, SetError
 from models.registry import get_system
 from models.sets import Box
 
@@ -179,6 +179,53 @@ def _learned_source(
     return model, dataset, name, {"run": str(run_dir), "data": data_path, "split": name}
 
 
+def learned_gamma_record(
+    model: Any, run_dir: Path, data: Path | None, *, budget: Budget, tol: float, seed: int
+) -> dict[str, Any]:
+    """γ_f of the run's model in its state on its training hull (:mod:`analysis.certify`), or
+    why there is none (only canonical models are built as CasADi systems)."""
+    from analysis.certify import learned_gamma
+    from canonid.learned import learned_system
+
+    if not hasattr(model, "network"):
+        return {"available": False, "why": "the model does not export its weights"}
+    try:
+        model.network()
+    except CanonidError as exc:  # only canonical models export
+        return {"available": False, "why": str(exc)}
+    system = learned_system(run_dir, data=data).system
+    gamma = learned_gamma(system, budget=budget, tol=tol, seed=seed)
+    return {"available": True, "state_dim": system.n_x, **gamma.to_dict()}
+
+
+def _value(record: Mapping[str, Any]) -> str:
+    value = record.get("value")
+    return "∞" if value is None else f"{value:.4g}"
+
+
+def gamma_lines(report: AnalysisReport) -> str:
+    """The true system's γ_f bracket at the model's window beside the learned model's."""
+    learned = report.learned
+    ell = int(learned["window"])
+    true = next(r for r in report.results if r.window == ell).gamma_f
+    lines = [
+        f"γ_f at ℓ = {ell}: true system [{true.lower.value:.4g}, {true.upper.value:.4g}] "
+        f"(its state x, on H_{{ℓ-1}} × U)"
+    ]
+    gamma = learned.get("gamma_f", {})
+    if not gamma.get("available"):
+        lines.append(f"γ_f of the learned model: not computed ({gamma.get('why', 'no run')})")
+        return "\n".join(lines)
+    lines.append(
+        f"γ_f of the learned model (its state z, dim {gamma['state_dim']}, on the training "
+        f"hull): sampled lower bound {_value(gamma['lower'])}, certified upper bound "
+        f"{_value(gamma['branch_and_bound'])} (interval branch-and-bound, "
+        f"{gamma['branch_and_bound']['details'].get('stop', '')}), "
+        f"{_value(gamma['layer_norms'])} (product of layer norms, loose)"
+    )
+    return "\n".join(lines)
+
+
 def run(args: argparse.Namespace) -> int:
     system = get_system(args.system)
     windows = [args.window] if args.window is not None else parse_windows(args.windows)
@@ -243,6 +290,9 @@ def run(args: argparse.Namespace) -> int:
             bar.close()
     if model is not None and dataset is not None:
         report.learned = learned_checks(model, dataset, report, source=source, split=split)
+        report.learned["gamma_f"] = learned_gamma_record(
+            model, args.run, args.data, budget=budget, tol=args.tol, seed=args.seed
+        )
     json_path = report.write_json(out / "analysis.json")
     print(report.table())
     if report.learned:
@@ -252,6 +302,7 @@ def run(args: argparse.Namespace) -> int:
             f"one-step residual within the noise-induced level on {res['within']} of "
             f"{res['rows']} test rows ({res['excluded']} rows start outside X)"
         )
+        print(gamma_lines(report))
     lines = [f"analysis written to {json_path.resolve()}"]
     if report.checks:
         figure = report.figure(out / "bound_vs_window.png")

@@ -11,6 +11,12 @@ Riccati solution of the LQR of the linearisation at ``(x_eq, u_eq)`` (SciPy
 ``solve_discrete_are``, what python-control's ``dlqr`` calls without slycot)
 with ``terminal="lqr"``, or Q with ``terminal="none"``.
 
+Output reference (``track="output"``): the reference rows are targets for the outputs and the
+tracking terms become ``‖h(x_k, u_k) − r_{t+k}‖²_Q`` (Q from ``output_weights``), the terminal
+one ``‖h(x_N, u_eq) − r_{t+N}‖²_Q`` (``terminal="none"`` only: the LQR weight is a state weight).
+This is the form for a learned model, whose state (a window of past signals) has no target of
+its own.
+
 Decision vector and constraint order are the stage order fatrop's structure detection needs:
 ``w = (x_0, u_0, x_1, u_1, …, x_{N−1}, u_{N−1}, x_N)``, ``g = (x_0 − x[t], x_1 − f(x_0, u_0), …)``
 (the dynamics as ``x_{k+1} − f`` — the other sign is a "structure mismatch" for fatrop).
@@ -29,9 +35,10 @@ flight in which a solve fails.
 Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver, with the step and the
 compiled loop around it, to C, compiles it on first use and caches the library (see
 :mod:`datagen.controllers._compiled`); ``"fatrop"`` is the plugin of the CasADi wheel;
-``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found and the build succeeds, else
-``"fatrop"``; ``"ipopt"`` solves the same NLP with IPOPT (for comparisons).
-:meth:`NMPC.settings` names the solver actually used.
+``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found, the build succeeds and the
+model is small (``f`` and ``h`` below :data:`COMPILE_LIMIT` SX instructions: the C of a learned
+MLP's exact Hessian is too large for gcc), else ``"fatrop"``; ``"ipopt"`` solves the same NLP
+with IPOPT (for comparisons). :meth:`NMPC.settings` names the solver actually used.
 """
 
 from __future__ import annotations
@@ -52,24 +59,31 @@ from models._validate import as_matrix, as_vector
 from models.base import System
 from models.errors import ShapeError
 
-__all__ = ["NMPC", "SOLVERS"]
+__all__ = ["COMPILE_LIMIT", "NMPC", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
 SOLVERS = ("auto", "fatrop-c", "fatrop", "ipopt")
 
+#: ``solver="auto"`` compiles only prediction models with fewer SX instructions than this (a
+#: 64 × 64 MLP has ~15,000; gcc had not finished its solver after 5 min and 9 GB)
+COMPILE_LIMIT = 2_000
+
 
 class NMPC(Controller):
-    """Nonlinear MPC tracking a full-state reference (see the module docstring).
+    """Nonlinear MPC tracking a full-state or an output reference (see the module docstring).
 
     Args:
-        system: the true system (its ``f`` is the prediction model and its U the input bounds).
+        system: the prediction model (its ``f``, and ``h`` for an output reference) and its U
+            the input bounds: a true system or a learned one (``models.learned``).
         u_eq: the input the ``R`` term pulls towards and the LQR linearises at (e.g. hover).
         x_eq: the state the LQR linearises at (default 0).
         horizon: N, the number of predicted inputs.
-        state_weights: diagonal of Q, one per state.
+        state_weights: diagonal of Q, one per state (``track="state"``).
         input_weights: diagonal of R, one per input.
         terminal: ``"lqr"`` or ``"none"``.
+        track: ``"state"`` (a reference row per state) or ``"output"`` (per output).
+        output_weights: diagonal of Q, one per output (``track="output"``).
         solver: one of :data:`SOLVERS`.
         tol: solver tolerance. The default 1e-4 was chosen by measurement: on drone flights
             the applied rotor speeds differed from those of IPOPT at tolerance 1e-10 by at most
@@ -90,9 +104,11 @@ class NMPC(Controller):
         u_eq: Sequence[float],
         x_eq: Sequence[float] | None = None,
         horizon: int = 20,
-        state_weights: Sequence[float],
+        state_weights: Sequence[float] | None = None,
         input_weights: Sequence[float],
         terminal: str = "lqr",
+        track: str = "state",
+        output_weights: Sequence[float] | None = None,
         solver: str = "auto",
         tol: float = 1e-4,
         mu_init: float = 1e-3,
@@ -105,12 +121,27 @@ class NMPC(Controller):
             raise ShapeError(f"NMPC solver must be one of {SOLVERS}, got {solver!r}")
         if terminal not in ("lqr", "none"):
             raise ShapeError(f"NMPC terminal must be 'lqr' or 'none', got {terminal!r}")
+        if track not in ("state", "output"):
+            raise ShapeError(f"NMPC track must be 'state' or 'output', got {track!r}")
+        tracked, weights = (
+            ("state", state_weights) if track == "state" else ("output", output_weights)
+        )
+        other = output_weights if track == "state" else state_weights
+        if weights is None or other is not None:
+            raise ShapeError(
+                f"NMPC with track={track!r} needs {tracked}_weights (one per {tracked}) and no "
+                f"{'output' if track == 'state' else 'state'}_weights"
+            )
+        if track == "output" and terminal == "lqr":
+            raise ShapeError("NMPC track='output' needs terminal='none' (LQR weighs states)")
         self.system = system
+        self.track = track
         self.horizon = N = int(horizon)
         nx, nu = system.n_x, system.n_u
+        self._n_ref = nx if track == "state" else system.n_y
         self.u_eq = as_vector(u_eq, nu, "NMPC u_eq")
         self.x_eq = np.zeros(nx) if x_eq is None else as_vector(x_eq, nx, "NMPC x_eq")
-        q = as_vector(state_weights, nx, "NMPC state_weights")
+        q = as_vector(weights, self._n_ref, f"NMPC {tracked}_weights")
         r = as_vector(input_weights, nu, "NMPC input_weights")
         if np.any(q < 0) or np.any(r <= 0):
             raise ShapeError("NMPC weights: state weights must be >= 0 and input weights > 0")
@@ -155,18 +186,22 @@ class NMPC(Controller):
         X = [ca.MX.sym(f"x{k}", nx) for k in range(N + 1)]
         U = [ca.MX.sym(f"u{k}", nu) for k in range(N)]
         x_now = ca.MX.sym("x_now", nx)
-        ref = ca.MX.sym("ref", nx, N + 1)
+        ref = ca.MX.sym("ref", self._n_ref, N + 1)
         Q, R, P = ca.DM(self.Q), ca.DM(self.R), ca.DM(self.P)
         u_eq = ca.DM(self.u_eq)
+
+        def tracked(x: ca.MX, u: Any) -> ca.MX:
+            return x if self.track == "state" else self.system.h(x, u)
+
         w, g = [], [X[0] - x_now]
         cost: Any = 0
         for k in range(N):
             w += [X[k], U[k]]
-            e, du = X[k] - ref[:, k], U[k] - u_eq
+            e, du = tracked(X[k], U[k]) - ref[:, k], U[k] - u_eq
             cost += ca.bilin(Q, e, e) + ca.bilin(R, du, du)
             g.append(X[k + 1] - self.system.f(X[k], U[k]))
         w.append(X[N])
-        e = X[N] - ref[:, N]
+        e = tracked(X[N], u_eq) - ref[:, N]
         cost += ca.bilin(P, e, e)
         return {"x": ca.vcat(w), "f": cost, "g": ca.vcat(g), "p": ca.vertcat(x_now, ca.vec(ref))}
 
@@ -207,7 +242,10 @@ class NMPC(Controller):
         }
         step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
         loop = self._loop_functions(step)
-        if solver in ("auto", "fatrop-c"):
+        size = self.system.f.n_instructions() + self.system.h.n_instructions()
+        if solver == "auto" and size >= COMPILE_LIMIT:
+            log.info("NMPC: %d SX instructions in f and h, not compiled (plugin)", size)
+        elif solver in ("auto", "fatrop-c"):
             compiled = compile_functions(
                 (step, *loop),
                 name=f"nmpc_{self.system.name}_N{self.horizon}",
@@ -250,7 +288,9 @@ class NMPC(Controller):
     # ------------------------------------------------------------------ the controller
     def reset(self, reference: np.ndarray, x0: np.ndarray) -> None:
         nx, N = self.system.n_x, self.horizon
-        self._reference = as_matrix(reference, nx, "NMPC reference (one target per state)")
+        self._reference = as_matrix(
+            reference, self._n_ref, f"NMPC reference (one target per {self.track})"
+        )
         x = as_vector(x0, nx, "NMPC x0")
         stage = np.concatenate([x, self.u_eq])
         self._guess = np.concatenate([np.tile(stage, N), x])
@@ -313,8 +353,9 @@ class NMPC(Controller):
         return {
             "type": self.name,
             "solver": self.solver_used,
+            "track": self.track,
             "horizon": self.horizon,
-            "state_weights": np.diag(self.Q).tolist(),
+            f"{self.track}_weights": np.diag(self.Q).tolist(),
             "input_weights": np.diag(self.R).tolist(),
             "u_eq": self.u_eq.tolist(),
             "x_eq": self.x_eq.tolist(),

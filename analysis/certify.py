@@ -1,0 +1,175 @@
+"""γ_f of a learned model: the Lipschitz constant in its state of ``f = Ā z + B̄ u + S̄ Ĥ(z, u)``.
+
+The learned model is a :class:`models.learned.LearnedSystem` (its SX graph built from the
+weights), so the estimators of :mod:`analysis.lipschitz` run on it unchanged, on the box hull X
+of the training windows and the training inputs U:
+
+* ``lower`` — **lower bound**: sampled and locally maximised ``‖∂f/∂z‖₂`` (:func:`lipschitz_lower`);
+* ``upper`` — **certified upper bound**: interval branch-and-bound on the SX graph
+  (:func:`lipschitz_upper`), valid whenever it stops; on a large network in ℓ(n_u+n_y)
+  dimensions the budget usually ends long before the bracket closes;
+* ``layer_norms`` — **certified upper bound, loose**: the product of the layer norms (below), a
+  Lipschitz constant on the whole space, so also on X × U; always available for Ours (MLP) and
+  its reduced model (for a GRU regressor it is the trivial ``∞``).
+
+Layer-norm bound. With ``Ĥ = y_mean + D_y ỹ``, ``ỹ = C a + diag(s) MLP(a)``, ``a`` the normalised
+``[z; u]`` (``C``: the residual and affine terms, :meth:`models.network.CanonicalNet.linear_part`),
+
+    ‖∂Ĥ/∂z‖₂ ≤ ‖D_y C_z D_z⁻¹‖₂ + ‖D_y diag(s) W_L‖₂ ∏_{k<L} (σ'_max ‖W_k‖₂) with W_1 → W_1,z D_z⁻¹,
+
+and since the rows of ``∂f/∂z = [Ā_top; 0; ∂Ĥ/∂z]`` split into the shift (norm 1 for ℓ ≥ 2, 0 for
+ℓ = 1) and ``∂Ĥ/∂z``, ``γ_f ≤ √(‖Ā‖² + ‖∂Ĥ/∂z‖²)``. For a reduced model ``f = E ∘ g ∘ D`` with
+``g`` the same map in normalised units, ``γ_f ≤ Lip(E) · √(‖Ā‖² + Lip(g_y)²) · Lip(D)``, each
+auto-encoder half bounded by its layer product plus its skip path's norm. Every matrix norm is a
+verified bound (:func:`analysis.matrix_bounds.spectral_upper`) and every product and sum is
+rounded upwards.
+
+The true system's γ_f on its own X (for the same window ℓ) is a different quantity — its state is
+the physical ``x``, not the window ``z`` — set beside this one by ``canonid analyze --run``.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from analysis.estimate import Bracket, Budget, Estimate
+from analysis.interval import Interval
+from analysis.lipschitz import lipschitz_bracket
+from analysis.matrix_bounds import spectral_upper
+from models.learned import LearnedSystem
+from models.network import ACTIVATIONS, CanonicalNet, Layer, ReducedNet
+
+__all__ = ["LearnedGamma", "layer_norm_bound", "learned_gamma"]
+
+Progress = Callable[[str, float], None]
+
+
+def _up(value: float) -> float:
+    return float(np.nextafter(value, np.inf))
+
+
+def _norm(matrix: np.ndarray) -> float:
+    """A verified upper bound of ``‖matrix‖₂``."""
+    if matrix.size == 0 or not np.any(matrix):
+        return 0.0
+    return float(spectral_upper(Interval.point(np.asarray(matrix, dtype=np.float64)[None]))[0])
+
+
+def _chain(weights: Sequence[np.ndarray], slopes: Sequence[float]) -> float:
+    """``∏_k ‖W_k‖₂ · slope_k`` rounded upwards (``slopes`` of the activations after each)."""
+    out = 1.0
+    for w, slope in zip(weights, slopes):
+        out = _up(_up(out * _norm(w)) * slope)
+    return out
+
+
+def _network(layers: Sequence[Layer], skip: Layer | None) -> float:
+    """A Lipschitz constant of ``layers`` plus an optional affine ``skip`` path."""
+    out = _chain([layer.weight for layer in layers], [ACTIVATIONS[x.activation] for x in layers])
+    return out if skip is None else _up(out + _norm(skip.weight))
+
+
+def _regressor_z(net: CanonicalNet, z_scale: np.ndarray, y_scale: np.ndarray) -> float:
+    """A Lipschitz constant in ``z`` of ``y_scale ⊙ ỹ(z / z_scale, ·)`` (module docstring)."""
+    d = net.state_dim
+    weights = [layer.weight for layer in net.layers]
+    weights[0] = weights[0][:, :d] / z_scale
+    weights[-1] = (y_scale * net.output_scale)[:, None] * weights[-1]
+    slopes = [ACTIVATIONS[layer.activation] for layer in net.layers]
+    linear = (y_scale[:, None] * net.linear_part()[:, :d]) / z_scale
+    return _up(_norm(linear) + _chain(weights, slopes))
+
+
+def layer_norm_bound(system: LearnedSystem) -> Estimate:
+    """The product-of-layer-norms upper bound of γ_f (module docstring): certified, loose."""
+    t0 = time.perf_counter()
+    net = system.network
+    reg = system.regressor
+    if reg.recurrent:
+        return Estimate(
+            quantity="gamma_f",
+            value=math.inf,
+            kind="upper",
+            sets={"X": system.X, "U": system.U},
+            method="trivial: no layer-norm bound for a GRU regressor",
+            window=reg.window,
+        )
+    shift = 1.0 if reg.window >= 2 else 0.0
+    if isinstance(net, ReducedNet):
+        inner = _regressor_z(reg, np.ones(reg.state_dim), np.ones(reg.n_y))
+        encoder = _network(net.encoder, net.encoder_skip)
+        decoder = _network(net.decoder, net.decoder_skip)
+        middle = _up(math.sqrt(_up(shift + _up(inner * inner))))
+        value = _up(_up(encoder * middle) * decoder)
+        parts: dict[str, Any] = {"encoder": encoder, "regressor_z": inner, "decoder": decoder}
+    else:
+        inner = _regressor_z(reg, reg.z_std, reg.y_std)
+        value = _up(math.sqrt(_up(shift + _up(inner * inner))))
+        parts = {"regressor_z": inner}
+    return Estimate(
+        quantity="gamma_f",
+        value=value,
+        kind="upper",
+        sets={"X": system.X, "U": system.U},
+        method="certified, loose: product of layer norms (holds on the whole space)",
+        window=reg.window,
+        seconds=time.perf_counter() - t0,
+        details={"shift_norm": shift, **parts},
+    )
+
+
+@dataclass(frozen=True)
+class LearnedGamma:
+    """γ_f of a learned model on its training hull.
+
+    Attributes:
+        bracket: the sampled lower bound and the branch-and-bound upper bound.
+        layer_norms: the product-of-layer-norms upper bound.
+    """
+
+    bracket: Bracket
+    layer_norms: Estimate
+
+    @property
+    def upper(self) -> Estimate:
+        """The smaller of the two certified upper bounds."""
+        b = self.bracket.upper
+        return b if b.value <= self.layer_norms.value else self.layer_norms
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "lower": self.bracket.lower.to_dict(),
+            "branch_and_bound": self.bracket.upper.to_dict(),
+            "layer_norms": self.layer_norms.to_dict(),
+            "best_upper": self.upper.value if math.isfinite(self.upper.value) else None,
+        }
+
+
+def learned_gamma(
+    system: LearnedSystem,
+    *,
+    budget: Budget | None = None,
+    tol: float = 0.05,
+    seed: int = 0,
+    progress: Progress | None = None,
+) -> LearnedGamma:
+    """γ_f of ``system`` on ``system.X × system.U``: sampled lower bound, certified
+    branch-and-bound upper bound and the layer-norm bound (see the module docstring)."""
+    bracket = lipschitz_bracket(
+        system.f,
+        system.X,
+        system.U,
+        window=system.regressor.window,
+        tol=tol,
+        budget=budget,
+        seed=seed,
+        where="the training hull X × U of the learned model",
+        progress=progress,
+    )
+    return LearnedGamma(bracket=bracket, layer_norms=layer_norm_bound(system))

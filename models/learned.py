@@ -1,0 +1,343 @@
+"""A trained canonical model as a :class:`~models.base.System`, built in CasADi SX from its weights.
+
+The weights arrive as a plain description (:mod:`models.network`, exported by
+``learning.NumpyModel.network()``), so this module never sees torch. The SX graph is written out
+layer by layer — ReLU as ``fmax(v, 0)``, SiLU as ``v (1 + tanh(v/2)) / 2``, tanh as ``tanh`` — which
+keeps it open to the interval evaluator of :mod:`analysis.enclosure` (a wrapped torch function
+would be opaque to it).
+
+State and maps. For a :class:`~models.network.CanonicalNet` the state is the canonical
+``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})`` in physical units (:mod:`models.canonical`
+ordering) and
+
+    f(z, u) = Ā z + B̄ u + S̄ Ĥ(z, u),      h(z, u) = Ĥ(z, u),
+
+the shift written as a concatenation (drop the oldest pair, append ``[u; Ĥ(z, u)]``). For a
+:class:`~models.network.ReducedNet` the state is the reduced ``x̄_t`` (no units) and ``f``, ``h``
+are the reduced model's step and output (see :mod:`models.network`). Either way ``x[t]`` is filled
+from a measured window by :meth:`LearnedSystem.state_of_window` — the canonical state is measured
+by construction, no observer is needed.
+
+Sets (:meth:`LearnedSystem.from_data`): X is the box hull of the states of the training windows
+(every ``z_t`` of every training trajectory, or its encoding ``x̄``), U the hull of the training
+inputs, W the hull of the training noise ``y − y_clean`` when the data has clean outputs.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import casadi as ca
+import numpy as np
+
+from models.base import System
+from models.canonical import cut_windows
+from models.errors import DataError, ShapeError
+from models.io import atomic_write_bytes
+from models.network import CanonicalNet, GRULayer, Layer, ReducedNet
+from models.sets import Box
+
+__all__ = [
+    "LearnedSystem",
+    "load_function",
+    "model_function",
+    "network_expr",
+    "save_function",
+]
+
+_ACTIVATIONS: dict[str, Callable[[ca.SX], ca.SX]] = {
+    "linear": lambda v: v,
+    "relu": lambda v: ca.fmax(v, 0),
+    "tanh": ca.tanh,
+    # v σ(v) with σ(v) = (1 + tanh(v/2)) / 2: bounded, so interval enclosures never overflow
+    "silu": lambda v: 0.5 * v * (1 + ca.tanh(0.5 * v)),
+}
+
+
+def network_expr(layers: Sequence[Layer], v: ca.SX) -> ca.SX:
+    """The layers applied to the column ``v``, as an SX expression."""
+    for layer in layers:
+        v = _ACTIVATIONS[layer.activation](ca.mtimes(ca.DM(layer.weight), v) + layer.bias)
+    return v
+
+
+def _skip(net: Sequence[Layer], skip: Layer | None, v: ca.SX) -> ca.SX:
+    out = network_expr(net, v)
+    return out if skip is None else out + network_expr([skip], v)
+
+
+def _sigmoid(v: ca.SX) -> ca.SX:
+    return 0.5 * (1 + ca.tanh(0.5 * v))
+
+
+def _gru_step(layer: GRULayer, x: ca.SX, h: ca.SX) -> ca.SX:
+    """``h⁺`` of one GRU layer (:class:`models.network.GRULayer`)."""
+    n = layer.hidden
+    gi = ca.mtimes(ca.DM(layer.weight_ih), x) + layer.bias_ih
+    gh = ca.mtimes(ca.DM(layer.weight_hh), h) + layer.bias_hh
+    r = _sigmoid(gi[:n] + gh[:n])
+    z = _sigmoid(gi[n : 2 * n] + gh[n : 2 * n])
+    new = ca.tanh(gi[2 * n :] + r * gh[2 * n :])
+    return (1 - z) * new + z * h
+
+
+def _features(net: CanonicalNet, zn: ca.SX) -> ca.SX:
+    """``φ``: ``z̃``, or the GRU's last top-layer state after reading the pairs of ``z̃``."""
+    if not net.recurrent:
+        return zn
+    p = net.n_u + net.n_y
+    states = [ca.SX.zeros(layer.hidden) for layer in net.recurrent]
+    for k in range(net.window):
+        x = zn[k * p : (k + 1) * p]
+        for i, layer in enumerate(net.recurrent):
+            states[i] = x = _gru_step(layer, x, states[i])
+    return states[-1]
+
+
+def regressor_expr(net: CanonicalNet, zn: ca.SX, un: ca.SX) -> ca.SX:
+    """``ỹ = Ĥ̃(z̃, ũ)`` in normalised units (see :mod:`models.network`)."""
+    features = _features(net, zn)
+    a = ca.vertcat(features, un) if net.feedthrough else features
+    raw = network_expr(net.layers, a)
+    if net.affine is not None:
+        x = ca.vertcat(zn, un) if net.feedthrough else zn
+        raw = raw + ca.mtimes(ca.DM(net.affine[0]), x) + net.affine[1]
+    if net.residual_scale is None:
+        return raw
+    return zn[net.state_dim - net.n_y :] + raw * net.residual_scale
+
+
+class LearnedSystem(System):
+    """A trained canonical model (or reduced model) as a system (see the module docstring).
+
+    Args:
+        net: the exported weights (:class:`CanonicalNet` or :class:`ReducedNet`).
+        dt: the sampling time of the data it was trained on, seconds.
+        input_names, output_names: signal names from the data.
+        input_units, output_units: their units (``"-"`` when not given).
+        X, U, W: the sets (see :meth:`from_data` for the ones taken from the data).
+        name: the system's name (e.g. the run folder's).
+    """
+
+    description = "A trained canonical model (Ours (MLP/GRU), or reduced), from its weights"
+
+    def __init__(
+        self,
+        net: CanonicalNet | ReducedNet,
+        *,
+        dt: float,
+        input_names: Sequence[str],
+        output_names: Sequence[str],
+        X: Box,
+        U: Box,
+        W: Box,
+        input_units: Sequence[str] | None = None,
+        output_units: Sequence[str] | None = None,
+        name: str = "learned",
+    ) -> None:
+        if not isinstance(net, (CanonicalNet, ReducedNet)):
+            raise ShapeError(
+                f"LearnedSystem needs a CanonicalNet or ReducedNet, got {type(net).__name__}"
+            )
+        self.network = net
+        self.regressor = reg = net.regressor if isinstance(net, ReducedNet) else net
+        input_units = tuple(input_units or ("-",) * len(input_names))
+        output_units = tuple(output_units or ("-",) * len(output_names))
+        if (len(input_names), len(output_names)) != (reg.n_u, reg.n_y):
+            raise ShapeError(
+                f"{name}: the model has n_u={reg.n_u}, n_y={reg.n_y}; got {len(input_names)} "
+                f"input and {len(output_names)} output names"
+            )
+        if isinstance(net, ReducedNet):
+            states = tuple(f"xbar{i}" for i in range(net.latent_dim))
+            units = ("-",) * net.latent_dim
+            kind = f"reduced canonical model, n̄ = {net.latent_dim}"
+        else:
+            pair_names = (*input_names, *output_names)
+            states = tuple(
+                f"{n}[t-{reg.window - k}]" for k in range(reg.window) for n in pair_names
+            )
+            units = (*input_units, *output_units) * reg.window
+            kind = "canonical model"
+        self._z_mean, self._z_std = reg.z_mean, reg.z_std
+        regressor = "GRU" if reg.recurrent else "MLP"
+        super().__init__(
+            name=name,
+            dt=dt,
+            state_names=states,
+            state_units=units,
+            input_names=input_names,
+            input_units=input_units,
+            output_names=output_names,
+            output_units=output_units,
+            X=X,
+            U=U,
+            W=W,
+            discretisation=f"learned ({kind}: canonical shift + {regressor} regressor)",
+            parameters={
+                "window": reg.window,
+                "feedthrough": reg.feedthrough,
+                "residual": reg.residual_scale is not None,
+                "affine": reg.affine is not None,
+                "regressor": regressor,
+                "hidden": [layer.n_out for layer in reg.layers[:-1]],
+                "gru_hidden": [layer.hidden for layer in reg.recurrent],
+                "activation": reg.layers[0].activation if len(reg.layers) > 1 else "linear",
+            },
+        )
+        z = ca.SX.sym("z", reg.state_dim)
+        #: ``x[t]`` of a measured window ``z_t`` (physical units): ``z_t`` itself, or ``E(z̃_t)``
+        self.encoder = ca.Function("encode", [z], [self._state_expr(z)], ["z"], ["x"])
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_data(
+        cls,
+        net: CanonicalNet | ReducedNet,
+        trajectories: Sequence[Any],
+        *,
+        dt: float,
+        input_names: Sequence[str],
+        output_names: Sequence[str],
+        W: Box | None = None,
+        **options: Any,
+    ) -> LearnedSystem:
+        """The system with X, U (and W unless given) from the training ``trajectories``
+        (objects with ``u`` ``(T, n_u)``, ``y`` ``(T, n_y)``, optionally ``y_clean``; see the
+        module docstring). Without ``W`` and without clean outputs, W is ``{0}``."""
+        reg = net.regressor if isinstance(net, ReducedNet) else net
+        items = list(trajectories)
+        if not items:
+            raise DataError("no training trajectories to take the sets X, U, W from")
+        us = [np.asarray(t.u, dtype=np.float64).reshape(len(t.u), -1) for t in items]
+        ys = [np.asarray(t.y, dtype=np.float64).reshape(len(t.y), -1) for t in items]
+        windows = np.concatenate([cut_windows(u, y, reg.window) for u, y in zip(us, ys)])
+        u_all = np.concatenate(us)
+        U = Box(u_all.min(axis=0), u_all.max(axis=0))
+        if W is None:
+            if all(getattr(t, "y_clean", None) is not None for t in items):
+                w = np.concatenate(
+                    [y - np.asarray(t.y_clean).reshape(y.shape) for t, y in zip(items, ys)]
+                )
+                W = Box(w.min(axis=0), w.max(axis=0))
+            else:
+                W = Box(np.zeros(reg.n_y), np.zeros(reg.n_y))
+        states = windows
+        if isinstance(net, ReducedNet):
+            zn = ca.SX.sym("zn", reg.state_dim)
+            encode = ca.Function("encode", [zn], [_encode_reduced(net, zn)])
+            normalised = (windows - reg.z_mean) / reg.z_std
+            states = np.asarray(encode.map(windows.shape[0])(normalised.T)).T
+        X = Box(states.min(axis=0), states.max(axis=0))
+        return cls(
+            net,
+            dt=dt,
+            input_names=input_names,
+            output_names=output_names,
+            X=X,
+            U=U,
+            W=W,
+            **options,
+        )
+
+    @property
+    def reduced(self) -> bool:
+        """Whether the state is a reduced model's ``x̄`` (else the canonical ``z_t``)."""
+        return isinstance(self.network, ReducedNet)
+
+    # ------------------------------------------------------------------ symbolic definition
+    def _state_expr(self, z: ca.SX) -> ca.SX:
+        if isinstance(self.network, ReducedNet):
+            return _encode_reduced(self.network, (z - self._z_mean) / self._z_std)
+        return z
+
+    def _f_expr(self, x: ca.SX, u: ca.SX) -> ca.SX:
+        reg = self.regressor
+        un = (u - reg.u_mean) / reg.u_std
+        p = reg.n_u + reg.n_y
+        if isinstance(self.network, ReducedNet):
+            zn = _skip(self.network.decoder, self.network.decoder_skip, x)
+            y = regressor_expr(reg, zn, un)
+            return _encode_reduced(self.network, ca.vertcat(zn[p:], un, y))
+        y = self._h_expr(x, u)
+        return ca.vertcat(x[p:], u, y)
+
+    def _h_expr(self, x: ca.SX, u: ca.SX) -> ca.SX:
+        reg = self.regressor
+        un = (u - reg.u_mean) / reg.u_std
+        if isinstance(self.network, ReducedNet):
+            zn = _skip(self.network.decoder, self.network.decoder_skip, x)
+        else:
+            zn = (x - self._z_mean) / self._z_std
+        return regressor_expr(reg, zn, un) * reg.y_std + reg.y_mean
+
+    # ------------------------------------------------------------------ numeric helpers
+    def state_of_window(self, z: Any) -> np.ndarray:
+        """The state ``x[t]`` of a measured window ``z_t`` (physical, :mod:`models.canonical`
+        ordering): ``z_t`` itself for a canonical model, ``E(z̃_t)`` for a reduced one.
+        ``(ℓp,)`` → ``(n_x,)`` or ``(N, ℓp)`` → ``(N, n_x)``."""
+        reg = self.regressor
+        za = np.asarray(z, dtype=np.float64)
+        single = za.ndim == 1
+        za = np.atleast_2d(za)
+        if za.ndim != 2 or za.shape[1] != reg.state_dim:
+            raise ShapeError(
+                f"{self.name}: a window z must have {reg.state_dim} entries (ℓ = {reg.window} "
+                f"pairs of {reg.n_u + reg.n_y}), got shape {np.shape(z)}"
+            )
+        out = np.asarray(self.encoder.map(za.shape[0])(za.T)).T.reshape(za.shape[0], self.n_x)
+        return out[0] if single else out
+
+
+def _encode_reduced(net: ReducedNet, zn: ca.SX) -> ca.SX:
+    return _skip(net.encoder, net.encoder_skip, zn)
+
+
+#: the signature of an exported model function: ``(x, u) -> (x_next, y)``
+FUNCTION_INPUTS, FUNCTION_OUTPUTS = ("x", "u"), ("x_next", "y")
+
+
+def model_function(system: System, name: str = "learned_model") -> ca.Function:
+    """``(x, u) -> (f(x, u), h(x, u))`` of ``system`` as one SX ``casadi.Function``."""
+    x = ca.SX.sym("x", system.n_x)
+    u = ca.SX.sym("u", system.n_u)
+    return ca.Function(
+        name,
+        [x, u],
+        [system.f(x, u), system.h(x, u)],
+        list(FUNCTION_INPUTS),
+        list(FUNCTION_OUTPUTS),
+    )
+
+
+def save_function(fun: ca.Function, path: str | os.PathLike[str]) -> Path:
+    """Write ``fun`` in CasADi's serialised format (``Function.save``), atomically."""
+    target = Path(path)
+    with tempfile.TemporaryDirectory() as tmp:
+        scratch = Path(tmp) / "function.casadi"
+        fun.save(str(scratch))
+        return atomic_write_bytes(target, scratch.read_bytes())
+
+
+def load_function(path: str | os.PathLike[str]) -> ca.Function:
+    """Read a function written by :func:`save_function` (or ``canonid export --casadi``).
+
+    Raises:
+        DataError: the file is missing or is not a serialised ``casadi.Function``.
+    """
+    source = Path(path)
+    if not source.is_file():
+        raise DataError(f"{source}: no such file (expected a .casadi function)")
+    try:
+        fun = ca.Function.load(str(source))
+    except RuntimeError as exc:
+        why = str(exc).strip().splitlines()[-1]
+        raise DataError(
+            f"{source} is not a serialised CasADi Function (as written by `canonid export "
+            f"--casadi` or casadi.Function.save): {why}"
+        ) from None
+    return fun
