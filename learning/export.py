@@ -51,7 +51,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from learning.nets import ALL_NETS, OursGRU, OursMLP, ReducedNet, build_net
+from learning.nets import ALL_NETS, ARX, OursGRU, OursMLP, ReducedNet, build_net
 from learning.nets.base import ACTIVATIONS
 from models import network as plain
 from models._validate import require_finite
@@ -70,8 +70,8 @@ class NotExportableError(CanonidError, ValueError):
 def _not_exportable(name: str) -> NotExportableError:
     label = ALL_NETS[name].label if name in ALL_NETS else name
     return NotExportableError(
-        f"only canonical models export to CasADi: Ours (MLP) ('mlp'), Ours (GRU) ('gru') and "
-        f"their reduced models ('reduced'); got {label} ({name!r})"
+        f"only canonical models export to CasADi: Ours (MLP) ('mlp'), Ours (GRU) ('gru'), ARX "
+        f"('arx') and their reduced models ('reduced'); got {label} ({name!r})"
     )
 
 
@@ -200,6 +200,10 @@ class NumpyModel:
         elif isinstance(net, OursGRU):
             layers, recurrent = _layers(net.head, "relu"), _gru_layers(net.gru)
             affine = _affine_path(net)
+        elif isinstance(net, ARX):  # the affine path beside a zero layer: Ĥ = L·x + c
+            width = net._head_width(net.state_dim)
+            zero = plain.Layer(np.zeros((net.n_y, width)), np.zeros(net.n_y), "linear")
+            layers, recurrent, affine = (zero,), (), _affine_path(net)
         else:
             raise _not_exportable(net.name)
         norm = self._norm

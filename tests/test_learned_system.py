@@ -256,7 +256,15 @@ def test_from_data_takes_the_hulls_of_the_training_windows(rng):
     assert rsys.X.contains(reduced.export().encode(windows), atol=1e-12)
 
 
-@pytest.mark.parametrize("name", [n for n in NETS if n not in ("mlp", "gru")])
+@pytest.mark.parametrize(
+    ("feedthrough", "residual"), list(itertools.product((True, False), repeat=2))
+)
+def test_arx_system_equals_the_torch_model(feedthrough, residual, rng):
+    model = _random_model("arx", 3, feedthrough=feedthrough, residual=residual)
+    _check_against_torch(model, as_system(model), rng)
+
+
+@pytest.mark.parametrize("name", [n for n in NETS if n not in ("mlp", "gru", "arx")])
 def test_only_canonical_models_export(name):
     net = build_net(name, window=ELL, n_u=N_U, n_y=N_Y)
     with pytest.raises(NotExportableError, match=f"only canonical models export.*'{name}'"):
