@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from canonid.runfolder import RUN_FILE, load, load_splits
+from datagen.loaders import is_dataset
 from learning import Model
 from models.errors import DataError
 from models.io import read_json
@@ -65,7 +66,9 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
             raise DataError(f"{run_dir / RUN_FILE}: no field 'data'; give the data explicitly")
         dataset, train, *_ = load_splits(recipe)  # the training split as `train` cut it
     else:
-        dataset = load(data, {})
+        recipe = read_json(run_dir / RUN_FILE) if (run_dir / RUN_FILE).is_file() else {}
+        recorded = recipe.get("data_options") if isinstance(recipe, dict) else None
+        dataset = load(data, {} if is_dataset(data) else dict(recorded or {}))
         splits = dataset.splits
         train = (
             list(splits["train"]) if "train" in splits else [t for s in splits.values() for t in s]

@@ -193,7 +193,9 @@ def learned_gamma_record(
         model.network()
     except CanonidError as exc:  # only canonical models export
         return {"available": False, "why": str(exc)}
-    system = learned_system(run_dir, data=data).system
+    # the training hull: the run's own training data when its recipe names them
+    own = (run_dir / "run.json").is_file()
+    system = learned_system(run_dir, data=None if own else data).system
     gamma = learned_gamma(system, budget=budget, tol=tol, seed=seed)
     return {"available": True, "state_dim": system.n_x, **gamma.to_dict()}
 
