@@ -2,6 +2,7 @@
 
 from canonid.commands import (
     analyze,
+    benchmark,
     evaluate,
     generate,
     reduce,
@@ -11,6 +12,6 @@ from canonid.commands import (
 )
 
 #: registration order is the order shown by ``canonid --help``
-COMMANDS = (systems, generate, train, reduce, evaluate, analyze, reproduce)
+COMMANDS = (systems, generate, train, reduce, evaluate, analyze, benchmark, reproduce)
 
 __all__ = ["COMMANDS"]
