@@ -333,3 +333,19 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
     assert recipe["data"] == str(run / "benchmark-data.npz") and recipe["window"] == 5
     assert Dataset.load(recipe["data"]).counts() == {"train": 1, "val": 1, "test": 3}
     assert main(["evaluate", str(run), "--split", "val", "--stride", "500", "--horizon", "20"]) == 0
+
+
+def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_path, capsys):
+    from canonid.commands.benchmark import _extra_train_args, train_arguments
+
+    extra = _extra_train_args("--epochs 7 --windows-per-trajectory 64")
+    args = train_arguments(["data.npz", "--model", "mlp", "--window", "3", *extra])
+    assert (args.epochs, args.windows_per_trajectory, args.profile) == (7, 64, "quick")
+    write_benchmark("ced", tmp_path)
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(tmp_path / "r")]
+    assert main([*argv, "--train-args=--out elsewhere"]) == 1
+    assert "--out set by canonid benchmark itself" in capsys.readouterr().err
+    assert main([*argv, "--train-args", "--epochs x"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "canonid train rejected the options" in err and "'x'" in err and "\n" not in err
+    assert not (tmp_path / "r").exists()  # refused before anything was written

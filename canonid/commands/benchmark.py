@@ -11,13 +11,15 @@ take it) plus:
   ``{"test", "rmse", "units", "n_init", "n_scored"}``, and the published baselines shown;
 * ``benchmark-<part>.png``: the simulation of each test part.
 
-Training goes through ``canonid train`` itself: its own parser reads the options given here, so
-every default of ``canonid train`` applies.
+Training goes through ``canonid train`` itself: its own parser reads the options given here and
+those of ``--train-args``, so every default of ``canonid train`` applies and any of its options
+can be set.
 """
 
 from __future__ import annotations
 
 import argparse
+import shlex
 from pathlib import Path
 from typing import Any, NoReturn
 
@@ -52,7 +54,7 @@ def register(sub: Any) -> None:
         help="train and score on a standard benchmark (Silverbox, Wiener-Hammerstein, ...)",
         description=(
             "Load benchmark NAME from its files (offline), train on the official training part "
-            "as `canonid train` does (the last 20 %% of every training record validates), score "
+            "as `canonid train` does (the last 20 % of every training record validates), score "
             "every official test part by the official rule (simulation from the whole test "
             "input after the first n_init measured outputs) and show the published baselines."
         ),
@@ -71,15 +73,28 @@ def register(sub: Any) -> None:
         metavar="L",
         help=f"window ℓ ≤ n_init (default min({DEFAULT_WINDOW}, n_init)); passed to canonid train",
     )
-    p.add_argument("--profile", choices=profile_names(), default="quick")
+    p.add_argument(
+        "--profile",
+        choices=profile_names(),
+        default="quick",
+        help="training budget (default quick)",
+    )
     p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/NAME-MODEL)")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
     p.add_argument(
         "--val-fraction",
         type=float,
+        metavar="F",
         default=0.2,
         help="share at the end of every training record held out for validation (default 0.2)",
+    )
+    p.add_argument(
+        "--train-args",
+        metavar="'OPTIONS'",
+        default="",
+        help="further options for canonid train, as one string (e.g. --train-args='--epochs 200 "
+        "--windows-per-trajectory 64')",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -97,6 +112,22 @@ def train_arguments(argv: list[str]) -> argparse.Namespace:
     parser = _TrainParser(prog="canonid")
     train.register(parser.add_subparsers(dest="command"))
     return parser.parse_args(["train", *argv])
+
+
+#: canonid train options that the benchmark sets itself
+_OWN = ("--model", "--window", "--profile", "--out", "--seed", "--threads", "--resume", "--val")
+
+
+def _extra_train_args(text: str) -> list[str]:
+    """``--train-args`` split like a shell; the options the benchmark sets are refused."""
+    extra = shlex.split(text)
+    taken = [a for a in extra if a.split("=")[0] in _OWN or a.startswith("--val-")]
+    if taken:
+        raise OptionError(
+            f"--train-args: {', '.join(taken)} set by canonid benchmark itself; give them as "
+            "its own options"
+        )
+    return extra
 
 
 def _list(directory: Path | None) -> int:
@@ -122,22 +153,22 @@ def run(args: argparse.Namespace) -> int:
     window = args.window if args.window is not None else str(min(DEFAULT_WINDOW, bench.n_init))
     if window.isdigit():
         check_window(int(window), bench)
-    dataset = load_benchmark(bench.name, args.dir)
     run_dir: Path = args.out or Path("runs") / f"{bench.name}-{args.model}"
-    if (run_dir / CHECKPOINT_FILE).exists():
-        raise CheckpointError(f"{run_dir} already holds a training run; choose another --out")
-    split = split_train_val(dataset, val_fraction=args.val_fraction, record_tails=True)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    data_path = split.save(run_dir / DATA_FILE)
-
-    argv = [str(data_path), "--model", args.model, "--window", window]
+    argv = [str(run_dir / DATA_FILE), "--model", args.model, "--window", window]
     argv += ["--profile", args.profile, "--out", str(run_dir)]
     for flag, value in (("--seed", args.seed), ("--threads", args.threads)):
         if value is not None:
             argv += [flag, str(value)]
     if args.no_progress:
         argv.append("--no-progress")
-    train.run(train_arguments(argv))
+    train_args = train_arguments(argv + _extra_train_args(args.train_args))
+    if (run_dir / CHECKPOINT_FILE).exists():
+        raise CheckpointError(f"{run_dir} already holds a training run; choose another --out")
+    dataset = load_benchmark(bench.name, args.dir)
+    split = split_train_val(dataset, val_fraction=args.val_fraction, record_tails=True)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    split.save(run_dir / DATA_FILE)
+    train.run(train_args)
 
     model = Model.load(run_dir)
     scores, sims = score_parts(model, split, bench)
