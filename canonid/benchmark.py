@@ -42,6 +42,8 @@ __all__ = [
 ]
 
 REPORT_FILE = "benchmark.json"
+#: samples shown in the zoomed panel of a test part's figure
+ZOOM_SAMPLES = 500
 
 
 @dataclass(frozen=True)
@@ -133,8 +135,8 @@ def plot_part(
     score: PartScore,
     model_label: str,
 ) -> Path:
-    """Measured and simulated output of one test part (top) and the error (bottom), in the
-    scoring units, with the ``n_init`` samples the model was given shaded."""
+    """Measured and simulated output of one test part (whole, then its first samples) and the
+    error, in the scoring units, with the ``n_init`` samples the model was given shaded."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -142,13 +144,18 @@ def plot_part(
 
     scale, units, n_init = bench.score_scale, bench.score_units, bench.n_init
     t = np.arange(part.T) * dt
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 5), sharex=True)
-    top.plot(t, part.y[:, 0] * scale, lw=0.6, color="0.3", label="measured")
-    top.plot(t[n_init:], sim[:, 0] * scale, lw=0.6, color="C1", label=f"{model_label} (simulated)")
-    bottom.plot(t[n_init:], (sim[:, 0] - part.y[n_init:, 0]) * scale, lw=0.5, color="C3")
-    for ax in (top, bottom):
+    zoom = min(part.T, n_init + ZOOM_SAMPLES)
+    fig, (top, mid, bottom) = plt.subplots(3, 1, figsize=(9, 7))
+    for ax, stop in ((top, part.T), (mid, zoom)):
+        ax.plot(t[:stop], part.y[:stop, 0] * scale, lw=0.6, color="0.3", label="measured")
+        ax.plot(
+            t[n_init:stop], sim[: stop - n_init, 0] * scale, lw=0.6, color="C1", label=model_label
+        )
         ax.axvspan(0, t[n_init], color="0.85", lw=0)
-    top.set_ylabel(f"{bench.output_names[0]} [{units}]")
+        ax.set_ylabel(f"{bench.output_names[0]} [{units}]")
+    mid.set_title(f"the first {zoom} samples", fontsize=8)
+    bottom.plot(t[n_init:], (sim[:, 0] - part.y[n_init:, 0]) * scale, lw=0.5, color="C3")
+    bottom.axvspan(0, t[n_init], color="0.85", lw=0)
     bottom.set_ylabel(f"error [{units}]")
     bottom.set_xlabel("time [s]")
     top.set_title(
