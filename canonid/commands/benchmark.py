@@ -120,7 +120,10 @@ _OWN = ("--model", "--window", "--profile", "--out", "--seed", "--threads", "--r
 
 def _extra_train_args(text: str) -> list[str]:
     """``--train-args`` split like a shell; the options the benchmark sets are refused."""
-    extra = shlex.split(text)
+    try:
+        extra = shlex.split(text)
+    except ValueError as exc:
+        raise OptionError(f"--train-args: cannot split {text!r} ({exc})") from None
     taken = [a for a in extra if a.split("=")[0] in _OWN or a.startswith("--val-")]
     if taken:
         raise OptionError(
