@@ -338,9 +338,9 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
 def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_path, capsys):
     from canonid.commands.benchmark import _extra_train_args, train_arguments
 
-    extra = _extra_train_args("--epochs 7 --windows-per-trajectory 64")
+    extra = _extra_train_args("--epochs 7 --batch-size 64")
     args = train_arguments(["data.npz", "--model", "mlp", "--window", "3", *extra])
-    assert (args.epochs, args.windows_per_trajectory, args.profile) == (7, 64, "quick")
+    assert (args.epochs, args.batch_size, args.profile) == (7, 64, "quick")
     write_benchmark("ced", tmp_path)
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(tmp_path / "r")]
     assert main([*argv, "--train-args=--out elsewhere"]) == 1

@@ -94,7 +94,7 @@ def register(sub: Any) -> None:
         metavar="'OPTIONS'",
         default="",
         help="further options for canonid train, as one string (e.g. --train-args='--epochs 200 "
-        "--windows-per-trajectory 64')",
+        "--batch-size 64')",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
