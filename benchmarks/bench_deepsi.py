@@ -4,14 +4,13 @@ training budget, scored by the same code.
 Writes the section "Identification versus deepSI" of benchmarks/RESULTS.md.
 
 * Contestants. **Ours (MLP)**: ``learning.fit`` with the ``quick`` profile (what ``canonid train
-  --profile quick`` runs), ℓ = 10, plus the options the README recommends for the system
-  (``OURS_OPTIONS``: ``--residual --no-feedthrough`` on the tank; none on the planar drone, whose
-  README section recommends nothing, so the network's defaults). **deepSI SUBNET** (deepSI
-  0.4.4, ``deepSI.models.SUBNET`` trained by ``deepSI.fit``) with deepSI's defaults (state
-  dimension 10, its residual MLPs, Adam at 1e-3, batch 256, rollout T = 50) but for the
-  encoder's past window, set to na = nb = ℓ so that both models start every rollout from the
-  same ℓ measured samples. Seed 0 for both (torch weights; our window draws; deepSI's batcher
-  is seeded 0 by deepSI).
+  --profile quick`` runs), ℓ = 10, with canonid's default options on both systems
+  (:data:`learning.presets.DEFAULT_NET_OPTIONS`: what ``canonid train --model mlp`` gets).
+  **deepSI SUBNET** (deepSI 0.4.4, ``deepSI.models.SUBNET`` trained by ``deepSI.fit``) with
+  deepSI's defaults (state dimension 10, its residual MLPs, Adam at 1e-3, batch 256, rollout T =
+  50) but for the encoder's past window, set to na = nb = ℓ so that both models start every
+  rollout from the same ℓ measured samples. Seed 0 for both (torch weights; our window draws;
+  deepSI's batcher is seeded 0 by deepSI).
 * The budget is **CPU time of the contestant's own thread**, validation excluded. The issue
   asks for the same wall-clock budget; on a dedicated machine with one thread each, CPU and
   wall time coincide. On a shared machine they do not: with 5–8 runnable processes on 2 cores,
@@ -94,12 +93,8 @@ WINDOW, HORIZON, VAL_STRIDE = 10, 100, 5
 TARGETS = (1000.0, 300.0, 100.0, 30.0, 10.0, 3.0)
 WARM_UP = 0.5  # CPU seconds of an untimed run of both before the contest
 DEEPSI_VAL_FREQ = 25  # deepSI iterations between validations (batch 256: ~ our 5 epochs' samples)
-#: network options of Ours (MLP) per system: the README's recommendation ("Identification":
-#: `--residual --no-feedthrough` on the tank); the README recommends none for the drone
-OURS_OPTIONS: dict[str, dict[str, Any]] = {
-    "tank": {"residual": True, "feedthrough": False},
-    "drone2d": {},
-}
+#: network options of Ours (MLP) per system over the defaults: none, what a user gets
+OURS_OPTIONS: dict[str, dict[str, Any]] = {"tank": {}, "drone2d": {}}
 
 
 class OutOfBudget(Exception):
@@ -287,7 +282,7 @@ def train_ours(
     clock = curve.clock
 
     def watch(report: Any) -> None:
-        curve.steps += -(-len(train) * opts.windows_per_trajectory // opts.batch_size)
+        curve.steps += -(-opts.windows_per_epoch // opts.batch_size)
         curve.epochs = report.epoch
         turns.check("ours")
         if report.epoch % opts.val_every == 0 and curve.seconds[-1] >= budget:

@@ -45,18 +45,18 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "res-noft": ("`--residual --no-feedthrough` (the tank's options)", {}, RES),
     "res-noft-w12": (
         "`--residual --no-feedthrough`, 12 windows per flight and epoch",
-        {"windows_per_trajectory": 12},
+        {"windows_per_epoch": 12 * 40},
         RES,
     ),
     "res-noft-b64": (
         "`--residual --no-feedthrough`, batch 64, 16 windows per flight and epoch",
-        {"batch_size": 64, "windows_per_trajectory": 16},
+        {"batch_size": 64, "windows_per_epoch": 16 * 40},
         RES,
     ),
     "res-noft-lr1e-3": ("`--residual --no-feedthrough`, Adam 1e-3", {"lr": 1e-3}, RES),
     "res-noft-lr1e-3-b64": (
         "`--residual --no-feedthrough`, Adam 1e-3, batch 64, 16 windows per flight and epoch",
-        {"lr": 1e-3, "batch_size": 64, "windows_per_trajectory": 16},
+        {"lr": 1e-3, "batch_size": 64, "windows_per_epoch": 16 * 40},
         RES,
     ),
 }
@@ -133,7 +133,7 @@ def main() -> int:
         "variant, clocked as in `bench_deepsi.py`. Validation MSE: 100-step rollouts from "
         "every 5th start of the validation flights, normalised by the training output "
         "variance (the test split is not read). Each variant is the quick profile "
-        f"({quick.epochs} epochs of {quick.windows_per_trajectory} windows per flight in "
+        f"({quick.epochs} epochs of {quick.windows_per_epoch} windows in "
         f"batches of {quick.batch_size}, Adam {quick.lr:g} cosine-decayed to "
         f"{quick.lr_final:g}, rollout length 1 → {quick.horizon} over "
         f"{quick.curriculum_epochs} epochs) with the options listed changed."

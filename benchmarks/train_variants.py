@@ -42,7 +42,7 @@ BASE: dict[str, Any] = {
     "lr_final": 1e-5,
     "horizon": 50,
     "curriculum_epochs": 50,
-    "windows_per_trajectory": 4,
+    "windows_per_epoch": 4 * 60,
     "alpha_first": 10.0,
 }
 
@@ -51,12 +51,12 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "quick": ("BASE: 600 epochs, batch 16, 4 windows/traj, H 50, 3 × 256", {}, {}),
     "w3x64-b64": (
         "3 × 64, batch 64, 16 windows/traj (4× the data per epoch, same steps)",
-        {"batch_size": 64, "windows_per_trajectory": 16},
+        {"batch_size": 64, "windows_per_epoch": 16 * 60},
         {"hidden": [64, 64, 64]},
     ),
     "w3x64-b64-h100": (
         "3 × 64, batch 64, 16 windows/traj, H 100 (curriculum 100 epochs)",
-        {"batch_size": 64, "windows_per_trajectory": 16, "horizon": 100, "curriculum_epochs": 100},
+        {"batch_size": 64, "windows_per_epoch": 16 * 60, "horizon": 100, "curriculum_epochs": 100},
         {"hidden": [64, 64, 64]},
     ),
     "h100-e300": ("H 100 (curriculum 50), 300 epochs", {"horizon": 100, "epochs": 300}, {}),
@@ -80,7 +80,7 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     ),
     "h100-w8-b32": (
         "h100-e600 with 8 windows/traj and batch 32 (2× the data per epoch, same steps)",
-        {"horizon": 100, "epochs": 600, "windows_per_trajectory": 8, "batch_size": 32},
+        {"horizon": 100, "epochs": 600, "windows_per_epoch": 8 * 60, "batch_size": 32},
         {},
     ),
     "h100-ema": (

@@ -1,42 +1,30 @@
 """Experiment profiles: the one place where the budgets of every stage are written down, as data.
 
-A profile maps a stage name (``"train"``, ``"reduce"``, ``"reproduce"``) to the options of
-that stage. ``quick`` fits in minutes on a 2-core CPU and goes through the same code path as
-``paper``, which uses the paper's numbers (10,000 regressor epochs, Adam at 1e-4) and is meant for
-a GPU or a cluster. Later issues add their stages here.
+A profile maps a stage name (``"train"``, ``"reduce"``, ``"reproduce"``) to the options of that
+stage. ``quick`` fits in minutes on a 2-core CPU and goes through the same code path as ``paper``,
+which uses the paper's numbers (10,000 regressor epochs, Adam at 1e-4) and is meant for a GPU or a
+cluster; ``tiny`` exists for the tests (the same code path in seconds). How each ``quick`` value
+was chosen, with the commands and figures, is in the docs ("Identification", "Model reduction").
 
-How ``quick`` ``train`` was chosen (tank, ℓ = 10; commands and figures in the README): the
-learning-rate schedule, batch and curriculum were tuned for the best validation error in a few
-CPU minutes, then the rollout length, epochs, network size, batch and loss weight were compared
-on the validation split (``benchmarks/train_variants.py``: 100-step rollouts over 600 epochs won,
-at about 7 CPU minutes on one thread); validation runs every 5 epochs on every 5th start time to
-keep its cost below the training's. ``reproduce`` trains its 150-epoch Table-1 jobs with 50-step
-rollouts, to keep ``make demo`` at its cost.
+``train`` holds :class:`learning.training.TrainOptions`. An epoch is ``windows_per_epoch``
+sub-windows drawn over all training trajectories, so a budget means the same number of optimiser
+steps however the data are cut.
 
-The ``reproduce`` stage (read by :mod:`canonid.reproduce`) says what ``canonid reproduce`` runs:
-the default systems, windows, models and number of seeds of Table 1 (jobs start in the listed
-order, so the longest come first; the tables sort them); per system, the dataset (``data``:
-seed, flights per split, samples per flight; missing keys take the scenario's defaults);
-``train``: overrides of the ``train`` stage for every Table-1 job (``per_model``: further
-overrides for one model — in ``quick``, Ours (GRU), whose epoch costs ℓ times more as it re-reads
-the window at every step, gets fewer epochs); ``networks``: per system and model, constructor
-options of the network (``paper``: Ours (MLP) of 2 × 2048 on the quadrotor, as the paper's
-appendix; otherwise the registry's defaults); ``evaluation``: the paper metric's rollout length
-and start stride; ``analysis``: per system, the windows, sets, Monte-Carlo trials and the budget
-of every certified search (systems not listed are not analysed); ``compression``: which trained
-runs the compression study reduces, at which rates and seeds (``epochs``: overrides the
-``reduce`` stage's; ``quick`` trains each auto-encoder for 60 epochs, so that a reduction costs
-about half of a 150-epoch MLP training: 133–139 s against 221–251 s wall in the README's run);
-``rollouts``: the window of the
-per-system rollout figure. ``tiny`` exists for the tests: the same code path in seconds.
+``reduce`` holds the auto-encoder's :class:`~learning.training.TrainOptions` and the
+:class:`learning.reduction.ReductionOptions` (sizes of E and D, the share of epochs with Ĥ frozen,
+loss weights, ``linear_skip``) in one mapping.
 
-The ``reduce`` stage holds the :class:`learning.training.TrainOptions` of the auto-encoder's
-training and the :class:`learning.reduction.ReductionOptions` (sizes of E and D, the share of
-epochs with Ĥ frozen, loss weights) in one mapping. ``paper``: 3,000 epochs, E and D of 2 × 512,
-Ĥ frozen for the first 75 % while the rollout length grows to 100 (*authors' code*), Adam at
-1e-4, plain output MSE (α = 1, as the authors), plain MLPs. ``quick``: 150 epochs, E and D of
-2 × 128 with an affine path started from the principal components of the training windows
-(``linear_skip``); how it was chosen is in its comment below.
+``reproduce`` (read by :mod:`canonid.reproduce`) says what ``canonid reproduce`` runs: the default
+systems, windows, models and number of seeds of Table 1 (jobs start in the listed order, the
+longest first); per system the dataset (``data``: seed, flights per split, samples per flight);
+``train``: overrides of the ``train`` stage for every Table-1 job (``per_system`` and
+``per_model``: further overrides for one system or model); ``networks``: per system and model,
+constructor options over the paper's network (:data:`learning.presets.PAPER_NET_OPTIONS`);
+``evaluation``: the paper metric's rollout length and start stride; ``analysis``: per system,
+the windows, sets, Monte-Carlo trials and the budget of every certified search (systems not
+listed are not analysed); ``compression``: which trained runs the compression study reduces, at
+which rates and seeds (``epochs`` overrides the ``reduce`` stage's); ``rollouts``: the window of
+the per-system rollout figure.
 """
 
 from __future__ import annotations
@@ -54,7 +42,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
         "reproduce": {
             "systems": ["tank"],
             "windows": [10, 5],
-            "models": ["gru", "mlp", "classic-gru", "masti"],
+            "models": ["gru", "mlp", "classic-gru", "masti", "arx"],
             "seeds": 1,
             "data": {
                 "tank": {"seed": 0, "counts": {"train": 60, "val": 20, "test": 20}},
@@ -78,8 +66,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                     "budget_seconds": 5.0,
                     "boxes": 20_000,
                 },
-                # 13 states: the certified side is out of reach (README, "Quadrotor"), sampled
-                # bounds and the Monte-Carlo check are what this buys; boxes keep it to minutes
+                # 13 states: sampled bounds and the Monte-Carlo check; few boxes keep it to minutes
                 "quadrotor": {
                     "windows": [1, 2, 3, 4, 5],
                     "trials": 100,
@@ -96,15 +83,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             },
             "rollouts": {"window": 10},
         },
-        # train: chosen on the tank's validation split, ℓ = 10, Ours (MLP), seed 0
-        # (`python benchmarks/train_variants.py runs/data/tank`; table in the README,
-        # "Identification"): 100-step rollouts (the metric's length) over 600 epochs gave the
-        # lowest validation error, 1.59e-4 against 2.33e-4 for 50-step rollouts (seed 1:
-        # 2.77e-4 against 3.21e-4), at 1.75× the CPU time; a 3 × 64 MLP with batch 64 and α = 1
-        # were worse. A second study from this stage (same script) found no better training
-        # option (weight decay, weight averaging, more windows per step, other learning rates);
-        # the SiLU activation, a network option (`canonid train --activation silu`), won there,
-        # narrowly (2 of 3 seeds, 4 % lower validation error on average).
+        # chosen on validation (docs: Identification, "The quick profile")
         "train": {
             "epochs": 600,
             "batch_size": 16,
@@ -112,20 +91,16 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "lr_final": 1e-5,
             "horizon": 100,
             "curriculum_epochs": 50,
-            "windows_per_trajectory": 4,
+            "windows_per_epoch": 240,
             "alpha_first": 10.0,
-            "patience": None,
+            "patience": 200,
             "val_every": 5,
             "val_stride": 5,
             "val_horizon": 100,
+            "val_windows": 1000,
             "checkpoint_every": 25,
         },
-        # reduce: chosen on tank ℓ = 10 at r = 0.6 (n̄ = 9 of dim z = 20), 150 epochs, seed 0
-        # (`python benchmarks/reduce_variants.py runs/tank-mlp-l10`; table in the README,
-        # "Model reduction"): plain MLPs (2 × 128 / 256 / 512, other loss weights, rates,
-        # curricula) stayed at 6–10× the full model's 100-step MSE, the untrained PCA
-        # reduction gives 2.8×; with the PCA-started affine path (linear_skip) lr 3e-4 had the
-        # lower validation loss (5.8e-4 against 6.5e-4 at lr 1e-3).
+        # chosen on validation (docs: Model reduction)
         "reduce": {
             "epochs": 150,
             "batch_size": 16,
@@ -133,7 +108,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "lr_final": 1e-5,
             "horizon": 50,
             "curriculum_epochs": 50,
-            "windows_per_trajectory": 4,
+            "windows_per_epoch": 240,
             "alpha_first": 1.0,
             "patience": None,
             "val_every": 5,
@@ -160,7 +135,14 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "drone2d": {"seed": 0, "counts": {"train": 500, "val": 20, "test": 20}},
                 "quadrotor": {"seed": 0, "counts": {"train": 146, "val": 20, "test": 10}},
             },
-            "train": {},
+            # the authors' epoch: one sub-window per training flight
+            "train": {
+                "per_system": {
+                    "tank": {"windows_per_epoch": 60},
+                    "drone2d": {"windows_per_epoch": 500},
+                    "quadrotor": {"windows_per_epoch": 146},
+                }
+            },
             "networks": {"quadrotor": {"mlp": {"hidden": [2048, 2048]}}},
             "evaluation": {"horizon": 100, "stride": 1},
             "analysis": {
@@ -200,7 +182,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "lr_final": None,
             "horizon": 100,
             "curriculum_epochs": 1_000,
-            "windows_per_trajectory": 1,
+            "windows_per_epoch": 64,
             "alpha_first": 10.0,
             "patience": 1_000,
             "val_every": 10,
@@ -215,7 +197,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "lr_final": None,
             "horizon": 100,
             "curriculum_epochs": 2_250,
-            "windows_per_trajectory": 1,
+            "windows_per_epoch": 64,
             "alpha_first": 1.0,
             "patience": None,
             "val_every": 10,
@@ -264,7 +246,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "lr_final": None,
             "horizon": 10,
             "curriculum_epochs": 0,
-            "windows_per_trajectory": 1,
+            "windows_per_epoch": 8,
             "alpha_first": 10.0,
             "patience": None,
             "val_every": 1,
@@ -279,7 +261,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "lr_final": None,
             "horizon": 10,
             "curriculum_epochs": 0,
-            "windows_per_trajectory": 1,
+            "windows_per_epoch": 8,
             "alpha_first": 1.0,
             "patience": None,
             "val_every": 1,

@@ -288,11 +288,13 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
     single jobs), then Table 1 by system, model, window and seed. The list depends only on the
     settings and the datasets, never on how it is run."""
     from canonid.profiles import train_options
+    from learning.presets import net_options
 
     stage = settings.stage
     out = settings.out.resolve()
     overrides = dict(stage.get("train", {}))
     per_model = overrides.pop("per_model", {})
+    per_system = overrides.pop("per_system", {})
     networks = stage.get("networks", {})
     evaluation = {"horizon": 100, "stride": 1, **stage.get("evaluation", {})}
     jobs: list[Job] = []
@@ -311,7 +313,7 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
                 for seed in range(settings.seeds):
                     options = train_options(
                         settings.profile,
-                        **{**overrides, **per_model.get(model, {})},
+                        **{**overrides, **per_system.get(system, {}), **per_model.get(model, {})},
                         seed=seed,
                         device=settings.device,
                     )
@@ -327,7 +329,9 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
                             profile=settings.profile,
                             train_options=options.to_dict(),
                             evaluation=evaluation,
-                            net_options=networks.get(system, {}).get(model, {}),
+                            net_options=net_options(
+                                model, networks.get(system, {}).get(model, {}), paper=True
+                            ),
                         )
                     )
     return jobs

@@ -1,9 +1,12 @@
 """Output-error training (SPEC §5, paper eq. J(H)), with curriculum, early stopping, resume.
 
-One *epoch* draws ``windows_per_trajectory`` random sub-windows from every training trajectory
-long enough for the current span ``ℓ + H`` (start uniform over ``0 … T − ℓ − H``), shuffles them and
-splits them into batches of ``batch_size``. On each sub-window the first ℓ measured samples are the
-burn-in (``ẑ = z``) and the model predicts the next ``H`` outputs in open loop; the loss is
+One *epoch* draws ``windows_per_epoch`` random sub-windows, uniformly over every start that
+fits the current span ``ℓ + H`` in any training trajectory (start ``s`` of trajectory ``i`` with
+``0 ≤ s ≤ T_i − ℓ − H``), and splits them into batches of ``batch_size``: an epoch is
+``⌈windows_per_epoch / batch_size⌉`` optimiser steps whatever the number of trajectories, so
+the same data as one long record or cut into many experiments get the same budget. On each
+sub-window the first ℓ measured samples are the burn-in (``ẑ = z``) and the model predicts the
+next ``H`` outputs in open loop; the loss is
 
     (1/H) Σ_{k=0}^{H−1} α_k ‖y_k − ŷ_k‖²   (normalised units, α_0 = alpha_first = 10, α_k = 1),
 
@@ -15,7 +18,9 @@ Curriculum: the rollout length grows linearly from 1 at epoch 1 to ``horizon`` a
 
 Validation: the mean squared error (normalised units, averaged over outputs and steps) of
 ``val_horizon``-step open-loop rollouts after an ℓ-sample measured burn-in, from every
-``val_stride``-th start of every validation trajectory. The model kept is the best one on it.
+``val_stride``-th start of every validation trajectory — at most ``val_windows`` of them, a
+subset drawn once from ``seed`` when there are more, so that a long record keeps validation
+bounded. The model kept is the best one on it.
 Epoch 0 is the untrained network. Early stopping: once the curriculum is complete, training stops
 when the best validation loss is ``patience`` epochs old.
 
@@ -28,7 +33,16 @@ average. The average smooths the last epochs' noise of Adam at a small cost per 
 Checkpoints (``run_dir/checkpoint.pt``, every ``checkpoint_every`` epochs and at the end) hold the
 network, the optimiser, the best weights, the history and the states of the torch and numpy
 random generators, so a resumed run ends exactly where an uninterrupted one would (same options,
-same data, same device). A non-finite loss stops training and keeps the best model.
+same data, same device).
+
+Recovery: a batch whose loss is not finite (an open-loop rollout that blew up) is not stepped
+on; the network goes back to the best weights so far, the optimiser's moments are reset and the
+learning rate is halved for the rest of the run. After ``MAX_RECOVERIES`` of them the run stops
+as diverged, keeping the best model.
+
+Linear start: a canonical model with the affine path (``linear``) starts from the least-squares
+ARX fit of the training data (:func:`learning.linear.least_squares`) with the nonlinear part's
+output layer at zero; a model that is not ``iterative`` (ARX) takes no gradient step at all.
 
 :func:`fit` trains a registered identification model from scratch; :func:`fit_net` is the loop
 itself, for a network built by the caller (the reduced model of :mod:`learning.reduction` uses it
@@ -52,9 +66,11 @@ from typing import Any
 import numpy as np
 import torch
 
+from learning import presets
 from learning.data import Normalisation, Series, WindowBank, as_series
+from learning.linear import initialise_linear
 from learning.model import Model, check_same, load_state
-from learning.nets import NETS, SequenceModel, UnknownModelError, build_net
+from learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
 from models.errors import CanonidError, CheckpointError, ShapeError
 from models.io import atomic_write_bytes
 
@@ -76,6 +92,8 @@ CHECKPOINT_FILE = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
 #: options that may change when a run is resumed (the others must match the checkpoint)
 RESUMABLE_CHANGES = frozenset({"epochs", "patience", "checkpoint_every", "device"})
+#: non-finite batches recovered from (best weights back, learning rate halved) before a run stops
+MAX_RECOVERIES = 5
 
 
 class OptionError(CanonidError, ValueError):
@@ -94,7 +112,7 @@ class TrainOptions:
         weight_decay: Adam weight decay.
         horizon: final rollout length ``H`` of the training sub-windows.
         curriculum_epochs: epochs over which ``H`` grows from 1 to ``horizon`` (0 or 1: none).
-        windows_per_trajectory: sub-windows drawn from each training trajectory per epoch.
+        windows_per_epoch: sub-windows drawn per epoch, over all training trajectories.
         alpha_first: weight α of the first predicted step (paper: 10).
         grad_clip: clip the gradient's global norm to this value (``None``: no clipping).
         ema_decay: if set, validate and keep an exponential moving average of the weights
@@ -103,6 +121,7 @@ class TrainOptions:
         patience: early-stopping patience in epochs (``None``: never stop early).
         val_every: validate every this many epochs (and at the last epoch).
         val_stride: stride of the validation start times.
+        val_windows: at most this many validation rollouts (a seeded subset; ``None``: all).
         val_horizon: validation rollout length (default ``horizon``).
         checkpoint_every: write ``checkpoint.pt`` every this many epochs (needs ``run_dir``).
         seed: seeds the initial weights and the sub-window draws.
@@ -116,7 +135,7 @@ class TrainOptions:
     weight_decay: float = 0.0
     horizon: int = 100
     curriculum_epochs: int = 0
-    windows_per_trajectory: int = 1
+    windows_per_epoch: int = 256
     alpha_first: float = 10.0
     grad_clip: float | None = None
     ema_decay: float | None = None
@@ -124,6 +143,7 @@ class TrainOptions:
     val_every: int = 1
     val_stride: int = 1
     val_horizon: int | None = None
+    val_windows: int | None = None
     checkpoint_every: int = 10
     seed: int = 0
     device: str = "auto"
@@ -133,7 +153,7 @@ class TrainOptions:
             "epochs",
             "batch_size",
             "horizon",
-            "windows_per_trajectory",
+            "windows_per_epoch",
             "val_every",
             "val_stride",
             "checkpoint_every",
@@ -146,7 +166,7 @@ class TrainOptions:
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise OptionError(f"training option {key} must be an integer >= 0, got {value!r}")
-        for key in ("patience", "val_horizon"):
+        for key in ("patience", "val_horizon", "val_windows"):
             value = getattr(self, key)
             if value is not None and (not isinstance(value, int) or value < 1):
                 raise OptionError(f"training option {key} must be None or an integer >= 1")
@@ -191,6 +211,12 @@ class TrainOptions:
     def from_dict(cls, data: Mapping[str, Any]) -> TrainOptions:
         """Build from a mapping; unknown keys raise :class:`OptionError` naming them."""
         known = {f.name for f in dataclasses.fields(cls)}
+        if "windows_per_trajectory" in data:
+            raise OptionError(
+                "training option windows_per_trajectory was replaced by windows_per_epoch "
+                "(sub-windows per epoch over all trajectories, so that the budget does not depend "
+                "on how the data are cut); this run was made by an older canonid"
+            )
         unknown = sorted(set(data) - known)
         if unknown:
             raise OptionError(f"unknown training option(s) {unknown}; known: {sorted(known)}")
@@ -224,7 +250,8 @@ class FitResult:
             extra loss terms.
         best_epoch, best_val_loss: where the kept weights come from.
         epochs_run: the last epoch trained.
-        stopped: ``"completed"``, ``"early_stopping"`` or ``"diverged"``.
+        stopped: ``"completed"``, ``"early_stopping"``, ``"diverged"`` or ``"least_squares"``
+            (a model fitted in closed form, with no gradient step).
     """
 
     model: Model
@@ -288,12 +315,22 @@ def _check_lengths(series: Sequence[Series], window: int, what: str) -> None:
 def _draw_windows(
     rng: np.random.Generator, lengths: Sequence[int], span: int, k: int
 ) -> np.ndarray:
-    fits = np.array([i for i, T in enumerate(lengths) if T >= span], dtype=np.int64)
-    highs = np.array([lengths[i] - span + 1 for i in fits], dtype=np.int64)
-    traj = np.repeat(fits, k)
-    starts = rng.integers(0, np.repeat(highs, k))
-    order = rng.permutation(len(traj))
-    return np.stack([traj, starts], axis=1)[order]
+    """``k`` ``(trajectory, start)`` pairs, uniform over every start that fits ``span``."""
+    fits = np.array([max(T - span + 1, 0) for T in lengths], dtype=np.int64)
+    ends = np.cumsum(fits)
+    flat = rng.integers(0, ends[-1], size=k)
+    traj = np.searchsorted(ends, flat, side="right")
+    starts = flat - (ends[traj] - fits[traj])
+    return np.stack([traj, starts], axis=1)
+
+
+def _validation_starts(bank: WindowBank, span: int, opts: TrainOptions) -> np.ndarray:
+    """Every ``val_stride``-th start, or a seeded subset of ``val_windows`` of them (in order)."""
+    starts = bank.starts(span, stride=opts.val_stride)
+    if opts.val_windows is None or len(starts) <= opts.val_windows:
+        return starts
+    pick = np.random.default_rng([opts.seed, 1]).choice(len(starts), opts.val_windows, False)
+    return starts[np.sort(pick)]
 
 
 class _Run:
@@ -312,7 +349,7 @@ class _Run:
         self.before_epoch = before_epoch
         self.train_bank, self.val_bank = train_bank, val_bank
         self.val_horizon = opts.rollout_horizon
-        self.val_starts = val_bank.starts(net.window + self.val_horizon, stride=opts.val_stride)
+        self.val_starts = _validation_starts(val_bank, net.window + self.val_horizon, opts)
         self.optimiser = torch.optim.Adam(
             net.parameters(), lr=opts.lr, weight_decay=opts.weight_decay
         )
@@ -323,6 +360,8 @@ class _Run:
         # the weight average (ema_decay), and the number of steps it has seen
         self.ema: dict[str, torch.Tensor] | None = None
         self.ema_steps = 0
+        # the learning-rate factor left by recoveries from non-finite losses, and their count
+        self.lr_scale, self.recoveries = 1.0, 0
         if opts.ema_decay is not None:
             self.ema = {k: v.detach().clone() for k, v in net.named_parameters()}
 
@@ -358,6 +397,8 @@ class _Run:
             "torch_rng": torch.get_rng_state(),
             "ema": None if self.ema is None else _to_cpu(self.ema),
             "ema_steps": self.ema_steps,
+            "lr_scale": self.lr_scale,
+            "recoveries": self.recoveries,
         }
         buf = io.BytesIO()
         torch.save(payload, buf)
@@ -377,6 +418,8 @@ class _Run:
         if self.ema is not None:
             self.ema = {k: v.to(device) for k, v in state["ema"].items()}
             self.ema_steps = int(state["ema_steps"])
+        self.lr_scale = float(state.get("lr_scale", 1.0))
+        self.recoveries = int(state.get("recoveries", 0))
 
     # ---------------------------------------------------------------- steps
     def validate(self) -> float:
@@ -413,18 +456,41 @@ class _Run:
                 self.ema[k].lerp_(p.detach(), 1.0 - decay)
         self.ema_steps = n + 1
 
+    def recover(self, epoch: int) -> bool:
+        """After a non-finite loss: back to the best weights with fresh optimiser moments and
+        half the learning rate; ``False`` once :data:`MAX_RECOVERIES` are spent."""
+        if self.recoveries >= MAX_RECOVERIES:
+            return False
+        self.recoveries += 1
+        self.lr_scale *= 0.5
+        load_state(self.net, self.best, where="best weights")
+        self.optimiser.state.clear()
+        if self.ema is not None:
+            self.ema = {k: v.detach().clone() for k, v in self.net.named_parameters()}
+        for group in self.optimiser.param_groups:
+            group["lr"] = self.opts.lr_at(epoch) * self.lr_scale
+        log.warning(
+            "epoch %d: a training loss is not finite; back to the best weights (epoch %d) with "
+            "the learning rate halved (recovery %d of %d)",
+            epoch,
+            self.best_epoch,
+            self.recoveries,
+            MAX_RECOVERIES,
+        )
+        return True
+
     def train_epoch(self, epoch: int) -> dict[str, Any] | None:
-        """One epoch; its history row, or ``None`` if a loss was not finite (nothing stepped
-        on that batch)."""
+        """One epoch; its history row, or ``None`` once a non-finite loss cannot be recovered
+        from (see :meth:`recover`)."""
         opts, net, ell = self.opts, self.net, self.net.window
         t0 = time.perf_counter()
         if self.before_epoch is not None:
             self.before_epoch(net, epoch)
-        horizon, lr = opts.horizon_at(epoch), opts.lr_at(epoch)
+        horizon, lr = opts.horizon_at(epoch), opts.lr_at(epoch) * self.lr_scale
         for group in self.optimiser.param_groups:
             group["lr"] = lr
         draws = _draw_windows(
-            self.rng, self.train_bank.lengths, ell + horizon, opts.windows_per_trajectory
+            self.rng, self.train_bank.lengths, ell + horizon, opts.windows_per_epoch
         )
         losses: list[float] = []
         parts_sum: dict[str, float] = {}
@@ -433,7 +499,10 @@ class _Run:
             u, y = self.train_bank.gather(draws[lo : lo + opts.batch_size], ell + horizon)
             loss, parts = net.training_loss(u, y, alpha_first=opts.alpha_first)
             if not torch.isfinite(loss):
-                return None
+                if not self.recover(epoch):
+                    return None
+                lr = opts.lr_at(epoch) * self.lr_scale
+                continue
             self.optimiser.zero_grad(set_to_none=True)
             loss.backward()
             if opts.grad_clip is not None:
@@ -456,10 +525,14 @@ class _Run:
             "epoch": epoch,
             "horizon": horizon,
             "lr": lr,
-            "train_loss": float(np.mean(losses)),
+            "train_loss": float(np.mean(losses)) if losses else math.nan,
             "val_loss": val_loss,
             "seconds": time.perf_counter() - t0,
-            **{f"train_{k}": v / len(losses) for k, v in parts_sum.items() if k != "output_error"},
+            **{
+                f"train_{k}": v / len(losses)
+                for k, v in parts_sum.items()
+                if k != "output_error" and losses
+            },
         }
         self.history.append(row)
         return row
@@ -512,8 +585,9 @@ def fit(
         model: a registry name (:func:`learning.nets.model_names`).
         window: ℓ.
         options: :class:`TrainOptions` (defaults if ``None``).
-        net_options: extra constructor arguments of the network (sizes, ``feedthrough``,
-            ``residual``).
+        net_options: constructor arguments of the network (sizes, ``feedthrough``,
+            ``residual``, ``activation``, ``linear``) over the model's defaults
+            (:data:`learning.presets.DEFAULT_NET_OPTIONS`).
         run_dir: where the model and ``checkpoint.pt`` are written (nothing is written if
             ``None``).
         resume: continue from ``run_dir/checkpoint.pt``; the model, its configuration, the
@@ -527,15 +601,19 @@ def fit(
     """
     if model not in NETS:
         raise UnknownModelError(f"unknown model {model!r}; expected one of {list(NETS)}")
+    train_s = as_series(train, what="training data")
+    options_all = presets.net_options(model, net_options)
 
     def build(norm: Normalisation) -> SequenceModel:
-        net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **dict(net_options or {}))
+        net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
         net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
+        if isinstance(net, CanonicalModel) and net.linear:
+            initialise_linear(net, train_s, norm)
         return net
 
     return fit_net(
         build,
-        train,
+        train_s,
         val,
         window=window,
         options=options,
@@ -633,9 +711,11 @@ def fit_net(
             state.restore(run_path / CHECKPOINT_FILE)
         else:
             state.start()
-        stopped = "completed"
+            if run_path is not None and not net.iterative:
+                state.save(run_path / CHECKPOINT_FILE)
+        stopped = "completed" if net.iterative else "least_squares"
         try:
-            for epoch in range(state.epoch + 1, opts.epochs + 1):
+            for epoch in range(state.epoch + 1, opts.epochs + 1 if net.iterative else 1):
                 row = state.train_epoch(epoch)
                 if row is None:
                     stopped = "diverged"

@@ -172,7 +172,7 @@ def test_hidden_widths_are_kept_by_the_run_and_another_width_is_refused(
     assert json.loads((run / "run.json").read_text())["net_options"]["hidden"] == [12, 7]
     assert json.loads((run / "config.json").read_text())["net"]["hidden"] == [12, 7]
     weights = torch.load(run / "weights.pt", weights_only=True)
-    layers = [tuple(v.shape) for k, v in weights.items() if k.endswith("weight")]
+    layers = [tuple(v.shape) for k, v in weights.items() if k.startswith("net.") and "weight" in k]
     assert [shape[0] for shape in layers] == [12, 7, 1]  # two hidden layers, then y
     # evaluate and resume rebuild the same network from the run
     assert main(["evaluate", str(run), "--horizon", "20"]) == 0
@@ -225,20 +225,18 @@ def test_bad_hidden_widths_fail_in_one_line(dataset_path, tmp_path, capsys, mode
     assert code == 1 and message in err and len(err.strip().splitlines()) == 1
 
 
-def test_windows_per_trajectory_is_kept_by_the_run_and_fixed_on_resume(
-    dataset_path, tmp_path, capsys
-):
+def test_windows_per_epoch_is_kept_by_the_run_and_fixed_on_resume(dataset_path, tmp_path, capsys):
     run = tmp_path / "run"
     common = ["--window", "3", "--epochs", "1", "--no-progress", "--device", "cpu"]
     argv = ["train", str(dataset_path), "--model", "mlp", *common, "--out", str(run)]
-    assert main([*argv, "--windows-per-trajectory", "5"]) == 0
+    assert main([*argv, "--windows-per-epoch", "5"]) == 0
     recipe = json.loads((run / "run.json").read_text())
-    assert recipe["train_options"]["windows_per_trajectory"] == 5
+    assert recipe["train_options"]["windows_per_epoch"] == 5
     capsys.readouterr()
     resume = ["train", "--resume", str(run), "--epochs", "2", "--no-progress"]
-    assert main([*resume, "--windows-per-trajectory", "8"]) == 1
-    assert "--windows-per-trajectory cannot change when resuming" in capsys.readouterr().err
-    assert main([*argv[:-1], str(tmp_path / "bad"), "--windows-per-trajectory", "0"]) == 1
+    assert main([*resume, "--windows-per-epoch", "8"]) == 1
+    assert "--windows-per-epoch cannot change when resuming" in capsys.readouterr().err
+    assert main([*argv[:-1], str(tmp_path / "bad"), "--windows-per-epoch", "0"]) == 1
     err = capsys.readouterr().err
-    assert "windows_per_trajectory must be an integer >= 1" in err
+    assert "windows_per_epoch must be an integer >= 1" in err
     assert len(err.strip().splitlines()) == 1

@@ -20,6 +20,7 @@ SMALL = {
     "gru": {"hidden_size": 8, "num_layers": 2, "head_hidden": [8]},
     "classic-gru": {},
     "masti": {"hidden": [16]},
+    "arx": {},
 }
 
 
@@ -52,8 +53,8 @@ def batch(data, window: int, horizon: int, norm: Normalisation):
     return torch.tensor(u, dtype=torch.float32), torch.tensor(y, dtype=torch.float32)
 
 
-def test_registry_lists_the_four_models():
-    assert model_names() == ["mlp", "gru", "classic-gru", "masti"]
+def test_registry_lists_the_models_in_table_order():
+    assert model_names() == ["mlp", "gru", "classic-gru", "masti", "arx"]
     with pytest.raises(UnknownModelError, match="unknown model 'lstm'"):
         build_net("lstm", window=2, n_u=1, n_y=1)
     with pytest.raises(UnknownModelError, match="bad configuration"):

@@ -36,7 +36,7 @@ def options(**kw) -> TrainOptions:
         "batch_size": 8,
         "lr": 3e-3,
         "horizon": 8,
-        "windows_per_trajectory": 4,
+        "windows_per_epoch": 32,
         "checkpoint_every": 2,
         "seed": 0,
         "device": "cpu",

@@ -13,7 +13,14 @@ from learning import Model, TrainOptions, evaluate, fit
 from learning.training import CHECKPOINT_FILE, OptionError
 from models.errors import CheckpointError, DataError, ShapeError
 
-TINY = {"hidden": [16, 16]}
+# the network options spelt out in full, so that the tests do not follow the defaults
+TINY = {
+    "hidden": [16, 16],
+    "feedthrough": True,
+    "residual": False,
+    "activation": "relu",
+    "linear": False,
+}
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +39,7 @@ def tiny_options(**kw) -> TrainOptions:
         "lr": 1e-3,
         "horizon": 8,
         "curriculum_epochs": 3,
-        "windows_per_trajectory": 2,
+        "windows_per_epoch": 16,
         "checkpoint_every": 2,
         "seed": 7,
         "device": "cpu",
@@ -203,6 +210,30 @@ def test_a_diverging_run_stops_and_keeps_the_best_model(data, monkeypatch, caplo
     assert math.isfinite(res.best_val_loss)
     assert all(torch.isfinite(p).all() for p in res.model.net.parameters())
     assert "not finite" in caplog.text
+
+
+def test_a_transient_non_finite_loss_is_recovered_from(data, monkeypatch, caplog, tmp_path):
+    """One blown-up batch: back to the best weights, half the learning rate, training goes on;
+    the recovery survives a resume."""
+    from learning.nets import OursMLP
+
+    train, val = data
+    original = OursMLP.training_loss
+    calls = {"n": 0}
+
+    def once(self, u, y, *, alpha_first):
+        calls["n"] += 1
+        loss, parts = original(self, u, y, alpha_first=alpha_first)
+        return (loss * math.nan if calls["n"] == 3 else loss), parts
+
+    monkeypatch.setattr(OursMLP, "training_loss", once)
+    res = fit_tiny(train, val, options=tiny_options(epochs=4), run_dir=tmp_path)
+    assert res.stopped == "completed" and res.epochs_run == 4
+    assert "recovery 1 of 5" in caplog.text
+    lrs = [row["lr"] for row in res.history[1:]]
+    assert lrs[-1] == pytest.approx(0.5 * tiny_options().lr_at(4))
+    ckpt = torch.load(tmp_path / "checkpoint.pt", weights_only=True)
+    assert (ckpt["lr_scale"], ckpt["recoveries"]) == (0.5, 1)
 
 
 def test_early_stopping_after_the_curriculum(data):

@@ -20,8 +20,8 @@ from canonid.commands import _data
 from canonid.commands.evaluate import RUN_FILE, evaluate_run, table
 from canonid.profiles import profile_names, train_options
 from datagen.loaders import split_train_val
-from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names
-from learning.nets.base import ACTIVATIONS
+from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names, presets
+from learning.nets.base import ACTIVATIONS, CanonicalModel
 from learning.plots import plot_training_curve
 from learning.training import CHECKPOINT_FILE
 from models.errors import CheckpointError, DataError
@@ -41,7 +41,11 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("data", nargs="?", metavar="DATA", help="training data (not with --resume)")
-    p.add_argument("--model", choices=model_names(), help="model (required unless --resume)")
+    p.add_argument(
+        "--model",
+        choices=model_names(),
+        help="model (default mlp, Ours (MLP); arx: the linear baseline, least squares only)",
+    )
     p.add_argument("--window", type=int, metavar="L", help="window ℓ (required unless --resume)")
     p.add_argument(
         "--profile",
@@ -59,10 +63,11 @@ def register(sub: Any) -> None:
         help="override the profile's final training rollout length",
     )
     p.add_argument(
-        "--windows-per-trajectory",
+        "--windows-per-epoch",
         type=int,
         metavar="N",
-        help="override the profile's random sub-windows drawn per training trajectory per epoch",
+        help="override the profile's random sub-windows per epoch (drawn over all trajectories; "
+        "an epoch is ⌈N / batch⌉ optimiser steps however the data are cut)",
     )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
@@ -89,10 +94,30 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--activation",
         choices=sorted(ACTIVATIONS),
-        help="hidden-layer nonlinearity of Ours (MLP) (default relu, the paper's)",
+        help="hidden-layer nonlinearity of Ours (MLP) (default silu; the paper's is relu)",
     )
-    p.add_argument("--residual", action="store_true", help="predict y_t − y_{t−1}")
-    p.add_argument("--no-feedthrough", action="store_true", help="the output map ignores u_t")
+    p.add_argument(
+        "--residual",
+        action=argparse.BooleanOptionalAction,
+        help="predict y_t − y_{t−1} (default: on for Ours (MLP), off for the others)",
+    )
+    p.add_argument(
+        "--feedthrough",
+        action=argparse.BooleanOptionalAction,
+        help="the output map sees u_t (default: off for Ours (MLP) and ARX, on for the others)",
+    )
+    p.add_argument(
+        "--linear",
+        action=argparse.BooleanOptionalAction,
+        help="canonical models: an affine path started from the least-squares ARX fit "
+        "(default: on for Ours (MLP))",
+    )
+    p.add_argument(
+        "--paper-options",
+        action="store_true",
+        help="the paper's model (the authors' code): Ours (MLP) 3 × 256 ReLU, residual, no "
+        "feedthrough, no affine path; the flags above still override it",
+    )
     p.add_argument(
         "--eval-horizon",
         type=int,
@@ -109,28 +134,40 @@ def register(sub: Any) -> None:
 def _recipe(args: argparse.Namespace) -> dict[str, Any]:
     if args.data is None:
         raise DataError("give the training DATA (or --resume RUN)")
-    if args.model is None or args.window is None:
-        raise DataError("--model and --window are required for a new run")
+    if args.window is None:
+        raise DataError("--window is required for a new run (e.g. --window 10)")
+    if args.model is None:
+        args.model = "mlp"
     opts = train_options(
         args.profile,
         epochs=args.epochs,
         lr=args.lr,
         batch_size=args.batch_size,
         horizon=args.horizon,
-        windows_per_trajectory=args.windows_per_trajectory,
+        windows_per_epoch=args.windows_per_epoch,
         seed=args.seed,
         device=args.device,
     )
-    net_options: dict[str, Any] = {
-        "feedthrough": not args.no_feedthrough,
-        "residual": args.residual,
+    chosen: dict[str, Any] = {
+        key: getattr(args, key)
+        for key in ("feedthrough", "residual")
+        if getattr(args, key) is not None
     }
     if args.hidden is not None:
-        net_options[_hidden_option(args.model)] = parse_widths(args.hidden)
+        chosen[_hidden_option(args.model)] = parse_widths(args.hidden)
     if args.activation is not None:
         if args.model != "mlp":
             raise OptionError(f"--activation applies to Ours (MLP) only, not {args.model}")
-        net_options["activation"] = args.activation
+        chosen["activation"] = args.activation
+    if args.linear is not None:
+        if not issubclass(NETS[args.model], CanonicalModel):
+            raise OptionError(
+                f"--linear applies to the canonical models (mlp, gru, arx), not {args.model}"
+            )
+        if args.model == "arx" and not args.linear:
+            raise OptionError("--no-linear: ARX is the affine path alone")
+        chosen["linear"] = args.linear
+    net_options = presets.net_options(args.model, chosen, paper=args.paper_options)
     return {
         "format": "canonid-run",
         "data": str(args.data),
@@ -176,9 +213,20 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
         raise CheckpointError(f"{run_dir} holds no {CHECKPOINT_FILE} to resume from")
     fixed = [
         f"--{k.replace('_', '-')}"
-        for k in ("lr", "batch_size", "horizon", "windows_per_trajectory", "seed")
+        for k in (
+            "lr",
+            "batch_size",
+            "horizon",
+            "windows_per_epoch",
+            "seed",
+            "residual",
+            "feedthrough",
+            "linear",
+        )
         if getattr(args, k) is not None
     ]
+    if args.paper_options:
+        fixed.append("--paper-options")
     if fixed:
         raise CheckpointError(
             f"{', '.join(fixed)} cannot change when resuming (only --epochs and --device can)"

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from learning.nets.arx import ARX
 from learning.nets.base import CanonicalModel, SequenceModel
 from learning.nets.classic_gru import ClassicGRU
 from learning.nets.masti import Masti
@@ -24,6 +25,7 @@ from models.errors import CanonidError
 
 __all__ = [
     "ALL_NETS",
+    "ARX",
     "NETS",
     "CanonicalModel",
     "ClassicGRU",
@@ -46,7 +48,7 @@ class UnknownModelError(CanonidError, ValueError):
 
 #: the registry: name → class (tests are parametrised over it)
 NETS: dict[str, type[SequenceModel]] = {
-    cls.name: cls for cls in (OursMLP, OursGRU, ClassicGRU, Masti)
+    cls.name: cls for cls in (OursMLP, OursGRU, ClassicGRU, Masti, ARX)
 }
 
 #: every network a saved model may hold: the identification models and the reduced model

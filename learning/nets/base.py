@@ -86,6 +86,8 @@ class SequenceModel(nn.Module, ABC):
     #: the constructor argument holding the widths of the hidden layers (what
     #: ``canonid train --hidden`` sets), or ``None`` where the sizes are not a list of widths
     hidden_option: ClassVar[str | None] = None
+    #: whether the network is trained by gradient steps (``False``: fitted in closed form only)
+    iterative: ClassVar[bool] = True
     residual_scale: torch.Tensor
 
     def __init__(
@@ -182,14 +184,41 @@ class CanonicalModel(SequenceModel):
     ``ŷ_t = Ĥ(ẑ_t, u_t)`` and ``ẑ_{t+1} = Ā ẑ_t + B̄ u_t + S̄ ŷ_t``
     (:func:`learning.canonical.shift`), starting from the measured ``z`` of the burn-in.
     Subclasses implement :meth:`regress`, the raw network output before the residual option.
+
+    Args:
+        linear: add an affine path, ``raw = L·x + c + regress(z, u)`` with ``x`` the head's input
+            (``[z_t; u_t]``, or ``z_t`` without feedthrough). :func:`learning.training.fit` starts
+            ``L, c`` at the least-squares (ARX) fit and the nonlinear part's output layer at zero,
+            so training starts from the best linear model.
+        common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``.
     """
+
+    def __init__(self, *, linear: bool = False, **common: Any) -> None:
+        super().__init__(**common)
+        self.linear = bool(linear)
+        self.affine = nn.Linear(self._head_width(self.state_dim), self.n_y) if self.linear else None
+
+    def config(self) -> dict[str, Any]:
+        return {**super().config(), "linear": self.linear}
 
     @abstractmethod
     def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """Raw network output ``(B, n_y)`` for ``z`` ``(B, ℓp)`` and ``u_t`` ``(B, n_u)``."""
 
+    def output_layer(self) -> nn.Linear | None:
+        """The last layer of the nonlinear part (zeroed when training starts from the ARX fit),
+        or ``None`` when there is no nonlinear part."""
+        return None
+
+    def raw(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+        """The regressor's output before the residual option: ``regress`` plus the affine path."""
+        out = self.regress(z, u)
+        if self.affine is not None:
+            out = out + self.affine(self._head_input(z, u))
+        return out
+
     def one_step(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        return self._output(self.regress(z, u), z[:, -self.n_y :])
+        return self._output(self.raw(z, u), z[:, -self.n_y :])
 
     def rollout(
         self, u_past: torch.Tensor, y_past: torch.Tensor, u_future: torch.Tensor

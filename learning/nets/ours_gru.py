@@ -24,8 +24,9 @@ class OursGRU(CanonicalModel):
     Args:
         hidden_size, num_layers: the GRU (paper: 128, 3).
         head_hidden: hidden widths of the MLP head (one layer of 128 by default).
-        common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
-            :class:`learning.nets.base.SequenceModel`).
+        common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``, ``linear`` (see
+            :class:`learning.nets.base.SequenceModel` and
+            :class:`learning.nets.base.CanonicalModel`).
     """
 
     name = "gru"
@@ -52,6 +53,11 @@ class OursGRU(CanonicalModel):
             "num_layers": self.num_layers,
             "head_hidden": list(self.head_hidden),
         }
+
+    def output_layer(self) -> nn.Linear:
+        last = self.head[-1]
+        assert isinstance(last, nn.Linear)
+        return last
 
     def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         _, h = self.gru(state_to_pairs(z, self.n_u, self.n_y))  # zero initial state

@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import torch
+from torch import nn
 
 from learning.nets.base import CanonicalModel, mlp
 
@@ -20,8 +21,9 @@ class OursMLP(CanonicalModel):
             2 × 2048 on the quadrotor.
         activation: the hidden layers' nonlinearity, ``"relu"`` (the paper's), ``"tanh"`` or
             ``"silu"``.
-        common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
-            :class:`learning.nets.base.SequenceModel`).
+        common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``, ``linear`` (see
+            :class:`learning.nets.base.SequenceModel` and
+            :class:`learning.nets.base.CanonicalModel`).
     """
 
     name = "mlp"
@@ -44,6 +46,11 @@ class OursMLP(CanonicalModel):
 
     def options(self) -> dict[str, Any]:
         return {"hidden": list(self.hidden), "activation": self.activation}
+
+    def output_layer(self) -> nn.Linear:
+        last = self.net[-1]
+        assert isinstance(last, nn.Linear)
+        return last
 
     def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         return self.net(self._head_input(z, u))

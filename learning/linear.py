@@ -1,0 +1,83 @@
+"""The least-squares (ARX) fit of a canonical model's affine path: the linear start of training.
+
+Regression, in the units the network sees (normalised by the training statistics): for every
+training trajectory and every sample ``t = ℓ … T−1``,
+
+    x_t = [z_t; u_t]   (``z_t`` alone without feedthrough),
+    z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1}),
+    target_t = y_t,  or  (y_t − y_{t−1}) / s  for a ``residual`` model (``s = residual_scale``),
+
+and ``(L, c) = argmin Σ_t ‖L x_t + c − target_t‖²`` (minimum-norm solution when the regressors are
+collinear, e.g. a constant input). This is the equation-error ARX model of orders ``n_a = n_b = ℓ``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import torch
+
+from learning.data import Normalisation, Series
+from learning.nets.base import CanonicalModel
+from models.errors import ShapeError
+
+__all__ = ["initialise_linear", "least_squares", "regressors"]
+
+
+def regressors(
+    series: Sequence[Series], norm: Normalisation, *, window: int, feedthrough: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(X, y, y_prev)``: the rows ``x_t`` of the module docstring for every trajectory and
+    ``t = ℓ … T−1`` in order, with the normalised ``y_t`` and ``y_{t−1}`` beside them."""
+    xs, ys, prev = [], [], []
+    for s in series:
+        if s.T <= window:
+            continue
+        un, yn = norm.norm_u(s.u), norm.norm_y(s.y)
+        pairs = np.concatenate([un, yn], axis=1)  # (T, p), one [u_i; y_i] per row
+        p = pairs.shape[1]
+        # row k of the view holds samples k … k+ℓ−1, i.e. z_{k+ℓ}
+        z = np.lib.stride_tricks.sliding_window_view(pairs, (window, p))[:, 0]
+        z = z.reshape(-1, window * p)[: s.T - window]
+        xs.append(np.concatenate([z, un[window:]], axis=1) if feedthrough else z)
+        ys.append(yn[window:])
+        prev.append(yn[window - 1 : -1])
+    if not xs:
+        raise ShapeError(f"no training trajectory is longer than the window ℓ = {window}")
+    return np.concatenate(xs), np.concatenate(ys), np.concatenate(prev)
+
+
+def least_squares(
+    series: Sequence[Series],
+    norm: Normalisation,
+    *,
+    window: int,
+    feedthrough: bool,
+    residual_scale: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``(L, c)``, ``L`` ``(n_y, dim x)`` and ``c`` ``(n_y,)``: the least-squares fit of the module
+    docstring (``residual_scale`` given: the residual model's target)."""
+    x, y, y_prev = regressors(series, norm, window=window, feedthrough=feedthrough)
+    target = y if residual_scale is None else (y - y_prev) / residual_scale
+    design = np.concatenate([x, np.ones((x.shape[0], 1))], axis=1)
+    theta, *_ = np.linalg.lstsq(design, target, rcond=None)
+    return theta[:-1].T.copy(), theta[-1].copy()
+
+
+def initialise_linear(net: CanonicalModel, series: Sequence[Series], norm: Normalisation) -> None:
+    """Set ``net``'s affine path to the least-squares fit and its nonlinear output layer to zero,
+    so that ``net`` starts as the ARX model (``net.linear`` must be on)."""
+    if net.affine is None:
+        raise ShapeError(f"{net.name}: the model has no affine path (linear=False)")
+    scale = net.residual_scale.detach().cpu().numpy().astype(np.float64) if net.residual else None
+    L, c = least_squares(
+        series, norm, window=net.window, feedthrough=net.feedthrough, residual_scale=scale
+    )
+    with torch.no_grad():
+        net.affine.weight.copy_(torch.as_tensor(L))
+        net.affine.bias.copy_(torch.as_tensor(c))
+        last = net.output_layer()
+        if last is not None:
+            last.weight.zero_()
+            last.bias.zero_()

@@ -1,0 +1,241 @@
+"""The affine path of the canonical models, its least-squares (ARX) start, the ARX model, the
+sample-based epoch and the named option sets (defaults, the paper's)."""
+
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from learning_helpers import damped_siso, trajectories
+
+from learning import TrainOptions, evaluate, fit
+from learning.data import Normalisation, as_series
+from learning.linear import least_squares, regressors
+from learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS, net_options
+from learning.training import _draw_windows
+from models.canonical import cut_windows
+
+# the damped system's transfer function: y_t = a1 y_{t−1} + a2 y_{t−2} + b1 u_{t−1} + b2 u_{t−2}
+# with a1 = tr A, a2 = −det A, b1 = C B, b2 = C A B − a1 C B (A, B, C of damped_siso)
+A1, A2, B1, B2 = 1.6, -0.68, 0.5, -0.2
+
+
+def options(**kw) -> TrainOptions:
+    base = {
+        "epochs": 3,
+        "batch_size": 16,
+        "lr": 1e-3,
+        "horizon": 20,
+        "windows_per_epoch": 64,
+        "val_stride": 5,
+        "seed": 0,
+        "device": "cpu",
+        "checkpoint_every": 100,
+    }
+    return TrainOptions(**{**base, **kw})
+
+
+def test_the_regression_rows_are_the_canonical_windows():
+    tr = trajectories(damped_siso(), 1, 30, noise=0.01, seed=4)[0]
+    norm = Normalisation.fit(as_series([tr]))
+    x, y, y_prev = regressors(as_series([tr]), norm, window=3, feedthrough=True)
+    z = cut_windows(norm.norm_u(tr.u), norm.norm_y(tr.y), 3)[:-1]  # z_t for t = 3 … T−1
+    np.testing.assert_array_equal(x[:, :-1], z)
+    np.testing.assert_array_equal(x[:, -1:], norm.norm_u(tr.u)[3:])
+    np.testing.assert_array_equal(y, norm.norm_y(tr.y)[3:])
+    np.testing.assert_array_equal(y_prev, norm.norm_y(tr.y)[2:-1])
+
+
+@pytest.mark.parametrize("residual", [False, True])
+def test_the_least_squares_start_is_the_systems_arx_model(residual):
+    """Noise-free data of a second-order system: the fit recovers its difference equation."""
+    data = as_series(trajectories(damped_siso(), 4, 80, noise=0.0, seed=1))
+    norm = Normalisation.fit(data)
+    scale = norm.dy_std / norm.y_std if residual else None
+    L, c = least_squares(data, norm, window=2, feedthrough=False, residual_scale=scale)
+    # back to physical units: z = (u_{t−2}, y_{t−2}, u_{t−1}, y_{t−1})
+    su, sy, mu, my = norm.u_std[0], norm.y_std[0], norm.u_mean[0], norm.y_mean[0]
+    row = L[0] * (scale[0] if residual else 1.0)
+    if residual:
+        row = row + np.array([0, 0, 0, 1.0])  # y_t = y_{t−1} + s · raw
+    coef = row * sy / np.array([su, sy, su, sy])
+    np.testing.assert_allclose(coef, [B2, A2, B1, A1], atol=1e-8)
+    offset = sy * (c[0] * (scale[0] if residual else 1.0)) + my - coef @ [mu, my, mu, my]
+    assert abs(offset) < 1e-8
+
+
+def test_the_arx_model_takes_no_gradient_step_and_holds_the_least_squares_fit(tmp_path):
+    data = trajectories(damped_siso(), 6, 80, noise=0.0, seed=2)
+    train, val = data[:4], data[4:]
+    res = fit(train, val, model="arx", window=2, options=options(), run_dir=tmp_path)
+    assert res.stopped == "least_squares" and res.epochs_run == 0
+    assert [row["epoch"] for row in res.history] == [0]
+    L, c = least_squares(as_series(train), res.model.norm, window=2, feedthrough=False)
+    affine = res.model.net.affine
+    np.testing.assert_allclose(affine.weight.detach().numpy(), L, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(affine.bias.detach().numpy(), c, rtol=1e-5, atol=1e-6)
+    # on noise-free data of an order-2 system the simulation is exact (float32 weights)
+    tr = val[0]
+    sim = res.model.simulate(tr.u, tr.y[:2])
+    np.testing.assert_allclose(sim, tr.y[2:], atol=1e-4)
+    assert (tmp_path / "checkpoint.pt").is_file()
+
+
+def test_training_starts_from_the_arx_model():
+    """Epoch 0 of Ours (MLP) with the affine path scores exactly what the ARX model scores."""
+    data = trajectories(damped_siso(), 8, 100, noise=0.02, seed=3)
+    train, val = data[:6], data[6:]
+    common = {"residual": False, "feedthrough": False}
+    mlp = fit(train, val, model="mlp", window=3, options=options(epochs=1), net_options=common)
+    arx = fit(train, val, model="arx", window=3, options=options(epochs=1), net_options=common)
+    assert mlp.history[0]["val_loss"] == pytest.approx(arx.history[0]["val_loss"], rel=1e-5)
+
+
+def test_the_linear_path_reaches_the_noise_floor_of_linear_data_in_a_few_epochs():
+    noise = 0.05  # uniform: variance noise² / 3
+    system = damped_siso()
+    train = trajectories(system, 10, 150, noise=noise, seed=5)
+    val = trajectories(system, 3, 150, noise=noise, seed=6)
+    test = trajectories(system, 3, 150, noise=noise, seed=7)
+    res = fit(
+        train, val, model="mlp", window=4, options=options(epochs=3), net_options={"hidden": [32]}
+    )
+    scores = evaluate(res.model, test, horizon=50)
+    assert scores.measured.rollout_mse < 1.5 * noise**2 / 3
+
+
+def test_one_record_or_ten_experiments_get_the_same_budget_and_error(monkeypatch):
+    """The same samples as one record or cut into ten: the same optimiser steps, and the best
+    validation errors within 10 % of each other."""
+    system = damped_siso()
+    whole = trajectories(system, 1, 1500, noise=0.02, seed=8)[0]
+    pieces = [
+        SimpleNamespace(u=whole.u[k : k + 150], y=whole.y[k : k + 150]) for k in range(0, 1500, 150)
+    ]
+    val = trajectories(system, 3, 150, noise=0.02, seed=9)
+    steps = {"n": 0}
+    original = torch.optim.Adam.step
+
+    def counted(self, *args, **kw):
+        steps["n"] += 1
+        return original(self, *args, **kw)
+
+    monkeypatch.setattr(torch.optim.Adam, "step", counted)
+    results = {}
+    for name, train in (("record", [whole]), ("experiments", pieces)):
+        steps["n"] = 0
+        res = fit(train, val, model="mlp", window=3, options=options(epochs=4))
+        results[name] = (steps["n"], res.best_val_loss)
+    assert results["record"][0] == results["experiments"][0] == 4 * 64 // 16
+    a, b = results["record"][1], results["experiments"][1]
+    assert abs(a - b) <= 0.1 * max(a, b)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    lengths=st.lists(st.integers(1, 60), min_size=1, max_size=8),
+    span=st.integers(1, 20),
+    k=st.integers(1, 200),
+    seed=st.integers(0, 2**16),
+)
+def test_window_draws_fit_their_trajectory(lengths, span, k, seed):
+    if max(lengths) < span:
+        return
+    draws = _draw_windows(np.random.default_rng(seed), lengths, span, k)
+    assert draws.shape == (k, 2)
+    for traj, start in draws:
+        assert 0 <= start and start + span <= lengths[traj]
+
+
+def test_window_draws_are_uniform_over_the_starts():
+    """A trajectory with three times the starts gets about three times the windows."""
+    draws = _draw_windows(np.random.default_rng(0), [40, 20, 5], 11, 30_000)
+    counts = np.bincount(draws[:, 0], minlength=3) / 30_000
+    np.testing.assert_allclose(counts, [30 / 40, 10 / 40, 0.0], atol=0.01)
+
+
+def test_validation_is_capped_by_a_seeded_subset():
+    from learning.data import WindowBank
+    from learning.training import _validation_starts
+
+    tr = trajectories(damped_siso(), 2, 400, noise=0.0, seed=1)
+    series = as_series(tr)
+    bank = WindowBank(series, Normalisation.fit(series))
+    full = _validation_starts(bank, 30, options())
+    capped = _validation_starts(bank, 30, options(val_windows=20))
+    assert len(full) > 20 and len(capped) == 20
+    assert {tuple(r) for r in capped} <= {tuple(r) for r in full}
+    np.testing.assert_array_equal(capped, _validation_starts(bank, 30, options(val_windows=20)))
+
+
+def test_option_sets_are_named_once():
+    assert net_options("mlp") == DEFAULT_NET_OPTIONS["mlp"]
+    assert net_options("mlp", paper=True) == PAPER_NET_OPTIONS["mlp"]
+    assert net_options("mlp", {"linear": False})["linear"] is False
+    assert net_options("classic-gru") == {}
+    # the authors' code: increment output, no feedthrough, ReLU, 3 × 256, no affine path
+    assert PAPER_NET_OPTIONS["mlp"] == {
+        "hidden": [256, 256, 256],
+        "activation": "relu",
+        "residual": True,
+        "feedthrough": False,
+        "linear": False,
+    }
+
+
+def test_an_old_run_option_is_refused_by_name():
+    from learning import OptionError
+
+    with pytest.raises(OptionError, match="windows_per_trajectory was replaced by windows_per"):
+        TrainOptions.from_dict({"windows_per_trajectory": 4})
+
+
+def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
+    """`canonid train` without model options gets the defaults; `--paper-options` the paper's
+    model exactly; both are written to config.json."""
+    from canonid.cli import main
+
+    data = trajectories(damped_siso(), 6, 120, noise=0.01, seed=10)
+    np.savez(
+        tmp_path / "data.npz",
+        u=np.stack([t.u for t in data]),
+        y=np.stack([t.y for t in data]),
+        dt=1.0,
+    )
+    common = [str(tmp_path / "data.npz"), "--window", "3", "--epochs", "1", "--no-progress"]
+    common += ["--device", "cpu", "--horizon", "10"]
+    assert main(["train", *common, "--model", "mlp", "--out", str(tmp_path / "d")]) == 0
+    net = json.loads((tmp_path / "d" / "config.json").read_text())["net"]
+    assert {k: net[k] for k in DEFAULT_NET_OPTIONS["mlp"]} == DEFAULT_NET_OPTIONS["mlp"]
+    assert (
+        main(["train", *common, "--model", "mlp", "--paper-options", "--out", str(tmp_path / "p")])
+        == 0
+    )
+    net = json.loads((tmp_path / "p" / "config.json").read_text())["net"]
+    assert {k: net[k] for k in PAPER_NET_OPTIONS["mlp"]} == PAPER_NET_OPTIONS["mlp"]
+    out = tmp_path / "a"
+    assert main(["train", *common, "--model", "arx", "--out", str(out)]) == 0
+    assert "arx: least_squares after 0 epochs" in capsys.readouterr().out
+    assert (out / "metrics.json").is_file()
+    assert (
+        main(["train", *common, "--model", "arx", "--no-linear", "--out", str(tmp_path / "x")]) == 1
+    )
+    assert "ARX is the affine path alone" in capsys.readouterr().err
+    resume = ["train", "--resume", str(tmp_path / "d"), "--no-progress", "--device", "cpu"]
+    assert main([*resume, "--no-linear"]) == 1
+    assert "--linear cannot change when resuming" in capsys.readouterr().err
+
+
+def test_reproduce_trains_the_papers_model(tmp_path):
+    from canonid.reproduce import plan_jobs, settings_from_profile
+
+    settings_ = settings_from_profile("tiny", out=tmp_path)
+    info = SimpleNamespace(path=tmp_path / "data", checksum="0")
+    jobs = plan_jobs(settings_, {s: info for s in settings_.systems})
+    mlp = [j for j in jobs if getattr(j, "model", None) == "mlp"]
+    assert mlp and all(j.net_options == PAPER_NET_OPTIONS["mlp"] for j in mlp)
