@@ -377,34 +377,46 @@ def _csv(
 
 
 # ---------------------------------------------------------------------------------- splits
-def split_train_val(dataset: Dataset, *, val_fraction: float = 0.2) -> Dataset:
+def split_train_val(
+    dataset: Dataset, *, val_fraction: float = 0.2, record_tails: bool = False
+) -> Dataset:
     """Cut a ``"val"`` split off the ``"train"`` split.
 
     Several experiments: the last ``⌈val_fraction · N⌉`` (in order) become validation, at least
-    one stays for training. One experiment: its first ``⌊(1 − val_fraction) T⌋`` samples stay
-    training data and the rest become validation. Other splits are kept as they are.
+    one stays for training. One experiment, or any number with ``record_tails=True``: the first
+    ``⌊(1 − val_fraction) T⌋`` samples of every record stay training data and the rest of that
+    record becomes validation (``info["samples"]`` holds each part's ``[start, stop)`` within its
+    record). Other splits are kept as they are.
     """
     if not 0 < val_fraction < 1:
         raise DataError(f"val_fraction must be in (0, 1), got {val_fraction}")
     train = dataset.split("train")
     if "val" in dataset.splits:
         raise DataError("the dataset already has a 'val' split")
-    if len(train) >= 2:
+    if len(train) >= 2 and not record_tails:
         n_val = min(max(1, math.ceil(val_fraction * len(train))), len(train) - 1)
         new_train, new_val = train[: len(train) - n_val], train[len(train) - n_val :]
         how = f"last {n_val} of {len(train)} experiments"
     else:
-        tr = train[0]
-        cut = int((1 - val_fraction) * tr.T)
-        if cut < 2 or tr.T - cut < 2:
-            raise DataError(f"one record of {tr.T} samples is too short to split")
 
-        def part(start: int, stop: int) -> Trajectory:
+        def part(tr: Trajectory, start: int, stop: int) -> Trajectory:
             arrays = {k: v[start:stop] for k, v in tr.arrays().items()}
             return Trajectory(**arrays, info={**tr.info, "samples": [start, stop]})
 
-        new_train, new_val = (part(0, cut),), (part(cut, tr.T),)
-        how = f"samples {cut}…{tr.T - 1} of the single record"
+        heads, tails = [], []
+        for i, tr in enumerate(train):
+            cut = int((1 - val_fraction) * tr.T)
+            if cut < 2 or tr.T - cut < 2:
+                raise DataError(f"record {i} of {tr.T} samples is too short to split")
+            heads.append(part(tr, 0, cut))
+            tails.append(part(tr, cut, tr.T))
+        new_train, new_val = tuple(heads), tuple(tails)
+        share = f"the last {val_fraction:.0%} of"
+        how = (
+            f"samples {cut}…{train[0].T - 1} of the single record"
+            if len(train) == 1
+            else f"{share} every one of the {len(train)} records"
+        )
     splits = {**dataset.splits, "train": new_train, "val": new_val}
     return Dataset(
         splits=splits,

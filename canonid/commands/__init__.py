@@ -44,6 +44,9 @@ COMMANDS = (
         "analyze", "γ_f, α_ℓ brackets (certified and sampled) and the Proposition 2 bound check"
     ),
     Command(
+        "benchmark", "train and score on a standard benchmark (Silverbox, Wiener-Hammerstein, ...)"
+    ),
+    Command(
         "reproduce", "the paper's Table 1, compression study, analysis and figures: one report"
     ),
 )

@@ -1,0 +1,98 @@
+"""canonid's scores on the field's standard benchmarks → a section of ``benchmarks/RESULTS.md``.
+
+Runs ``canonid benchmark NAME ...`` (every argument after NAME is passed on), measures its wall
+and CPU time and the load average, and writes the scores beside the published baselines::
+
+    python benchmarks/standard_benchmarks.py silverbox --dir ../shared/data/silverbox
+
+A run already made (timed outside, e.g. with ``/usr/bin/time``) is recorded with
+``--record RUN --cpu-seconds S --wall-seconds S --load 'BEFORE / AFTER' --command '...'``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+
+from benchmarks._results import write_section
+
+
+def _load() -> str:
+    return f"{os.getloadavg()[0]:.2f}"
+
+
+def _body(run: Path, cpu: float, wall: float, load: str) -> str:
+    report = json.loads((run / "benchmark.json").read_text())
+    recipe = json.loads((run / "run.json").read_text())
+    methods: list[str] = []
+    for b in report["baselines"]:
+        if b["method"] not in methods:
+            methods.append(b["method"])
+    published = {(b["test"], b["method"]): b["rmse"] for b in report["baselines"]}
+    units = report["scores"][0]["units"]
+    head = ["test part", "n_init", f"canonid [{units}]", *methods]
+    rows = [
+        [
+            s["test"],
+            str(s["n_init"]),
+            f"{s['rmse']:.3f}",
+            *(
+                f"{published[(s['test'], m)]:.3f}" if (s["test"], m) in published else ""
+                for m in methods
+            ),
+        ]
+        for s in report["scores"]
+    ]
+    table = "\n".join("| " + " | ".join(r) + " |" for r in [head, ["---"] * len(head), *rows])
+    options = recipe["train_options"]
+    sources = "; ".join(sorted({b["source"] for b in report["baselines"]})) or "none entered"
+    return (
+        f"{report['title']}: {report['model']}, ℓ = {report['window']}, profile "
+        f"{report['profile']} ({options['epochs']} epochs, rollouts up to {options['horizon']} "
+        f"steps), seed {options['seed']}; validation: {report['validation']}. Score: simulation "
+        f"RMSE of each official test part after its first n_init measured samples "
+        f"({report['definition']}). Wall {wall / 60:.1f} min, CPU {cpu / 60:.1f} min (training, "
+        f"canonid train's evaluation and the benchmark's scoring); load average before / after: "
+        f"{load} on a machine shared with other jobs.\n\n{table}\n\nPublished baselines: "
+        f"{sources}. Figures: `{run}/benchmark-<part>.png`."
+    )
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("name", nargs="?", help="benchmark NAME (runs canonid benchmark)")
+    parser.add_argument("--record", type=Path, metavar="RUN", help="record a finished run")
+    parser.add_argument("--cpu-seconds", type=float)
+    parser.add_argument("--wall-seconds", type=float)
+    parser.add_argument("--load", help="load average before / after, for --record")
+    parser.add_argument("--command", help="the command that made the --record run")
+    args, rest = parser.parse_known_args()
+    if args.record is not None:
+        if None in (args.cpu_seconds, args.wall_seconds, args.load, args.command):
+            parser.error("--record needs --cpu-seconds, --wall-seconds, --load and --command")
+        body = _body(args.record, args.cpu_seconds, args.wall_seconds, args.load)
+        write_section("Standard benchmarks", body, command=args.command)
+        return 0
+    if args.name is None:
+        parser.error("give a benchmark NAME or --record RUN")
+    out = Path("runs") / f"bench-{args.name}"
+    cmd = ["canonid", "benchmark", args.name, "--out", str(out), "--no-progress", *rest]
+    before, start = _load(), time.perf_counter()
+    subprocess.run([sys.executable, "-m", "canonid", *cmd[1:]], check=True)
+    wall = time.perf_counter() - start
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    body = _body(out, usage.ru_utime + usage.ru_stime, wall, f"{before} / {_load()}")
+    write_section("Standard benchmarks", body, command=" ".join(cmd))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,200 @@
+"""Scores of a trained model on a standard benchmark's official test parts, by the official rule.
+
+The rule (``nonlinear_benchmarks``): a model may use the whole input of a test part and only its
+first ``n_init`` measured outputs; the score is the RMSE of its simulation on the remaining
+samples, in the benchmark's scoring units.
+
+How the indices are cut, for a canonical model of window ℓ on a test part of ``T`` samples
+(requires ℓ ≤ ``n_init``; :func:`learning.evaluate.simulate_records`):
+
+* burn-in: the measured samples ``n_init−ℓ … n_init−1`` (inputs and outputs) build the first
+  state ``z_{n_init}``; these are the last ℓ of the ``n_init`` samples the rule allows;
+* simulation: samples ``n_init … T−1`` are predicted in open loop from the inputs alone;
+* score: ``RMSE = sqrt(mean over t = n_init … T−1 and the outputs of (ŷ[t] − y[t])²)``, times
+  the scoring factor (1000 for V → mV, m → mm). Samples ``0 … n_init−1`` are never scored, so
+  the score does not depend on ℓ's burn-in position, only on the model.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from datagen.benchmarks import Baseline, Benchmark
+from datagen.dataset import Dataset, Trajectory
+from learning import Model
+from learning.data import as_series
+from learning.evaluate import simulate_records
+from learning.training import OptionError
+
+__all__ = [
+    "BenchmarkReport",
+    "PartScore",
+    "check_window",
+    "plot_part",
+    "report_table",
+    "score_parts",
+]
+
+REPORT_FILE = "benchmark.json"
+#: samples shown in the zoomed panel of a test part's figure
+ZOOM_SAMPLES = 500
+
+
+@dataclass(frozen=True)
+class PartScore:
+    """The official score of one test part.
+
+    Attributes:
+        test: the part's name (``multisine``).
+        rmse: simulation RMSE over samples ``n_init … T−1``, in ``units``.
+        units: the benchmark's scoring units (``mV``).
+        n_init: measured samples given to the model (never scored).
+        n_scored: samples scored (``T − n_init``).
+    """
+
+    test: str
+    rmse: float
+    units: str
+    n_init: int
+    n_scored: int
+
+
+@dataclass(frozen=True)
+class BenchmarkReport:
+    """What ``canonid benchmark`` writes to ``benchmark.json``."""
+
+    benchmark: str
+    title: str
+    definition: str
+    files: list[str]
+    model: str
+    window: int
+    profile: str
+    validation: str
+    scores: list[PartScore]
+    baselines: list[Baseline]
+    rule: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"schema": 1, **asdict(self)}
+
+
+RULE = (
+    "simulation from the whole test input and the measured outputs n_init−ℓ … n_init−1; RMSE "
+    "over samples n_init … T−1 of each official test part, in the scoring units"
+)
+
+
+def check_window(window: int, bench: Benchmark) -> None:
+    """Refuse a window the official rule cannot feed: ℓ measured outputs must fit in n_init."""
+    if window > bench.n_init:
+        raise OptionError(
+            f"window ℓ = {window} exceeds {bench.name}'s n_init = {bench.n_init}: the official "
+            f"rule gives a model only the first {bench.n_init} measured outputs of a test part; "
+            f"choose --window ≤ {bench.n_init}"
+        )
+
+
+def score_parts(
+    model: Model, dataset: Dataset, bench: Benchmark
+) -> tuple[list[PartScore], list[np.ndarray]]:
+    """Official scores of ``model`` on every test part of ``dataset`` (see the module
+    docstring), with the simulated outputs of samples ``n_init … T−1`` of each part."""
+    check_window(model.window, bench)
+    parts = dataset.split("test")
+    sims = simulate_records(model, as_series(parts, what="test parts"), bench.n_init)
+    scores = []
+    for part, sim in zip(parts, sims, strict=True):
+        err = sim - part.y[bench.n_init :]
+        rmse = float(np.sqrt(np.mean(err**2))) * bench.score_scale
+        scores.append(
+            PartScore(
+                test=str(part.info.get("part", "")),
+                rmse=rmse,
+                units=bench.score_units,
+                n_init=bench.n_init,
+                n_scored=int(err.shape[0]),
+            )
+        )
+    return scores, sims
+
+
+def plot_part(
+    path: str | os.PathLike[str],
+    part: Trajectory,
+    sim: np.ndarray,
+    *,
+    bench: Benchmark,
+    dt: float,
+    score: PartScore,
+    model_label: str,
+) -> Path:
+    """Measured and simulated output of one test part (whole, then its first samples) and the
+    error, in the scoring units, with the ``n_init`` samples the model was given shaded."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    scale, units, n_init = bench.score_scale, bench.score_units, bench.n_init
+    t = np.arange(part.T) * dt
+    zoom = min(part.T, n_init + ZOOM_SAMPLES)
+    fig, (top, mid, bottom) = plt.subplots(3, 1, figsize=(9, 7))
+    for ax, stop in ((top, part.T), (mid, zoom)):
+        ax.plot(t[:stop], part.y[:stop, 0] * scale, lw=0.6, color="0.3", label="measured")
+        ax.plot(
+            t[n_init:stop], sim[: stop - n_init, 0] * scale, lw=0.6, color="C1", label=model_label
+        )
+        ax.axvspan(0, t[n_init], color="0.85", lw=0)
+        ax.set_ylabel(f"{bench.output_names[0]} [{units}]")
+    mid.set_title(f"the first {zoom} samples", fontsize=8)
+    bottom.plot(t[n_init:], (sim[:, 0] - part.y[n_init:, 0]) * scale, lw=0.5, color="C3")
+    bottom.axvspan(0, t[n_init], color="0.85", lw=0)
+    bottom.set_ylabel(f"error [{units}]")
+    bottom.set_xlabel("time [s]")
+    top.set_title(
+        f"{bench.title}, test '{score.test}': RMSE {score.rmse:.4g} {units} over "
+        f"{score.n_scored} samples after n_init = {n_init} (shaded)",
+        fontsize=9,
+    )
+    top.legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    out = Path(path)
+    fig.savefig(out, dpi=110)
+    plt.close(fig)
+    return out
+
+
+def report_table(report: BenchmarkReport) -> str:
+    """Scores beside the published baselines, one row per test part."""
+    methods: list[str] = []
+    for b in report.baselines:
+        if b.method not in methods:
+            methods.append(b.method)
+    value = {(b.test, b.method): b.rmse for b in report.baselines}
+    units = report.scores[0].units if report.scores else ""
+    rows = [("test", "n_init", f"canonid [{units}]", *methods)]
+    for s in report.scores:
+        published: Sequence[str] = [
+            f"{value[(s.test, m)]:.3f}" if (s.test, m) in value else "-" for m in methods
+        ]
+        rows.append((s.test, str(s.n_init), f"{s.rmse:.3f}", *published))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    head = (
+        f"{report.title} ({report.definition}): {report.model} ℓ = {report.window}, profile "
+        f"{report.profile}; simulation RMSE after n_init measured samples"
+    )
+    sources = sorted({b.source for b in report.baselines})
+    tail = (
+        [f"published baselines: {s}" for s in sources]
+        if sources
+        else ["published baselines: none entered for this benchmark"]
+    )
+    return "\n".join([head, *lines, *tail])

@@ -1,0 +1,351 @@
+"""The standard benchmarks: official splits read from files in each benchmark's exact layout,
+the CSV export, one-line errors, and ``canonid benchmark`` end to end on a synthetic Silverbox."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import scipy.io
+
+from canonid.benchmark import score_parts
+from canonid.cli import main
+from datagen.benchmarks import BENCHMARKS, benchmark, load_benchmark
+from datagen.dataset import Dataset
+from datagen.loaders import split_train_val
+from learning import Model
+from learning.data import Normalisation, as_series
+from learning.evaluate import simulate_records
+from learning.nets import build_net
+from models.errors import DataError
+
+# The official split of nonlinear_benchmarks 1.0.1, written out by hand from its benchmarks.py:
+# per benchmark, (file, [start, stop)) of every training record and every test part, in order.
+EXPECTED = {
+    "silverbox": {
+        "dt": 1 / 610.35,
+        "train": [("SNLS80mV.mat", 40650, 105712)],
+        "test": [
+            ("multisine", "SNLS80mV.mat", 105712, 127400),
+            ("arrow-full", "SNLS80mV.mat", 100, 40575),
+            ("arrow-no-extrapolation", "SNLS80mV.mat", 100, 32100),
+        ],
+        "n_init": 50,
+        "score": ("mV", 1000.0),
+    },
+    "cascaded-tanks": {
+        "dt": 4.0,
+        "train": [("dataBenchmark.mat", 0, 1024)],
+        "test": [("validation", "dataBenchmark.mat", 0, 1024)],
+        "n_init": 5,
+        "score": ("V", 1.0),
+    },
+    "wiener-hammerstein": {
+        "dt": 1 / 51200,
+        "train": [("WienerHammerBenchMark.mat", 5200, 105200)],
+        "test": [("test", "WienerHammerBenchMark.mat", 105200, 184000)],
+        "n_init": 50,
+        "score": ("mV", 1000.0),
+    },
+    "emps": {
+        "dt": 1e-3,
+        "train": [("DATA_EMPS.mat", 0, 600)],
+        "test": [("DATA_EMPS_PULSES", "DATA_EMPS_PULSES.mat", 0, 500)],
+        "n_init": 20,
+        "score": ("mm", 1000.0),
+    },
+    "ced": {
+        "dt": 0.02,
+        "train": [("DATAUNIF.MAT", 0, 400), ("DATAUNIF.MAT", 0, 400)],
+        "test": [
+            ("low-amplitude", "DATAUNIF.MAT", 400, 500),
+            ("high-amplitude", "DATAUNIF.MAT", 400, 500),
+        ],
+        "n_init": 4,
+        "score": ("ticks/s", 1.0),
+    },
+}
+
+
+def _signal(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """A random input and a first-order response (something a model can learn)."""
+    u = rng.normal(size=n) * 0.1
+    y = np.zeros(n)
+    for k in range(1, n):
+        y[k] = 0.9 * y[k - 1] + 0.1 * u[k - 1]
+    return u, y
+
+
+def write_benchmark(name: str, root: Path, *, flat: bool = False, seed: int = 0) -> dict:
+    """Write benchmark ``name``'s files with its official variable names and shapes (the
+    package's cache layout, or all in ``root`` when ``flat``); return the full records."""
+    rng = np.random.default_rng(seed)
+    folder = root if flat else root / benchmark(name).folder
+    folder.mkdir(parents=True, exist_ok=True)
+    col = lambda a: np.asarray(a)[:, None]  # noqa: E731 — N × 1, as MATLAB stores them
+    records: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    if name == "silverbox":
+        u, y = _signal(rng, 131_072)
+        scipy.io.savemat(folder / "SNLS80mV.mat", {"V1": u[None, :], "V2": y[None, :]})
+        records["SNLS80mV.mat"] = (u, y)
+    elif name == "cascaded-tanks":
+        (ue, ye), (uv, yv) = _signal(rng, 1024), _signal(rng, 1024)
+        scipy.io.savemat(
+            folder / "dataBenchmark.mat",
+            {"uEst": col(ue), "yEst": col(ye), "uVal": col(uv), "yVal": col(yv), "Ts": [[4.0]]},
+        )
+        records["dataBenchmark.mat"] = (ue, ye)
+        records["validation"] = (uv, yv)
+    elif name == "wiener-hammerstein":
+        u, y = _signal(rng, 188_000)
+        scipy.io.savemat(
+            folder / "WienerHammerBenchMark.mat",
+            {"uBenchMark": col(u), "yBenchMark": col(y), "fs": [[51200.0]]},
+        )
+        records["WienerHammerBenchMark.mat"] = (u, y)
+    elif name == "emps":
+        for file, n in (("DATA_EMPS.mat", 600), ("DATA_EMPS_PULSES.mat", 500)):
+            u, y = _signal(rng, n)
+            t = np.arange(n) * 1e-3
+            mat = {"qm": col(y), "qg": col(y + 0.01), "t": col(t), "vir": col(u)}
+            scipy.io.savemat(folder / file, mat)
+            records[file] = (u, y)
+    elif name == "ced":
+        (u1, z1), (u2, z2) = _signal(rng, 500), _signal(rng, 500)
+        scipy.io.savemat(
+            folder / "DATAUNIF.MAT",
+            {"u11": col(u1), "u12": col(u2), "z11": col(z1), "z12": col(z2)},
+        )
+        records["low"], records["high"] = (u1, z1), (u2, z2)
+    return records
+
+
+def _record(name: str, records: dict, file: str, index: int, role: str):
+    """The full record a part was cut from (CED and Cascaded Tanks hold two per file)."""
+    if name == "ced":
+        return records[("low", "high")[index]]
+    if name == "cascaded-tanks" and role == "test":
+        return records["validation"]
+    return records[file]
+
+
+@pytest.mark.parametrize("name", list(BENCHMARKS))
+def test_official_slices_n_init_and_units(tmp_path, name):
+    records = write_benchmark(name, tmp_path)
+    ds = load_benchmark(name, tmp_path)
+    expected, bench = EXPECTED[name], BENCHMARKS[name]
+    assert ds.dt == pytest.approx(expected["dt"], rel=1e-12)
+    assert ds.metadata["n_init"] == bench.n_init == expected["n_init"]
+    assert (ds.metadata["score_units"], ds.metadata["score_scale"]) == expected["score"]
+    assert set(ds.metadata["units"]) == {*ds.input_names, *ds.output_names}
+    assert ds.counts() == {"train": len(expected["train"]), "test": len(expected["test"])}
+    for i, (tr, (file, start, stop)) in enumerate(zip(ds.split("train"), expected["train"])):
+        u, y = _record(name, records, file, i, "train")
+        np.testing.assert_array_equal(tr.u[:, 0], u[start:stop])
+        np.testing.assert_array_equal(tr.y[:, 0], y[start:stop])
+        assert tr.info["samples"] == [start, stop]
+    parts = ds.split("test")
+    assert [p.info["part"] for p in parts] == [e[0] for e in expected["test"]]
+    assert ds.metadata["test_parts"] == list(bench.test_parts)
+    for i, (part, (_, file, start, stop)) in enumerate(zip(parts, expected["test"])):
+        u, y = _record(name, records, file, i, "test")
+        np.testing.assert_array_equal(part.u[:, 0], u[start:stop])
+        np.testing.assert_array_equal(part.y[:, 0], y[start:stop])
+        assert part.info["n_init"] == bench.n_init
+
+
+def test_files_are_also_found_directly_in_the_folder(tmp_path):
+    records = write_benchmark("ced", tmp_path, flat=True)
+    ds = load_benchmark("ced", tmp_path)
+    np.testing.assert_array_equal(ds.split("test")[1].y[:, 0], records["high"][1][400:])
+
+
+def test_silverbox_csv_export_gives_the_same_data_as_the_mat_file(tmp_path):
+    records = write_benchmark("silverbox", tmp_path / "mat")
+    u, y = records["SNLS80mV.mat"]
+    # the export's layout: quoted header, a trailing empty column
+    lines = ['"V1","V2",', *(f"{a!r},{b!r}," for a, b in zip(u.tolist(), y.tolist()))]
+    (tmp_path / "csv").mkdir()
+    (tmp_path / "csv" / "SNLS80mV.csv").write_text("\n".join(lines) + "\n")
+    from_mat, from_csv = (
+        load_benchmark("silverbox", tmp_path / "mat"),
+        load_benchmark("silverbox", tmp_path / "csv"),
+    )
+    assert from_mat.dt == from_csv.dt and from_mat.counts() == from_csv.counts()
+    for split in ("train", "test"):
+        for a, b in zip(from_mat.split(split), from_csv.split(split)):
+            np.testing.assert_array_equal(a.u, b.u)
+            np.testing.assert_array_equal(a.y, b.y)
+            assert {**a.info, "file": "SNLS80mV.csv"} == b.info
+
+
+def test_a_missing_file_names_it_where_it_was_looked_for_and_the_download_page(tmp_path):
+    with pytest.raises(DataError) as err:
+        load_benchmark("wiener-hammerstein", tmp_path)
+    text = str(err.value)
+    assert "WienerHammerBenchMark.mat not found" in text and "\n" not in text
+    assert str(tmp_path / "WienerHammerBenchMark" / "WienerHammerBenchMark.mat") in text
+    assert "nonlinearbenchmark.org/benchmarks/wiener-hammerstein" in text
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ({"u11": np.ones((500, 1)), "u12": np.ones((500, 1)), "z11": np.ones((500, 1))}, "'z12'"),
+        (
+            {k: np.ones((500, 2)) for k in ("u11", "u12", "z11", "z12")},
+            r"'u11' must be a 1 × N or N × 1 vector, got \(500, 2\)",
+        ),
+        ({k: np.ones((300, 1)) for k in ("u11", "u12", "z11", "z12")}, "needs at least 401"),
+        (
+            {
+                "u11": np.ones((500, 1)),
+                "u12": np.ones((500, 1)),
+                "z11": np.ones((499, 1)),
+                "z12": np.ones((500, 1)),
+            },
+            "'u11' has 500 samples but 'z11' has 499",
+        ),
+        (
+            {
+                "u11": np.full((500, 1), np.nan),
+                "u12": np.ones((500, 1)),
+                "z11": np.ones((500, 1)),
+                "z12": np.ones((500, 1)),
+            },
+            "non-finite",
+        ),
+    ],
+)
+def test_a_malformed_file_gives_a_one_line_error_naming_it(tmp_path, content, message):
+    scipy.io.savemat(tmp_path / "DATAUNIF.MAT", content)
+    with pytest.raises(DataError, match=message) as err:
+        load_benchmark("ced", tmp_path)
+    assert "DATAUNIF.MAT" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_file_that_is_not_matlab_is_named(tmp_path):
+    (tmp_path / "DATAUNIF.MAT").write_bytes(b"not a MATLAB file at all")
+    with pytest.raises(DataError, match="not a readable MATLAB"):
+        load_benchmark("ced", tmp_path)
+
+
+def test_every_training_record_gives_its_tail_to_validation(tmp_path):
+    write_benchmark("ced", tmp_path)
+    split = split_train_val(load_benchmark("ced", tmp_path), val_fraction=0.2, record_tails=True)
+    assert [t.T for t in split.split("train")] == [320, 320]
+    assert [t.T for t in split.split("val")] == [80, 80]
+    assert [t.info["samples"] for t in split.split("val")] == [[320, 400], [320, 400]]
+    assert split.counts()["test"] == 2
+
+
+def _untrained(window: int, data: Dataset) -> Model:
+    net = build_net("mlp", window=window, n_u=1, n_y=1, hidden=[8])
+    return Model(net, Normalisation.fit(as_series(data.split("train"))))
+
+
+def test_scores_never_see_outputs_after_n_init_and_match_the_formula(tmp_path):
+    write_benchmark("cascaded-tanks", tmp_path)
+    ds = load_benchmark("cascaded-tanks", tmp_path)
+    bench, model = benchmark("cascaded-tanks"), _untrained(3, ds)
+    scores, sims = score_parts(model, ds, bench)
+    (part,) = ds.split("test")
+    # the simulation from samples n_init−ℓ … n_init−1, by hand
+    by_hand = model.predict(part.u[None, 2:], part.y[None, 2:5])[0]
+    np.testing.assert_allclose(sims[0], by_hand, rtol=1e-12)
+    assert scores[0].rmse == pytest.approx(np.sqrt(np.mean((by_hand - part.y[5:]) ** 2)))
+    assert (scores[0].n_init, scores[0].n_scored, scores[0].units) == (5, 1019, "V")
+    # measured outputs after n_init (and before n_init − ℓ) do not change the simulation
+    y = part.y.copy()
+    y[5:] += 1.0
+    y[:2] -= 1.0
+    hidden = as_series(SimpleNamespace(u=part.u, y=y))
+    np.testing.assert_array_equal(simulate_records(model, hidden, 5)[0], sims[0])
+
+
+def test_records_of_different_lengths_simulate_as_they_would_alone(tmp_path):
+    write_benchmark("silverbox", tmp_path)
+    ds = load_benchmark("silverbox", tmp_path)
+    model = _untrained(4, ds)
+    cut = zip(ds.split("test"), (900, 600, 200))
+    parts = as_series([SimpleNamespace(u=p.u[:n], y=p.y[:n]) for p, n in cut])
+    together = simulate_records(model, parts, 50)
+    for part, sim in zip(parts, together):
+        (alone,) = simulate_records(model, [part], 50)
+        assert sim.shape == (part.T - 50, 1)
+        # the network computes in float32: batching changes the rounding, nothing else
+        np.testing.assert_allclose(sim, alone, rtol=1e-5, atol=1e-8)
+
+
+def test_a_window_beyond_n_init_is_refused_before_training(tmp_path, capsys):
+    write_benchmark("cascaded-tanks", tmp_path)
+    code = main(["benchmark", "cascaded-tanks", "--dir", str(tmp_path), "--window", "6"])
+    err = capsys.readouterr().err.strip()
+    assert code == 1 and "n_init = 5" in err and "\n" not in err
+    assert not (Path("runs") / "cascaded-tanks-mlp").exists()
+
+
+def test_missing_files_on_the_command_line_are_one_line(tmp_path, capsys):
+    assert main(["benchmark", "emps", "--dir", str(tmp_path), "--out", str(tmp_path / "r")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("canonid benchmark: error: emps: DATA_EMPS.mat not found")
+    assert "\n" not in err and not (tmp_path / "r").exists()
+
+
+def test_list_shows_which_files_were_found(tmp_path, capsys):
+    write_benchmark("ced", tmp_path)
+    assert main(["benchmark", "--list", "--dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert f"CED/DATAUNIF.MAT: found: {tmp_path / 'CED' / 'DATAUNIF.MAT'}" in out
+    assert "Silverbox/SilverboxFiles/SNLS80mV.mat (or SNLS80mV.csv): missing" in out
+    assert all(f"{name}:" in out for name in BENCHMARKS)
+
+
+@pytest.mark.slow
+def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
+    write_benchmark("silverbox", tmp_path / "files")
+    run = tmp_path / "run"
+    argv = ["benchmark", "silverbox", "--dir", str(tmp_path / "files"), "--profile", "tiny"]
+    assert main([*argv, "--out", str(run), "--window", "5", "--no-progress", "--threads", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "multisine" in out and "1.490" in out  # the published GRU beside canonid's score
+    report = json.loads((run / "benchmark.json").read_text())
+    assert [s["test"] for s in report["scores"]] == [
+        "multisine",
+        "arrow-full",
+        "arrow-no-extrapolation",
+    ]
+    assert all(s["units"] == "mV" and s["n_init"] == 50 for s in report["scores"])
+    assert report["window"] == 5 and report["baselines"]
+    # canonid train's own evaluation of the same test parts (all of them, in V) agrees
+    metrics = json.loads((run / "metrics.json").read_text())
+    n = np.array([s["n_scored"] for s in report["scores"]])
+    rmse_v = np.array([s["rmse"] for s in report["scores"]]) / 1000.0
+    assert metrics["n_init"] == 50 and metrics["n_scored_samples"] == n.sum()
+    assert metrics["rmse"] == pytest.approx(np.sqrt(np.sum(n * rmse_v**2) / n.sum()), rel=1e-6)
+    for name in report["scores"]:
+        assert (run / f"benchmark-{name['test']}.png").stat().st_size > 0
+    # a normal run: canonid evaluate reads its recipe and data
+    recipe = json.loads((run / "run.json").read_text())
+    assert recipe["data"] == str(run / "benchmark-data.npz") and recipe["window"] == 5
+    assert Dataset.load(recipe["data"]).counts() == {"train": 1, "val": 1, "test": 3}
+    assert main(["evaluate", str(run), "--split", "val", "--stride", "500", "--horizon", "20"]) == 0
+
+
+def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_path, capsys):
+    from canonid.commands.benchmark import _extra_train_args, train_arguments
+
+    extra = _extra_train_args("--epochs 7 --batch-size 64")
+    args = train_arguments(["data.npz", "--model", "mlp", "--window", "3", *extra])
+    assert (args.epochs, args.batch_size, args.profile) == (7, 64, "quick")
+    write_benchmark("ced", tmp_path)
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(tmp_path / "r")]
+    assert main([*argv, "--train-args=--out elsewhere"]) == 1
+    assert "--out set by canonid benchmark itself" in capsys.readouterr().err
+    assert main([*argv, "--train-args", "--epochs x"]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "canonid train rejected the options" in err and "'x'" in err and "\n" not in err
+    assert not (tmp_path / "r").exists()  # refused before anything was written
