@@ -142,3 +142,19 @@ def test_site_builds_strictly(tmp_path: Path):
     assert (tmp_path / "index.html").exists()
     assert (tmp_path / "cli" / "index.html").exists()
     assert (tmp_path / "api" / "learning" / "index.html").exists()
+
+
+def test_docstring_rest_habits_become_markdown():
+    markdown = _hook("griffe_rest").markdown
+    text = (
+        "Uses :func:`fit` and ``x``, see :class:`~learning.Model`.\n\n"
+        "Example::\n\n    y = 1\n\n"
+        "Args:\n    X, U: boxes for x and u.\n    seed (int): a seed.\n\nNotes: a, b: not args.\n"
+    )
+    assert markdown(text) == (
+        "Uses `fit` and `x`, see `learning.Model`.\n\n"
+        "Example:\n\n    y = 1\n\n"
+        "Args:\n    X: boxes for x and u.\n    U: boxes for x and u.\n    seed (int): a seed.\n\n"
+        "Notes: a, b: not args."
+    )
+    assert markdown(markdown(text)) == markdown(text)

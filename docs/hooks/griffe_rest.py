@@ -47,8 +47,15 @@ def markdown(text: str) -> str:
 
 
 class ReSTHabits(griffe.Extension):
-    """Rewrite each object's docstring once the tree is loaded."""
+    """Rewrite each object's docstring when it is created (packages included) and once the tree
+    is loaded; the rewrite is idempotent."""
 
-    def on_object(self, *, obj: Any, **kwargs: Any) -> None:
+    def _rewrite(self, obj: Any) -> None:
         if obj.docstring is not None:
             obj.docstring.value = markdown(obj.docstring.value)
+
+    def on_instance(self, *, obj: Any, **kwargs: Any) -> None:
+        self._rewrite(obj)
+
+    def on_object(self, *, obj: Any, **kwargs: Any) -> None:
+        self._rewrite(obj)
