@@ -4,9 +4,12 @@ and the generated command-line page lists every flag of every parser."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
+import io
 import os
 import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -158,3 +161,38 @@ def test_docstring_rest_habits_become_markdown():
         "Notes: a, b: not args."
     )
     assert markdown(markdown(text)) == markdown(text)
+
+
+def _canonid_commands(code: str) -> list[list[str]]:
+    """The argument lists of the `canonid ...` / `python -m canonid ...` lines of a shell block."""
+    joined = re.sub(r"\\\n\s*", " ", code)
+    commands = []
+    for line in joined.splitlines():
+        if not line.lstrip().startswith(("canonid ", "python -m canonid ")):
+            continue
+        words = shlex.split(line, comments=True)
+        if words[:1] == ["canonid"]:
+            commands.append(words[1:])
+        elif words[:3] == ["python", "-m", "canonid"]:
+            commands.append(words[3:])
+    return commands
+
+
+def test_every_canonid_command_in_the_docs_parses():
+    """Also the blocks that are not run: a renamed or removed flag fails here, in seconds."""
+    parser = build_parser()
+    checked, bad = 0, []
+    for page in PAGES:
+        for snippet in snippets(page):
+            if snippet.lang != "bash":
+                continue
+            for argv in _canonid_commands(snippet.code):
+                checked += 1
+                try:
+                    with contextlib.redirect_stderr(io.StringIO()) as err:
+                        parser.parse_args(argv)
+                except SystemExit:
+                    why = err.getvalue().strip().splitlines()[-1:]
+                    bad.append(f"{snippet.where}: canonid {shlex.join(argv)}: {why}")
+    assert checked > 20
+    assert not bad, "\n".join(bad)
