@@ -11,7 +11,7 @@ STAMP := $(VENV)/.canonid-installed
 DEMO_OUT ?= runs/demo
 DEMO_WORKERS ?= 2
 
-.PHONY: demo test test-fast lint bench clean venv
+.PHONY: demo test test-fast lint bench docs clean venv
 
 venv: $(STAMP)
 
@@ -40,9 +40,14 @@ lint: $(STAMP)
 	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/mypy
 
+# The documentation site (docs/, mkdocs.yml) into site/; --strict: a warning (a broken link, a
+# missing page, a docstring naming an argument the function lacks) fails the build.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir site
+
 bench: $(STAMP)
 	$(PY) -m pip install --quiet -e ".[test,bench]"
 	$(PY) benchmarks/run_all.py $(if $(BENCH),--size $(BENCH),)
 
 clean:
-	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) .pytest_cache .mypy_cache .ruff_cache site
