@@ -510,7 +510,7 @@ def main() -> int:
     torch.set_num_threads(1)
     cases = {"tank": ("tank-s0", args.tank), "drone2d": ("drone2d-small", args.drone)}
     parts = [
-        "Ours (MLP) (`learning.fit`, quick profile, ℓ = 10, the README's options per system) "
+        "Ours (MLP) (`learning.fit`, quick profile, ℓ = 10, canonid's default options) "
         "against deepSI 0.4.4's SUBNET (`deepSI.fit`, its defaults, na = nb = ℓ), seed 0, one "
         "torch thread each, taking turns in one process; both scored by `learning.evaluate`. "
         "**The budget is CPU time**: each one's training clock is the CPU time of its own "

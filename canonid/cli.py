@@ -26,9 +26,10 @@ EXIT_ERROR = 1
 EXIT_INTERRUPTED = 130
 
 
-def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+def build_parser(command: str | None = None, *, every: bool = False) -> argparse.ArgumentParser:
     """The parser listing every subcommand; only ``command``'s module is imported and its
-    arguments registered (the others parse nothing but are listed by ``--help``)."""
+    arguments registered (the others parse nothing but are listed by ``--help``), or every
+    command's with ``every`` (the documentation's command-line page)."""
     parser = argparse.ArgumentParser(
         prog="canonid",
         description=(
@@ -43,7 +44,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for cmd in COMMANDS:
-        if cmd.name == command:
+        if every or cmd.name == command:
             cmd.load().register(sub)
         else:
             sub.add_parser(cmd.name, help=cmd.help)

@@ -16,7 +16,7 @@ from typing import Any
 __all__ = ["DEFAULT_NET_OPTIONS", "PAPER_NET_OPTIONS", "net_options"]
 
 DEFAULT_NET_OPTIONS: dict[str, dict[str, Any]] = {
-    "mlp": {"residual": True, "feedthrough": False, "activation": "silu", "linear": True},
+    "mlp": {"residual": True, "feedthrough": False, "activation": "silu", "linear": False},
     "arx": {"residual": False, "feedthrough": False},
 }
 

@@ -90,7 +90,7 @@ def test_training_starts_from_the_arx_model():
     """Epoch 0 of Ours (MLP) with the affine path scores exactly what the ARX model scores."""
     data = trajectories(damped_siso(), 8, 100, noise=0.02, seed=3)
     train, val = data[:6], data[6:]
-    common = {"residual": False, "feedthrough": False}
+    common = {"residual": False, "feedthrough": False, "linear": True}
     mlp = fit(train, val, model="mlp", window=3, options=options(epochs=1), net_options=common)
     arx = fit(train, val, model="arx", window=3, options=options(epochs=1), net_options=common)
     assert mlp.history[0]["val_loss"] == pytest.approx(arx.history[0]["val_loss"], rel=1e-5)
@@ -103,7 +103,12 @@ def test_the_linear_path_reaches_the_noise_floor_of_linear_data_in_a_few_epochs(
     val = trajectories(system, 3, 150, noise=noise, seed=6)
     test = trajectories(system, 3, 150, noise=noise, seed=7)
     res = fit(
-        train, val, model="mlp", window=4, options=options(epochs=3), net_options={"hidden": [32]}
+        train,
+        val,
+        model="mlp",
+        window=4,
+        options=options(epochs=3),
+        net_options={"hidden": [32], "linear": True},
     )
     scores = evaluate(res.model, test, horizon=50)
     assert scores.measured.rollout_mse < 1.5 * noise**2 / 3
@@ -129,7 +134,14 @@ def test_one_record_or_ten_experiments_get_the_same_budget_and_error(monkeypatch
     results = {}
     for name, train in (("record", [whole]), ("experiments", pieces)):
         steps["n"] = 0
-        res = fit(train, val, model="mlp", window=3, options=options(epochs=4))
+        res = fit(
+            train,
+            val,
+            model="mlp",
+            window=3,
+            options=options(epochs=4),
+            net_options={"linear": True},
+        )
         results[name] = (steps["n"], res.best_val_loss)
     assert results["record"][0] == results["experiments"][0] == 4 * 64 // 16
     a, b = results["record"][1], results["experiments"][1]

@@ -120,11 +120,11 @@ def on_files(files: Any, config: Any) -> Any:
 
     from canonid.cli import build_parser
 
-    files.append(File.generated(config, PAGE, content=render(build_parser())))
+    files.append(File.generated(config, PAGE, content=render(build_parser(every=True))))
     return files
 
 
 if __name__ == "__main__":
     from canonid.cli import build_parser
 
-    print(render(build_parser()), end="")
+    print(render(build_parser(every=True)), end="")
