@@ -46,7 +46,7 @@ BASELINES = {"GRU": 1.490, "LSTM": 1.504, "RNN": 1.640}
 VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "default": ("mlp", {}, {}),
     "arx": ("arx", {}, {}),
-    "no-linear": ("mlp", {"linear": False}, {}),
+    "linear": ("mlp", {"linear": True}, {}),
     "paper-options": (
         "mlp",
         {"activation": "relu", "linear": False, "hidden": [256, 256, 256]},
