@@ -136,7 +136,8 @@ def test_analyze_run_reports_the_learned_models_gamma_beside_the_true_systems(
 ):
     out = tmp_path / "analysis"
     argv = ["analyze", "linear", "--window", "3", "--trials", "5", "--budget", "30"]
-    argv += ["--boxes", "40", "--run", str(runs / "mlp"), "--out", str(out), "--quiet"]
+    argv += ["--boxes", "40", "--run", str(runs / "mlp"), "--learned-gamma"]
+    argv += ["--out", str(out), "--quiet"]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "γ_f at ℓ = 3: true system [" in printed
