@@ -137,15 +137,13 @@ def plot_part(
 ) -> Path:
     """Measured and simulated output of one test part (whole, then its first samples) and the
     error, in the scoring units, with the ``n_init`` samples the model was given shaded."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
 
     scale, units, n_init = bench.score_scale, bench.score_units, bench.n_init
     t = np.arange(part.T) * dt
     zoom = min(part.T, n_init + ZOOM_SAMPLES)
-    fig, (top, mid, bottom) = plt.subplots(3, 1, figsize=(9, 7))
+    fig = Figure(figsize=(9, 7))
+    top, mid, bottom = fig.subplots(3, 1)
     for ax, stop in ((top, part.T), (mid, zoom)):
         ax.plot(t[:stop], part.y[:stop, 0] * scale, lw=0.6, color="0.3", label="measured")
         ax.plot(
@@ -167,7 +165,6 @@ def plot_part(
     fig.tight_layout()
     out = Path(path)
     fig.savefig(out, dpi=110)
-    plt.close(fig)
     return out
 
 

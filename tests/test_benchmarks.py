@@ -340,7 +340,7 @@ def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_pa
 
     extra = _extra_train_args("--epochs 7 --batch-size 64")
     args = train_arguments(["data.npz", "--model", "mlp", "--window", "3", *extra])
-    assert (args.epochs, args.batch_size, args.profile) == (7, 64, "quick")
+    assert (args.epochs, args.batch_size, args.profile) == (7, 64, None)  # None: the default
     write_benchmark("ced", tmp_path)
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(tmp_path / "r")]
     assert main([*argv, "--train-args=--out elsewhere"]) == 1

@@ -81,9 +81,9 @@ def test_auto_does_not_compile_a_large_prediction_model(monkeypatch):
     import datagen.controllers.nmpc as nmpc_module
 
     def no_compiler(*args, **kwargs):
-        raise AssertionError("compile_function was called")
+        raise AssertionError("compile_functions was called")
 
-    monkeypatch.setattr(nmpc_module, "compile_function", no_compiler)
+    monkeypatch.setattr(nmpc_module, "compile_functions", no_compiler)
     monkeypatch.setattr(nmpc_module, "COMPILE_LIMIT", 1)
     system = LinearSystem(A, B, [[1.0, 0.0]])
     options = {"u_eq": [0.0], "input_weights": [1.0], "terminal": "none", "solver": "auto"}

@@ -44,7 +44,7 @@ COMMANDS = (
         "analyze", "γ_f, α_ℓ brackets (certified and sampled) and the Proposition 2 bound check"
     ),
     Command(
-        "benchmark", "train and score on a standard benchmark (Silverbox, Wiener-Hammerstein, ...)"
+        "benchmark", "train and score on a standard benchmark (Silverbox, Cascaded Tanks, ...)"
     ),
     Command(
         "reproduce", "the paper's Table 1, compression study, analysis and figures: one report"

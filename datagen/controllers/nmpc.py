@@ -275,7 +275,7 @@ class NMPC(Controller):
         nx, nu, nw = self.system.n_x, self.system.n_u, self._nw
         guess = ca.MX.sym("guess", nw)
         x = ca.MX.sym("x", nx)
-        window = ca.MX.sym("window", nx * (self.horizon + 1))
+        window = ca.MX.sym("window", self._n_ref * (self.horizon + 1))
         w = step(ca.vertcat(x, guess[nx:]), ca.vertcat(x, window))
         first, last = int(self._u_index[0, 0]), int(self._u_index[-1, 0])
         shifted = ca.vertcat(w[nx + nu :], w[last : last + nu], w[nw - nx :])
