@@ -20,6 +20,7 @@ MODEL_LABELS = {
     "masti": "Masti et al.",
     "gru": "Ours (GRU)",
     "mlp": "Ours (MLP)",
+    "arx": "ARX (linear)",
 }
 
 
