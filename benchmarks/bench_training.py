@@ -6,7 +6,7 @@ Writes the section "Training throughput" of benchmarks/RESULTS.md.
 * Throughput: the training step of each model (loss of an open-loop rollout + backward + Adam)
   on sub-windows of the tank dataset, ℓ = 10, H = 50, batch 16, one thread: batches/s, windows/s
   and window-steps/s (a window-step is one predicted sample of one sub-window), and epochs/s
-  for the quick profile's epoch (4 windows per training trajectory).
+  for the quick profile's epoch (its ``windows_per_epoch`` sub-windows).
 * Accelerations (Ours (MLP), against the one-thread eager batch-16 baseline of the same run):
   two threads, larger batches (more window-steps per second, fewer optimiser steps per epoch),
   ``torch.compile`` of the regressor; and for evaluation, the 100-step rollouts batched (all
@@ -92,8 +92,8 @@ def _net(name: str):
     return build_net(name, window=WINDOW, n_u=1, n_y=1, residual=True)
 
 
-def throughput(bank, n_train: int, seconds: float, rounds: int) -> str:
-    windows_per_epoch = 4 * n_train
+def throughput(bank, seconds: float, rounds: int) -> str:
+    windows_per_epoch = train_options("quick").windows_per_epoch
     variants = [Variant(name, _net(name), bank) for name in model_names()]
     measure_all(variants, seconds, rounds)
     rows = [
@@ -225,7 +225,7 @@ def main() -> int:
         f"Rates: the best of {rounds} round-robin measurements of {seconds:.0f} s each (after 3 "
         "warm-up steps), so that load from other jobs on a shared machine biases no variant.",
         "### Throughput per model (1 thread, batch 16)",
-        throughput(bank, len(train), seconds, rounds),
+        throughput(bank, seconds, rounds),
         "### Accelerations tried",
         accelerations(bank, seconds, rounds),
         batched_rollouts(ds),
