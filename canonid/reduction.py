@@ -251,7 +251,7 @@ def reduce_run(
     seconds = time.perf_counter() - t0
     write_history(out, fit.history)
     reduced = fit.model
-    metrics = evaluate_run(
+    evaluation = evaluate_run(
         out,
         reduced,
         dataset,
@@ -262,13 +262,14 @@ def reduce_run(
         n_init=None,
     )
     _, trajs = pick_split(dataset, test_name, where=data_path)
-    full = evaluate(model, trajs, horizon=EVAL_HORIZON, stride=1, n_init=metrics["n_init"])
+    n_init = evaluation.scores.n_init
+    full = evaluate(model, trajs, horizon=EVAL_HORIZON, stride=1, n_init=n_init)
     _plot_reduced_vs_full(
         model,
         reduced,
         trajs,
         out / "reduced_vs_full.png",
-        n_init=metrics["n_init"],
+        n_init=n_init,
         dt=dataset.dt,
         output_names=dataset.output_names,
     )
@@ -282,9 +283,9 @@ def reduce_run(
         state_dim=model.net.state_dim,
         latent_dim=latent,
         reconstruction_mse=reconstruction_mse(reduced, trajs),
-        rollout_mse=float(metrics["rollout_mse"]),
+        rollout_mse=evaluation.rollout_mse,
         full_rollout_mse=full.measured.rollout_mse,
-        rollout_mse_clean=(metrics["clean"] or {}).get("rollout_mse"),
+        rollout_mse_clean=evaluation.rollout_mse_clean,
         full_rollout_mse_clean=full.clean.rollout_mse if full.clean else None,
         rollout_horizon=EVAL_HORIZON,
         best_epoch=fit.best_epoch,

@@ -22,8 +22,7 @@ from typing import Any
 
 from analysis.estimate import Budget
 from analysis.report import analyze
-from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, write_history
-from learning import TrainOptions, fit
+from canonid.runfolder import RunRecipe, train_run
 from learning.training import CHECKPOINT_FILE, OptionError
 from models.errors import CheckpointError
 from models.io import atomic_write_json, jsonable, read_json
@@ -155,68 +154,39 @@ class TrainJob:
 def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
     """Train (or continue from the checkpoint) and evaluate; the ``canonid train`` run
     folder plus the fields of Table 1."""
-    t0, cpu0 = time.perf_counter(), time.process_time()
-    recipe: dict[str, Any] = {
-        "format": "canonid-run",
-        "data": job.data,
-        "data_options": {},
-        "val": None,
-        "val_fraction": 0.2,
-        "model": job.model,
-        "window": job.window,
-        "net_options": dict(job.net_options),
-        "profile": job.profile,
-        "train_options": dict(job.train_options),
-        "command": ["canonid", "reproduce", "(job)", job.name],
-    }
-    dataset, train, val, test_name, data_path = load_splits(recipe)
-    folder.mkdir(parents=True, exist_ok=True)
-    resume = (folder / CHECKPOINT_FILE).is_file()
-    atomic_write_json(folder / RUN_FILE, recipe)
-    fitted = fit(
-        train,
-        val,
+    recipe = RunRecipe(
+        data=job.data,
         model=job.model,
         window=job.window,
-        options=TrainOptions.from_dict(job.train_options),
-        net_options=recipe["net_options"],
-        run_dir=folder,
-        resume=resume,
-        info={
-            "profile": job.profile,
-            "data": {"path": data_path, "splits": dataset.counts()},
-            "input_names": list(dataset.input_names),
-            "output_names": list(dataset.output_names),
-            "dt": dataset.dt,
-        },
+        net_options=dict(job.net_options),
+        profile=job.profile,
+        train_options=dict(job.train_options),
+        command=("canonid", "reproduce", "(job)", job.name),
     )
-    write_history(folder, fitted.history)
-    metrics = evaluate_run(
+    resume = (folder / CHECKPOINT_FILE).is_file()
+    run = train_run(
+        recipe,
         folder,
-        fitted.model,
-        dataset,
-        data_path=data_path,
-        split=test_name,
-        horizon=int(job.evaluation["horizon"]),
-        stride=int(job.evaluation["stride"]),
-        n_init=None,
+        resume=resume,
+        eval_horizon=int(job.evaluation["horizon"]),
+        eval_stride=int(job.evaluation["stride"]),
     )
-    clean = metrics.get("clean") or {}
+    scores, fitted = run.evaluation.scores, run.fit
     return {
-        "rollout_mse": metrics["rollout_mse"],
-        "rollout_mse_clean": clean.get("rollout_mse"),
-        "rmse": metrics["rmse"],
-        "nrmse": metrics["nrmse"],
-        "fit_percent": metrics["fit_percent"],
-        "n_rollouts": metrics["n_rollouts"],
-        "split": test_name,
+        "rollout_mse": scores.measured.rollout_mse,
+        "rollout_mse_clean": run.evaluation.rollout_mse_clean,
+        "rmse": scores.measured.rmse,
+        "nrmse": scores.measured.nrmse,
+        "fit_percent": scores.measured.fit_percent,
+        "n_rollouts": scores.n_rollouts,
+        "split": run.evaluation.split,
         "epochs_run": fitted.epochs_run,
         "best_epoch": fitted.best_epoch,
         "best_val_loss": fitted.best_val_loss,
         "stopped": fitted.stopped,
         "resumed_from_checkpoint": resume,
-        "seconds": round(time.perf_counter() - t0, 3),
-        "cpu_seconds": round(time.process_time() - cpu0, 3),
+        "seconds": run.seconds,
+        "cpu_seconds": run.cpu_seconds,
     }
 
 

@@ -1,13 +1,17 @@
-"""A run folder: its file names, the data its recipe names, its history and its evaluation.
+"""A run folder: its recipe, its file names, the data its recipe names, its training, history
+and evaluation.
 
 ``canonid train``, ``canonid reduce``, ``canonid evaluate``, the reductions of the compression
 study and the Table-1 jobs of ``canonid reproduce`` all write the same folder:
 
-* ``run.json`` (:data:`RUN_FILE`) — the recipe: ``data``, ``data_options``, ``val``,
-  ``val_fraction``, the model and its options;
+* ``run.json`` (:data:`RUN_FILE`) — the recipe (:class:`RunRecipe` for a training run):
+  ``data``, ``data_options``, ``val``, ``val_fraction``, the model and its options;
 * the model (``config.json``, ``weights.pt``, ``normalisation.json``) and ``checkpoint.pt``;
 * ``history.csv`` and ``training_curve.png`` (:func:`write_history`);
 * ``metrics.json`` (:data:`METRICS_FILE`) and ``rollouts.png`` (:func:`evaluate_run`).
+
+:func:`train_run` trains the model of a :class:`RunRecipe` into a folder and scores it: the one
+function behind ``canonid train``, the Table-1 jobs and the candidates of ``--window auto``.
 """
 
 from __future__ import annotations
@@ -16,28 +20,37 @@ import csv
 import dataclasses
 import io
 import math
-from collections.abc import Mapping
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from datagen.dataset import Dataset, Trajectory
 from datagen.loaders import is_dataset, load_data, split_train_val
-from learning import Model, evaluate
+from learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, evaluate, fit
 from learning.plots import plot_rollouts, plot_training_curve
-from models.errors import DataError
-from models.io import atomic_write_json, atomic_write_text
+from learning.training import CHECKPOINT_FILE
+from models.errors import CheckpointError, DataError
+from models.io import atomic_write_json, atomic_write_text, read_json
 
 __all__ = [
     "DATA_FLAGS",
     "HISTORY_FILE",
     "METRICS_FILE",
+    "RECIPE_VERSION",
     "RUN_FILE",
+    "RunEvaluation",
+    "RunRecipe",
+    "RunResult",
     "check_compatible",
+    "eval_defaults",
     "evaluate_run",
     "load",
     "load_splits",
     "pick_split",
     "run_data",
+    "train_run",
     "write_history",
 ]
 
@@ -51,13 +64,153 @@ DATA_FLAGS = {
 }
 METRICS_FILE = "metrics.json"
 HISTORY_FILE = "history.csv"
+RECIPE_FORMAT = "canonid-run"
+#: the version of :class:`RunRecipe`'s JSON (a recipe without one is of version 1)
+RECIPE_VERSION = 1
+DEFAULT_VAL_FRACTION = 0.2
+
+
+@dataclass(frozen=True)
+class RunRecipe:
+    """What a training run trains, on which data, with which options: ``run.json``.
+
+    Attributes:
+        data: the training data (a canonid dataset, a CSV file or folder, an ``.npz``).
+        model, window: the model's registry name and its window ℓ.
+        train_options: :class:`learning.TrainOptions` as a mapping (resolved, profile applied).
+        net_options: the network's constructor options.
+        profile: the profile the options came from.
+        data_options: loader options (:data:`DATA_FLAGS`), ``None`` where not given.
+        val: a validation file, else ``None`` (DATA's own ``val`` split, else ``val_fraction``).
+        val_fraction: share of DATA's ``train`` split held out when it has no ``val`` split.
+        command: the command line that asked for the run (a record, not part of what is run).
+    """
+
+    data: str
+    model: str
+    window: int
+    train_options: Mapping[str, Any]
+    net_options: Mapping[str, Any] = field(default_factory=dict)
+    profile: str = "quick"
+    data_options: Mapping[str, Any] = field(default_factory=dict)
+    val: str | None = None
+    val_fraction: float = DEFAULT_VAL_FRACTION
+    command: Sequence[str] = ()
+
+    def options(self) -> TrainOptions:
+        return TrainOptions.from_dict(self.train_options)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON body of ``run.json``."""
+        return {
+            "format": RECIPE_FORMAT,
+            "version": RECIPE_VERSION,
+            "data": self.data,
+            "data_options": dict(self.data_options),
+            "val": self.val,
+            "val_fraction": self.val_fraction,
+            "model": self.model,
+            "window": self.window,
+            "net_options": dict(self.net_options),
+            "profile": self.profile,
+            "train_options": dict(self.train_options),
+            "command": list(self.command),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Any, *, where: str) -> RunRecipe:
+        """Read a ``run.json`` body; a key this version does not know is refused by name."""
+        if not isinstance(data, Mapping) or data.get("format") != RECIPE_FORMAT:
+            raise CheckpointError(f"{where} is not a canonid run recipe")
+        version = data.get("version", 1)
+        if version != RECIPE_VERSION:
+            raise CheckpointError(
+                f"{where}: run recipe version {version!r}; this canonid reads version "
+                f"{RECIPE_VERSION}"
+            )
+        if data.get("kind", "train") != "train":
+            raise CheckpointError(
+                f"{where} is the recipe of a {data['kind']} run, not of a training run"
+            )
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - known - {"format", "version"})
+        if unknown:
+            raise CheckpointError(f"{where}: unknown run recipe key(s) {unknown}")
+        missing = sorted(k for k in ("data", "model", "window", "train_options") if k not in data)
+        if missing:
+            raise CheckpointError(f"{where}: the run recipe lacks {missing}")
+        body = {k: v for k, v in data.items() if k in known}
+        body["data_options"] = dict(body.get("data_options") or {})
+        body["command"] = tuple(body.get("command") or ())
+        return cls(**body)
+
+    @classmethod
+    def read(cls, run_dir: Path) -> RunRecipe:
+        """The recipe in ``run_dir/run.json``."""
+        path = run_dir / RUN_FILE
+        return cls.from_dict(read_json(path, what="run recipe"), where=str(path))
+
+    def write(self, run_dir: Path) -> None:
+        atomic_write_json(run_dir / RUN_FILE, self.to_dict())
+
+
+@dataclass(frozen=True)
+class RunEvaluation:
+    """The scores of a run's model on one split (:func:`evaluate_run`), as in ``metrics.json``.
+
+    Attributes:
+        scores: the scores against the measured and, if any, the noise-free outputs.
+        data_path, split, n_trajectories: the data scored.
+    """
+
+    scores: Evaluation
+    data_path: str
+    split: str
+    n_trajectories: int
+
+    @property
+    def rollout_mse(self) -> float:
+        """The paper metric against the measured outputs."""
+        return self.scores.measured.rollout_mse
+
+    @property
+    def rollout_mse_clean(self) -> float | None:
+        """The paper metric against the noise-free outputs (``None`` without them)."""
+        return self.scores.clean.rollout_mse if self.scores.clean else None
+
+    def to_json(self) -> dict[str, Any]:
+        """The body of ``metrics.json``."""
+        return {
+            "schema": 1,
+            **self.scores.to_json(),
+            "data": {
+                "path": self.data_path,
+                "split": self.split,
+                "n_trajectories": self.n_trajectories,
+            },
+        }
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """What :func:`train_run` did: the fit, the evaluation on the scoring split, and timings."""
+
+    run_dir: Path
+    recipe: RunRecipe
+    fit: FitResult
+    evaluation: RunEvaluation
+    resumed: bool
+    seconds: float
+    cpu_seconds: float
 
 
 def load_splits(
-    recipe: dict[str, Any],
+    recipe: Mapping[str, Any] | RunRecipe,
 ) -> tuple[Dataset, list[Trajectory], list[Trajectory], str, str]:
     """The data of ``recipe``: ``(dataset, train, val, scoring split name, data path)``, split as
     :func:`run_data` splits them."""
+    if isinstance(recipe, RunRecipe):
+        recipe = recipe.to_dict()
     dataset, scoring = run_data(recipe)
     train, val = list(dataset.split("train")), list(dataset.split("val"))
     return dataset, train, val, scoring, str(recipe["data"])
@@ -134,7 +287,9 @@ def run_data(recipe: Mapping[str, Any]) -> tuple[Dataset, str]:
             metadata={**dataset.metadata, "validation_split": f"the file {val_path}"},
         )
     elif "val" not in dataset.splits:
-        dataset = split_train_val(dataset, val_fraction=recipe.get("val_fraction", 0.2))
+        dataset = split_train_val(
+            dataset, val_fraction=recipe.get("val_fraction", DEFAULT_VAL_FRACTION)
+        )
     return dataset, "test" if "test" in dataset.splits else "val"
 
 
@@ -168,6 +323,21 @@ def write_history(run_dir: Path, history: list[dict[str, Any]]) -> None:
     plot_training_curve(history, run_dir / "training_curve.png")
 
 
+def eval_defaults(
+    trajs: Sequence[Trajectory], window: int, horizon: int, *, where: str, fit: bool
+) -> int:
+    """The rollout length that scores ``trajs``: ``horizon``, or with ``fit`` at most what the
+    longest record holds after its ℓ-sample burn-in. Records too short to score at all (no
+    record of ℓ + 1 samples) are refused here, before any work is done."""
+    longest = max((tr.T for tr in trajs), default=0)
+    if longest < window + 1:
+        raise DataError(
+            f"{where}: the longest record has {longest} samples; scoring a model with window "
+            f"ℓ = {window} needs at least ℓ + 1 = {window + 1}"
+        )
+    return min(horizon, longest - window) if fit else horizon
+
+
 def evaluate_run(
     run_dir: Path,
     model: Model,
@@ -178,7 +348,7 @@ def evaluate_run(
     horizon: int,
     stride: int,
     n_init: int | None,
-) -> dict[str, Any]:
+) -> RunEvaluation:
     """Score ``model`` on ``dataset``; write metrics.json and rollouts.png to ``run_dir``."""
     name, trajs = pick_split(dataset, split, where=data_path)
     ell, longest = model.window, max(tr.T for tr in trajs)
@@ -194,12 +364,8 @@ def evaluate_run(
         n_init=n_init,
         output_names=dataset.output_names,
     )
-    metrics = {
-        "schema": 1,
-        **ev.to_json(),
-        "data": {"path": data_path, "split": name, "n_trajectories": len(trajs)},
-    }
-    atomic_write_json(run_dir / METRICS_FILE, metrics)
+    result = RunEvaluation(ev, data_path, name, len(trajs))
+    atomic_write_json(run_dir / METRICS_FILE, result.to_json())
     plot_rollouts(
         model,
         trajs,
@@ -208,4 +374,88 @@ def evaluate_run(
         output_names=dataset.output_names,
         dt=dataset.dt,
     )
-    return metrics
+    return result
+
+
+def _discard(run_dir: Path, created: bool) -> None:
+    """Remove what a new run wrote before it failed without a checkpoint: its recipe, and the
+    folder when this run created it and nothing else is in it."""
+    (run_dir / RUN_FILE).unlink(missing_ok=True)
+    if created and run_dir.is_dir() and not any(run_dir.iterdir()):
+        run_dir.rmdir()
+
+
+def train_run(
+    recipe: RunRecipe,
+    run_dir: Path,
+    *,
+    resume: bool = False,
+    eval_horizon: int | None = None,
+    eval_stride: int = 1,
+    callback: Callable[[EpochReport], None] | None = None,
+) -> RunResult:
+    """Train the model of ``recipe`` into ``run_dir`` (or continue it from its checkpoint with
+    ``resume``), write ``run.json``, the model, ``history.csv`` and the figures, and score it
+    on the test split (the validation split when there is none).
+
+    ``eval_horizon`` is the rollout length of the score; ``None``: 100, or the final training
+    rollout length when shorter, at most what the scored records hold. Data that cannot be
+    scored are refused before anything is written; a new run that fails before its first
+    checkpoint leaves no recipe behind.
+    """
+    t0, cpu0 = time.perf_counter(), time.process_time()
+    dataset, train, val, test_name, data_path = load_splits(recipe)
+    opts = recipe.options()
+    horizon = eval_defaults(
+        dataset.split(test_name),
+        recipe.window,
+        eval_horizon or min(100, opts.rollout_horizon),
+        where=f"{data_path} [{test_name}]",
+        fit=eval_horizon is None,
+    )
+    created = not run_dir.exists()
+    run_dir.mkdir(parents=True, exist_ok=True)
+    recipe.write(run_dir)
+    try:
+        fitted = fit(
+            train,
+            val,
+            model=recipe.model,
+            window=recipe.window,
+            options=opts,
+            net_options=dict(recipe.net_options),
+            run_dir=run_dir,
+            resume=resume,
+            callback=callback,
+            info={
+                "profile": recipe.profile,
+                "data": {"path": data_path, "splits": dataset.counts()},
+                "input_names": list(dataset.input_names),
+                "output_names": list(dataset.output_names),
+                "dt": dataset.dt,
+            },
+        )
+    except BaseException:
+        if not resume and not (run_dir / CHECKPOINT_FILE).exists():
+            _discard(run_dir, created)
+        raise
+    write_history(run_dir, fitted.history)
+    evaluation = evaluate_run(
+        run_dir,
+        fitted.model,
+        dataset,
+        data_path=data_path,
+        split=test_name,
+        horizon=horizon,
+        stride=eval_stride,
+        n_init=None,
+    )
+    return RunResult(
+        run_dir=run_dir,
+        recipe=recipe,
+        fit=fitted,
+        evaluation=evaluation,
+        resumed=resume,
+        seconds=round(time.perf_counter() - t0, 3),
+        cpu_seconds=round(time.process_time() - cpu0, 3),
+    )

@@ -27,3 +27,25 @@ def trajectories(system, n: int, T: int, *, noise: float, seed: int, hold: int =
         y = y_clean + rng.uniform(-noise, noise, size=y_clean.shape)
         out.append(SimpleNamespace(u=u, y=y, y_clean=y_clean))
     return out
+
+
+def siso_dataset_file(folder, T: int = 110):
+    """A canonid dataset of :func:`damped_siso` (3 train, 1 val, 2 test records of ``T``
+    samples, noise 0.01, ``y_clean`` kept) saved in ``folder``; returns its path."""
+    from datagen.dataset import Dataset, Trajectory
+
+    system = damped_siso()
+
+    def make(n: int, seed: int) -> tuple[Trajectory, ...]:
+        return tuple(
+            Trajectory(u=t.u, y=t.y, y_clean=t.y_clean)
+            for t in trajectories(system, n, T, noise=0.01, seed=seed)
+        )
+
+    ds = Dataset(
+        splits={"train": make(3, 1), "val": make(1, 2), "test": make(2, 3)},
+        dt=1.0,
+        input_names=("u",),
+        output_names=("y",),
+    )
+    return ds.save(folder / "dataset.npz")

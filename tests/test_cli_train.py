@@ -6,28 +6,16 @@ import json
 
 import numpy as np
 import pytest
-from learning_helpers import damped_siso, trajectories
+from learning_helpers import damped_siso, siso_dataset_file, trajectories
 
 from canonid.cli import main
-from datagen.dataset import Dataset, Trajectory
 
 KEYS = ("rollout_mse", "rmse", "nrmse", "fit_percent")
 
 
 @pytest.fixture(scope="module")
 def dataset_path(tmp_path_factory):
-    system = damped_siso()
-    make = lambda n, seed: tuple(  # noqa: E731
-        Trajectory(u=t.u, y=t.y, y_clean=t.y_clean)
-        for t in trajectories(system, n, 110, noise=0.01, seed=seed)
-    )
-    ds = Dataset(
-        splits={"train": make(3, 1), "val": make(1, 2), "test": make(2, 3)},
-        dt=1.0,
-        input_names=("u",),
-        output_names=("y",),
-    )
-    return ds.save(tmp_path_factory.mktemp("data") / "dataset.npz")
+    return siso_dataset_file(tmp_path_factory.mktemp("data"))
 
 
 def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(

@@ -10,13 +10,12 @@ or ``--split``) with :func:`learning.evaluate.evaluate`, writes ``RUN/metrics.js
 from __future__ import annotations
 
 import argparse
-from collections.abc import Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data
-from canonid.runfolder import METRICS_FILE, RUN_FILE, evaluate_run
-from datagen.dataset import Trajectory
+from canonid.runfolder import METRICS_FILE, RUN_FILE, eval_defaults, evaluate_run
 from learning import Model
 from models.errors import DataError
 
@@ -61,23 +60,9 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
-def eval_defaults(
-    trajs: Sequence[Trajectory], window: int, horizon: int, *, where: str, fit: bool
-) -> int:
-    """The rollout length that scores ``trajs``: ``horizon``, or with ``fit`` at most what the
-    longest record holds after its ℓ-sample burn-in. Records too short to score at all (no
-    record of ℓ + 1 samples) are refused here, before any work is done."""
-    longest = max((tr.T for tr in trajs), default=0)
-    if longest < window + 1:
-        raise DataError(
-            f"{where}: the longest record has {longest} samples; scoring a model with window "
-            f"ℓ = {window} needs at least ℓ + 1 = {window + 1}"
-        )
-    return min(horizon, longest - window) if fit else horizon
-
-
-def table(metrics: dict[str, Any]) -> str:
-    """A short text table of the main scores (measured and, if any, noise-free targets)."""
+def table(metrics: Mapping[str, Any]) -> str:
+    """A short text table of the main scores (measured and, if any, noise-free targets) of a
+    ``metrics.json`` body (:meth:`canonid.runfolder.RunEvaluation.to_json`)."""
     rows = [("target", "rollout_mse", "rmse", "nrmse", "fit %")]
     for label, scores in (("y (measured)", metrics), ("y_clean", metrics.get("clean"))):
         if scores:
@@ -100,7 +85,7 @@ def table(metrics: dict[str, Any]) -> str:
     return "\n".join([head, *lines, *_worst_records(metrics)])
 
 
-def _worst_records(metrics: dict[str, Any], count: int = 3) -> list[str]:
+def _worst_records(metrics: Mapping[str, Any], count: int = 3) -> list[str]:
     """One line naming the records with the largest rollout MSE (noise-free target if any)."""
     label, scores = ("y_clean", metrics["clean"]) if metrics.get("clean") else ("y", metrics)
     per = scores.get("rollout_mse_per_record") or []
@@ -130,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         where=f"{data_path} [{name}]",
         fit=args.horizon is None,
     )
-    metrics = evaluate_run(
+    evaluation = evaluate_run(
         run_dir,
         model,
         dataset,
@@ -140,6 +125,6 @@ def run(args: argparse.Namespace) -> int:
         stride=args.stride,
         n_init=args.n_init,
     )
-    print(table(metrics))
+    print(table(evaluation.to_json()))
     print(f"metrics written to {run_dir / METRICS_FILE}")
     return 0

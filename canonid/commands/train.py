@@ -9,25 +9,24 @@ evaluation on the test split (the validation split when there is none).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import inspect
 import sys
 from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data, _paths, _progress
-from canonid.commands.evaluate import eval_defaults, table
+from canonid.commands.evaluate import table
 from canonid.profiles import profile_names, train_options
-from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, write_history
-from learning import NETS, EpochReport, OptionError, TrainOptions, fit, model_names, presets
+from canonid.runfolder import DEFAULT_VAL_FRACTION, RunRecipe, train_run
+from learning import NETS, EpochReport, OptionError, TrainOptions, model_names, presets
 from learning.nets.base import ACTIVATIONS, CanonicalModel
 from learning.training import CHECKPOINT_FILE
 from models.errors import CheckpointError, DataError
-from models.io import atomic_write_json, read_json
 
 __all__ = ["register", "run"]
 
 DEFAULT_PROFILE = "quick"
-DEFAULT_VAL_FRACTION = 0.2
 
 
 def register(sub: Any) -> None:
@@ -130,7 +129,7 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
-def _recipe(args: argparse.Namespace) -> dict[str, Any]:
+def _recipe(args: argparse.Namespace) -> RunRecipe:
     if args.data is None:
         raise DataError("give the training DATA (or --resume RUN)")
     if args.window is None:
@@ -170,19 +169,18 @@ def _recipe(args: argparse.Namespace) -> dict[str, Any]:
             raise OptionError("--no-linear: ARX is the affine path alone")
         chosen["linear"] = args.linear
     net_options = presets.net_options(args.model, chosen, paper=args.paper_options)
-    return {
-        "format": "canonid-run",
-        "data": str(args.data),
-        "data_options": _data.data_options(args),
-        "val": args.val,
-        "val_fraction": DEFAULT_VAL_FRACTION if args.val_fraction is None else args.val_fraction,
-        "model": args.model,
-        "window": args.window,
-        "net_options": net_options,
-        "profile": profile,
-        "train_options": opts.to_dict(),
-        "command": ["canonid", *sys.argv[1:]],
-    }
+    return RunRecipe(
+        data=str(args.data),
+        data_options=_data.data_options(args),
+        val=args.val,
+        val_fraction=DEFAULT_VAL_FRACTION if args.val_fraction is None else args.val_fraction,
+        model=args.model,
+        window=args.window,
+        net_options=net_options,
+        profile=profile,
+        train_options=opts.to_dict(),
+        command=("canonid", *sys.argv[1:]),
+    )
 
 
 def parse_widths(text: str) -> list[int]:
@@ -210,7 +208,7 @@ def _hidden_option(model: str) -> str:
     return option
 
 
-def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
+def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> RunRecipe:
     if not (run_dir / CHECKPOINT_FILE).is_file():
         raise CheckpointError(f"{run_dir} holds no {CHECKPOINT_FILE} to resume from")
     fixed = [
@@ -233,13 +231,11 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
         raise CheckpointError(
             f"{', '.join(fixed)} cannot change when resuming (only --epochs and --device can)"
         )
-    recipe = read_json(run_dir / RUN_FILE, what="run recipe")
-    if not isinstance(recipe, dict) or recipe.get("format") != "canonid-run":
-        raise CheckpointError(f"{run_dir / RUN_FILE} is not a canonid run recipe")
+    recipe = RunRecipe.read(run_dir)
     if args.out is not None and args.out.resolve() != run_dir.resolve():
         raise CheckpointError(f"--out does not apply with --resume: the run continues in {run_dir}")
     diffs = [
-        f"{key}: {recipe.get(key)!r} there, {value!r} here"
+        f"{key}: {getattr(recipe, key)!r} there, {value!r} here"
         for key, value in (
             ("model", args.model),
             ("window", args.window),
@@ -248,41 +244,32 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> dict[str, Any]:
             ("val", args.val),
             ("val_fraction", args.val_fraction),
         )
-        if value is not None and recipe.get(key) != value
+        if value is not None and getattr(recipe, key) != value
     ]
-    recorded = recipe.get("data_options") or {}
+    recorded = recipe.data_options
     diffs += [
         f"{key}: {recorded.get(key)!r} there, {value!r} here"
         for key, value in _data.data_options(args).items()
         if value is not None and recorded.get(key) != value
     ]
     if args.hidden is not None:
-        option = _hidden_option(recipe["model"])
-        default = inspect.signature(NETS[recipe["model"]]).parameters[option].default
-        there = recipe["net_options"].get(option, default)
+        option = _hidden_option(recipe.model)
+        default = inspect.signature(NETS[recipe.model]).parameters[option].default
+        there = recipe.net_options.get(option, default)
         if list(there) != parse_widths(args.hidden):
             diffs.append(f"hidden widths: {list(there)} there, {parse_widths(args.hidden)} here")
     if args.activation is not None:
-        there = recipe["net_options"].get("activation", "relu")
+        there = recipe.net_options.get("activation", "relu")
         if there != args.activation:
             diffs.append(f"activation: {there} there, {args.activation} here")
     if diffs:
         raise CheckpointError(f"run {run_dir} does not match: " + "; ".join(diffs))
-    opts = dict(recipe["train_options"])
+    opts = dict(recipe.train_options)
     for key in ("epochs",):
         if getattr(args, key) is not None:
             opts[key] = getattr(args, key)
     opts["device"] = args.device
-    recipe["train_options"] = TrainOptions.from_dict(opts).to_dict()
-    return recipe
-
-
-def _discard(run_dir: Path, created: bool) -> None:
-    """Remove what a new run wrote before it failed without a checkpoint: its recipe, and the
-    folder when this run created it and nothing else is in it."""
-    (run_dir / RUN_FILE).unlink(missing_ok=True)
-    if created and not any(run_dir.iterdir()):
-        run_dir.rmdir()
+    return dataclasses.replace(recipe, train_options=TrainOptions.from_dict(opts).to_dict())
 
 
 def run(args: argparse.Namespace) -> int:
@@ -298,27 +285,17 @@ def run(args: argparse.Namespace) -> int:
         recipe = _resume_recipe(args, run_dir)
     else:
         recipe = _recipe(args)
-        run_dir = args.out or Path("runs") / f"{recipe['model']}-l{recipe['window']}"
+        run_dir = args.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
         _paths.check_folder(run_dir)
         if (run_dir / CHECKPOINT_FILE).exists():
             raise CheckpointError(
                 f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
             )
-    dataset, train, val, test_name, data_path = load_splits(recipe)
-    opts = TrainOptions.from_dict(recipe["train_options"])
-    eval_horizon = eval_defaults(
-        dataset.split(test_name),
-        recipe["window"],
-        args.eval_horizon or min(100, opts.rollout_horizon),
-        where=f"{data_path} [{test_name}]",
-        fit=args.eval_horizon is None,
-    )
-    created = not run_dir.exists()
-    run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(run_dir / RUN_FILE, recipe)
-
     bar = _progress.LazyBar(
-        opts.epochs, f"train {recipe['model']}", enabled=not args.no_progress, dynamic_ncols=True
+        recipe.options().epochs,
+        f"train {recipe.model}",
+        enabled=not args.no_progress,
+        dynamic_ncols=True,
     )
 
     def progress(report: EpochReport) -> None:
@@ -330,45 +307,20 @@ def run(args: argparse.Namespace) -> int:
         )
 
     try:
-        result = fit(
-            train,
-            val,
-            model=recipe["model"],
-            window=recipe["window"],
-            options=opts,
-            net_options=recipe["net_options"],
-            run_dir=run_dir,
+        result = train_run(
+            recipe,
+            run_dir,
             resume=args.resume is not None,
+            eval_horizon=args.eval_horizon,
             callback=progress,
-            info={
-                "profile": recipe["profile"],
-                "data": {"path": data_path, "splits": dataset.counts()},
-                "input_names": list(dataset.input_names),
-                "output_names": list(dataset.output_names),
-                "dt": dataset.dt,
-            },
         )
-    except BaseException:
-        if args.resume is None and not (run_dir / CHECKPOINT_FILE).exists():
-            _discard(run_dir, created)
-        raise
     finally:
         bar.close()
-    write_history(run_dir, result.history)
-    metrics = evaluate_run(
-        run_dir,
-        result.model,
-        dataset,
-        data_path=data_path,
-        split=test_name,
-        horizon=eval_horizon,
-        stride=1,
-        n_init=None,
-    )
+    fitted = result.fit
     print(
-        f"{recipe['model']}: {result.stopped} after {result.epochs_run} epochs, best validation "
-        f"loss {result.best_val_loss:.4g} (normalised) at epoch {result.best_epoch}"
+        f"{recipe.model}: {fitted.stopped} after {fitted.epochs_run} epochs, best validation "
+        f"loss {fitted.best_val_loss:.4g} (normalised) at epoch {fitted.best_epoch}"
     )
-    print(table(metrics))
+    print(table(result.evaluation.to_json()))
     print(f"run written to {run_dir}")
     return 0

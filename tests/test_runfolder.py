@@ -1,0 +1,107 @@
+"""The typed run folder: the recipe's JSON, and the same recipe and seed giving the same run
+folder and the same Table 1 (tiny profile, real training)."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+import torch
+from learning_helpers import siso_dataset_file
+
+from canonid.profiles import train_options
+from canonid.reproduce import table1_rows
+from canonid.reproduce_jobs import TrainJob
+from canonid.runfolder import RUN_FILE, RunEvaluation, RunRecipe, train_run
+from learning.presets import net_options
+from models.errors import CheckpointError
+
+
+@pytest.fixture(scope="module")
+def dataset_path(tmp_path_factory):
+    return siso_dataset_file(tmp_path_factory.mktemp("data"), T=80)
+
+
+def _recipe(data: Path, **changes) -> RunRecipe:
+    recipe = RunRecipe(
+        data=str(data),
+        model="mlp",
+        window=3,
+        net_options=net_options("mlp", {"hidden": [16, 16]}),
+        profile="tiny",
+        train_options=train_options("tiny", seed=0, device="cpu").to_dict(),
+        command=("canonid", "test"),
+    )
+    return dataclasses.replace(recipe, **changes)
+
+
+def test_the_recipe_round_trips_and_names_an_unknown_key(tmp_path):
+    recipe = _recipe(tmp_path / "d.npz")
+    body = json.loads(json.dumps(recipe.to_dict()))
+    assert body["format"] == "canonid-run" and body["version"] == 1
+    assert RunRecipe.from_dict(body, where="run.json") == recipe
+    old = {k: v for k, v in body.items() if k != "version"}  # written before the version field
+    assert RunRecipe.from_dict(old, where="run.json") == recipe
+    with pytest.raises(CheckpointError, match=r"unknown run recipe key\(s\) \['windw'\]"):
+        RunRecipe.from_dict({**body, "windw": 3}, where="run.json")
+    with pytest.raises(CheckpointError, match="version 2"):
+        RunRecipe.from_dict({**body, "version": 2}, where="run.json")
+    with pytest.raises(CheckpointError, match="reduction run"):
+        RunRecipe.from_dict({**body, "kind": "reduction"}, where="run.json")
+
+
+def _contents(run: Path) -> dict[str, object]:
+    """Every file of a run folder that the recipe and seed determine: JSON bodies, the history
+    without its wall-clock column, and the weights as tensors."""
+    out: dict[str, object] = {
+        name: json.loads((run / name).read_text())
+        for name in (RUN_FILE, "config.json", "normalisation.json", "metrics.json")
+    }
+    with (run / "history.csv").open() as f:
+        out["history"] = [
+            {k: v for k, v in row.items() if k != "seconds"} for row in csv.DictReader(f)
+        ]
+    out["weights"] = {
+        k: v.tolist() for k, v in torch.load(run / "weights.pt", weights_only=True).items()
+    }
+    return out
+
+
+def test_the_same_recipe_gives_the_same_run_folder(dataset_path, tmp_path):
+    recipe = _recipe(dataset_path)
+    first = train_run(recipe, tmp_path / "a")
+    second = train_run(recipe, tmp_path / "b")
+    assert isinstance(first.evaluation, RunEvaluation)
+    assert first.evaluation.split == "test" and first.evaluation.rollout_mse_clean is not None
+    assert first.evaluation.rollout_mse == second.evaluation.rollout_mse
+    assert RunRecipe.read(tmp_path / "a") == recipe
+    assert _contents(tmp_path / "a") == _contents(tmp_path / "b")
+    metrics = json.loads((tmp_path / "a" / "metrics.json").read_text())
+    assert metrics == first.evaluation.to_json() | {"data": metrics["data"]}
+
+
+def test_the_same_table1_jobs_give_the_same_table1(dataset_path, tmp_path):
+    def jobs(out: Path) -> list[TrainJob]:
+        return [
+            TrainJob(
+                system="damped",
+                model=model,
+                window=3,
+                seed=0,
+                data=str(dataset_path),
+                data_sha256="-",
+                folder=str(out / f"{model}-l3-s0"),
+                profile="tiny",
+                train_options=train_options("tiny", seed=0, device="cpu").to_dict(),
+                evaluation={"horizon": 20, "stride": 5},
+                net_options=net_options(model, {}, paper=True),
+            )
+            for model in ("mlp", "arx")
+        ]
+
+    tables = [table1_rows([job.run() for job in jobs(tmp_path / name)]) for name in "ab"]
+    assert tables[0] == tables[1] and len(tables[0]) == 2
+    assert all(cell.mean_clean is not None for cell in tables[0])
