@@ -41,6 +41,7 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
+from canonid.jobs import Job
 from canonid.profiles import reduce_options
 from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, pick_split, write_history
 from canonid.runner import run_jobs
@@ -80,7 +81,7 @@ def rate_label(rate: float) -> str:
 
 
 @dataclass(frozen=True)
-class ReductionJob:
+class ReductionJob(Job["ReductionResult"]):
     """One reduction: the run folder of a trained canonical model, the rate, the seed and where
     to write the reduced run. ``epochs`` and ``linear_skip`` override the profile's (``None``:
     keep it); ``threads`` sets torch's CPU
@@ -102,6 +103,33 @@ class ReductionJob:
     @property
     def name(self) -> str:
         return f"{self.source} at r = {self.compression:g}, seed {self.seed}"
+
+    @property
+    def where(self) -> Path:
+        return Path(self.out)
+
+    def recipe(self) -> dict[str, Any]:
+        return self.recipe_key()
+
+    def cached(self) -> ReductionResult | None:
+        """The finished ``reduction.json`` of the same recipe, if any (another recipe's is
+        redone: its checkpoint check refuses a folder of another source or rate)."""
+        path = self.where / REDUCTION_FILE
+        if not path.is_file():
+            return None
+        done = ReductionResult.from_dict(
+            read_json(path, what="reduction result"), where=str(self.where)
+        )
+        return done if done.recipe == self.recipe() else None
+
+    def work(self) -> ReductionResult:
+        """Reduce; continue from ``checkpoint.pt`` when the folder holds one."""
+        resume = self.resume or (self.where / CHECKPOINT_FILE).is_file()
+        return reduce_run(dataclasses.replace(self, resume=resume))
+
+    def save(self, result: Any) -> ReductionResult:
+        assert isinstance(result, ReductionResult)
+        return result  # reduce_run wrote reduction.json
 
     def options(self) -> tuple[TrainOptions, ReductionOptions]:
         """The profile's ``reduce`` stage with this job's overrides."""
@@ -301,24 +329,7 @@ def reduce_run(
 def run_reduction_job(job: ReductionJob) -> ReductionResult:
     """The runner's job function: reuse a finished result for the same recipe, resume an
     interrupted one, else reduce (with ``job.threads`` torch threads)."""
-    out = Path(job.out)
-    if (out / REDUCTION_FILE).is_file():
-        done = ReductionResult.from_dict(
-            read_json(out / REDUCTION_FILE, what="reduction result"), where=str(out)
-        )
-        if done.recipe == job.recipe_key():
-            return done
-    if (out / CHECKPOINT_FILE).is_file():
-        job = dataclasses.replace(job, resume=True)
-    import torch
-
-    previous = torch.get_num_threads()
-    if job.threads is not None:
-        torch.set_num_threads(job.threads)
-    try:
-        return reduce_run(job)
-    finally:
-        torch.set_num_threads(previous)
+    return job.run()
 
 
 @dataclass(frozen=True)

@@ -68,7 +68,6 @@ from canonid.reproduce_jobs import (
     Job,
     JobOutcome,
     TrainJob,
-    finished,
     run_job,
 )
 from canonid.reproduce_report import write_report
@@ -527,7 +526,7 @@ def _run_all(
     outcomes: dict[int, JobOutcome] = {}
     todo: list[int] = []
     for i, job in enumerate(jobs):
-        done = finished(Path(job.folder), job.recipe())
+        done = job.cached()
         if done is not None:
             outcomes[i] = done
         else:
@@ -548,7 +547,7 @@ def _run_all(
             failures = [dataclasses.replace(f, position=todo[f.position]) for f in exc.failures]
             failed = {f.position for f in failures}
             for i in todo:
-                done = finished(Path(jobs[i].folder), jobs[i].recipe())
+                done = jobs[i].cached()
                 if done is not None and i not in failed:
                     outcomes[i] = done
         else:

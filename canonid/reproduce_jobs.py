@@ -1,11 +1,6 @@
-"""The independent jobs of a reproduction (:mod:`canonid.reproduce`) and their stored results.
-
-A job is a small frozen dataclass (picklable, so Dask can send it to a worker) with a ``name``,
-a ``folder``, a ``recipe()`` — everything that determines its result — and ``run()``. ``run``
-first looks for ``folder/result.json``: when it holds the same recipe the job is finished and its
-stored outcome is returned without running anything; otherwise the job does its work and writes
-``result.json`` last, atomically (so a file that exists is complete). A ``result.json`` of another
-recipe is an error: the folder belongs to another reproduction.
+"""The independent jobs of a reproduction (:mod:`canonid.reproduce`): :class:`canonid.jobs.
+StoredJob` s, whose ``folder/result.json`` holds their recipe and result (a job whose file holds
+the same recipe is finished and never runs again).
 
 * :class:`TrainJob` — one cell of Table 1 for one seed: a ``canonid train`` run folder, trained
   (or continued from its checkpoint) and scored on the test split.
@@ -18,14 +13,13 @@ import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from analysis.estimate import Budget
 from analysis.report import analyze
+from canonid.jobs import RESULT_FILE, JobOutcome, StoredJob, finished, run_job, store
 from canonid.runfolder import RunRecipe, train_run
 from learning.training import CHECKPOINT_FILE, OptionError
-from models.errors import CheckpointError
-from models.io import atomic_write_json, jsonable, read_json
 from models.registry import get_system
 from models.sets import Box
 
@@ -38,69 +32,12 @@ __all__ = [
     "TrainJob",
     "finished",
     "run_job",
+    "store",
 ]
 
-RESULT_FILE = "result.json"
-RESULT_FORMAT = "canonid-reproduce-job"
-
 
 @dataclass(frozen=True)
-class JobOutcome:
-    """What a job returns: its kind, its recipe, its result (JSON-ready) and whether it ran
-    now (``False``: read back from a finished ``result.json``)."""
-
-    kind: str
-    name: str
-    folder: str
-    recipe: dict[str, Any]
-    result: dict[str, Any]
-    ran: bool
-
-
-def finished(folder: Path, recipe: Mapping[str, Any]) -> JobOutcome | None:
-    """The outcome stored in ``folder/result.json`` if it holds ``recipe``; ``None`` if there
-    is none; a result of another recipe is an error (the folder belongs to another run)."""
-    path = folder / RESULT_FILE
-    if not path.is_file():
-        return None
-    stored = read_json(path, what="job result")
-    if not isinstance(stored, dict) or stored.get("format") != RESULT_FORMAT:
-        raise CheckpointError(f"{path} is not a canonid reproduction job result")
-    if stored.get("recipe") != jsonable(dict(recipe)):
-        differs = sorted(
-            k
-            for k in {*recipe, *stored.get("recipe", {})}
-            if stored.get("recipe", {}).get(k) != jsonable(recipe.get(k))
-        )
-        raise CheckpointError(
-            f"{path} was made with another recipe (differs in {differs}); reproduce into "
-            "another --out, or remove that folder"
-        )
-    return JobOutcome(
-        kind=stored["kind"],
-        name=stored["name"],
-        folder=str(folder),
-        recipe=stored["recipe"],
-        result=stored["result"],
-        ran=False,
-    )
-
-
-def store(kind: str, name: str, folder: Path, recipe: Mapping[str, Any], result: Any) -> JobOutcome:
-    """Write ``folder/result.json`` (recipe and result, atomically: the job's last act)."""
-    body = {
-        "format": RESULT_FORMAT,
-        "kind": kind,
-        "name": name,
-        "recipe": jsonable(dict(recipe)),
-        "result": jsonable(result),
-    }
-    atomic_write_json(folder / RESULT_FILE, body)
-    return JobOutcome(kind, name, str(folder), body["recipe"], body["result"], ran=True)
-
-
-@dataclass(frozen=True)
-class TrainJob:
+class TrainJob(StoredJob):
     """One cell of Table 1 for one seed: train ``model`` with window ``window`` on the dataset,
     then score it on its test split. Picklable (sent to Dask workers, which must see ``folder``
     and ``data``: a shared file system on a cluster).
@@ -122,6 +59,7 @@ class TrainJob:
     evaluation: Mapping[str, Any]
     net_options: Mapping[str, Any] = field(default_factory=dict)
     threads: int | None = 1
+    kind: ClassVar[str] = "train"
 
     @property
     def name(self) -> str:
@@ -141,19 +79,13 @@ class TrainJob:
             "net_options": dict(self.net_options),
         }
 
-    def run(self) -> JobOutcome:
-        folder = Path(self.folder)
-        done = finished(folder, self.recipe())
-        if done is not None:
-            return done
-        with _torch_threads(self.threads):
-            result = _train_and_score(self, folder)
-        return store("train", self.name, folder, self.recipe(), result)
+    def work(self) -> dict[str, Any]:
+        """Train (or continue from the checkpoint) and evaluate; the ``canonid train`` run
+        folder plus the fields of Table 1."""
+        return _train_and_score(self, self.where)
 
 
 def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
-    """Train (or continue from the checkpoint) and evaluate; the ``canonid train`` run
-    folder plus the fields of Table 1."""
     recipe = RunRecipe(
         data=job.data,
         model=job.model,
@@ -191,7 +123,7 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
 
 
 @dataclass(frozen=True)
-class AnalysisJob:
+class AnalysisJob(StoredJob):
     """The analysis of one system (:func:`analysis.report.analyze`): γ_f, γ_h, α_ℓ brackets and
     the Monte-Carlo check of Proposition 2 for each window, with the profile's budget; writes
     ``analysis.json`` and ``bound_vs_window.png`` into ``folder``."""
@@ -200,6 +132,8 @@ class AnalysisJob:
     folder: str
     settings: Mapping[str, Any]
     seed: int = 0
+    threads: int | None = None
+    kind: ClassVar[str] = "analysis"
 
     @property
     def name(self) -> str:
@@ -208,13 +142,8 @@ class AnalysisJob:
     def recipe(self) -> dict[str, Any]:
         return {"system": self.system, "settings": dict(self.settings), "seed": self.seed}
 
-    def run(self) -> JobOutcome:
-        folder = Path(self.folder)
-        done = finished(folder, self.recipe())
-        if done is not None:
-            return done
-        result = _analyse(self, folder)
-        return store("analysis", self.name, folder, self.recipe(), result)
+    def work(self) -> dict[str, Any]:
+        return _analyse(self, self.where)
 
 
 ANALYSIS_KEYS = frozenset({"windows", "X", "U", "W", "trials", "budget_seconds", "boxes"})
@@ -276,30 +205,3 @@ def _analyse(job: AnalysisJob, folder: Path) -> dict[str, Any]:
 
 
 Job = TrainJob | AnalysisJob
-
-
-def run_job(job: Job) -> JobOutcome:
-    """Run one job (the function :func:`canonid.runner.run_jobs` sends to workers)."""
-    return job.run()
-
-
-class _torch_threads:
-    """Set torch's CPU threads for a job, then restore them (a job must not starve its
-    neighbours on a shared machine, nor leave a worker changed)."""
-
-    def __init__(self, threads: int | None) -> None:
-        self.threads = threads
-        self.previous: int | None = None
-
-    def __enter__(self) -> None:
-        if self.threads is not None:
-            import torch
-
-            self.previous = torch.get_num_threads()
-            torch.set_num_threads(self.threads)
-
-    def __exit__(self, *exc: object) -> None:
-        if self.previous is not None:
-            import torch
-
-            torch.set_num_threads(self.previous)

@@ -233,3 +233,25 @@ def test_one_jsonable():
         if isinstance(node, ast.FunctionDef) and node.name.lstrip("_") == "jsonable"
     ]
     assert defined == ["models.io"]
+
+
+def test_one_job_abstraction():
+    """Inside ``canonid`` a job's torch threads are set and restored in ``canonid.jobs`` only
+    (a command's ``--threads`` sets them for its process), and ``result.json`` is read and
+    written there only."""
+    offenders = [
+        module
+        for module, path in MODULES.items()
+        if module.startswith("canonid.")
+        and not module.startswith(("canonid.commands", "canonid.jobs"))
+        and "set_num_threads" in path.read_text(encoding="utf-8")
+    ]
+    assert not offenders, offenders
+    writers = [
+        module
+        for module, path in MODULES.items()
+        if module.startswith("canonid.")
+        and module != "canonid.jobs"
+        and 'RESULT_FILE = "' in path.read_text(encoding="utf-8")
+    ]
+    assert not writers, writers
