@@ -3,7 +3,8 @@
 The run folder holds ``run.json`` (the recipe: data, options, profile; what ``--resume`` reads),
 the model (``config.json``, ``weights.pt``, ``normalisation.json``), ``checkpoint.pt``,
 ``history.csv`` and ``training_curve.png``, then ``metrics.json`` and ``rollouts.png`` from the
-evaluation on the test split (the validation split when there is none).
+evaluation on the test split (the validation split when there is none). ``--window auto`` and
+``--hidden auto`` train candidates and keep the best on validation (:mod:`canonid.selection`).
 """
 
 from __future__ import annotations
@@ -18,15 +19,25 @@ from typing import Any
 from canonid.commands import _data, _paths, _progress
 from canonid.commands.evaluate import table
 from canonid.profiles import profile_names, train_options
-from canonid.runfolder import DEFAULT_VAL_FRACTION, RunRecipe, train_run
+from canonid.runfolder import DEFAULT_VAL_FRACTION, METRICS_FILE, RunRecipe, train_run
+from canonid.selection import (
+    CANDIDATES_FILE,
+    WIDTH_CANDIDATES,
+    WINDOW_CANDIDATES,
+    allowed_windows,
+    plan_candidates,
+    select,
+)
 from learning import NETS, EpochReport, OptionError, TrainOptions, model_names, presets
 from learning.nets.base import ACTIVATIONS, CanonicalModel
 from learning.training import CHECKPOINT_FILE
 from models.errors import CheckpointError, DataError
+from models.io import read_json
 
 __all__ = ["register", "run"]
 
 DEFAULT_PROFILE = "quick"
+AUTO = "auto"
 
 
 def register(sub: Any) -> None:
@@ -44,7 +55,14 @@ def register(sub: Any) -> None:
         choices=model_names(),
         help="model (default mlp, Ours (MLP); arx: the linear baseline, least squares only)",
     )
-    p.add_argument("--window", type=int, metavar="L", help="window ℓ (required unless --resume)")
+    p.add_argument(
+        "--window",
+        type=_window_arg,
+        metavar="L",
+        help="window ℓ (required unless --resume); auto: train ℓ = "
+        f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) and keep the "
+        "best on validation",
+    )
     p.add_argument(
         "--profile",
         choices=profile_names(),
@@ -87,7 +105,9 @@ def register(sub: Any) -> None:
         metavar="W,W",
         help="widths of the hidden layers, e.g. 2048,2048 (the paper's Ours (MLP) on the "
         "quadrotor; default 256,256,256): Ours (MLP)'s regressor, each MLP of Masti et al., "
-        "the head of Ours (GRU); not classic-gru, whose sizes follow from ℓ",
+        "the head of Ours (GRU); not classic-gru, whose sizes follow from ℓ; auto: train "
+        f"{', '.join('×'.join(map(str, w)) for w in WIDTH_CANDIDATES)} and keep the best on "
+        "validation",
     )
     p.add_argument(
         "--activation",
@@ -124,6 +144,20 @@ def register(sub: Any) -> None:
         "rollout length when that is shorter, or what the scored records hold)",
     )
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        metavar="N",
+        help="with --window/--hidden auto: train the candidates on N local Dask processes "
+        "(default: one after the other in this process)",
+    )
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="with --window/--hidden auto: train the candidates on a Dask cluster, e.g. "
+        "tcp://host:8786 (its workers must have canonid installed and see DATA and RUN)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _data.add_data_options(p)
     p.set_defaults(func=run)
@@ -183,6 +217,16 @@ def _recipe(args: argparse.Namespace) -> RunRecipe:
     )
 
 
+def _window_arg(text: str) -> int | str:
+    """argparse type of ``--window``: an integer, or ``auto``."""
+    if text == AUTO:
+        return AUTO
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer or auto, got {text!r}") from None
+
+
 def parse_widths(text: str) -> list[int]:
     """``"2048,2048"`` → ``[2048, 2048]`` (positive integers), or :class:`OptionError`."""
     try:
@@ -206,6 +250,64 @@ def _hidden_option(model: str) -> str:
             "(⌈ℓ(n_u+n_y)/2⌉, as in the paper)"
         )
     return option
+
+
+def _check_new_run(run_dir: Path, *, selection: bool = False) -> None:
+    """Refuse an output folder that holds another kind of run (a selection is continued by
+    running it again, so a selection folder is accepted for a selection)."""
+    _paths.check_folder(run_dir)
+    if (run_dir / CHECKPOINT_FILE).exists():
+        raise CheckpointError(
+            f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
+        )
+    if not selection and (run_dir / CANDIDATES_FILE).exists():
+        raise CheckpointError(
+            f"{run_dir} holds a selection of candidates ({CANDIDATES_FILE}); choose another --out"
+        )
+
+
+def _run_selection(args: argparse.Namespace) -> int:
+    """``--window auto`` / ``--hidden auto``: train the candidates, keep the best on
+    validation (:mod:`canonid.selection`)."""
+    window_auto, hidden_auto = args.window == AUTO, args.hidden == AUTO
+    fixed = argparse.Namespace(**vars(args))
+    fixed.window = WINDOW_CANDIDATES[0] if window_auto else args.window
+    fixed.hidden = None if hidden_auto else args.hidden
+    base = _recipe(fixed)
+    if hidden_auto:
+        _hidden_option(base.model)  # refuses a model without hidden widths
+    windows = allowed_windows(base, WINDOW_CANDIDATES) if window_auto else [base.window]
+    run_dir = args.out or Path("runs") / (
+        f"{base.model}-l{'auto' if window_auto else base.window}"
+        + ("-hauto" if hidden_auto else "")
+    )
+    _check_new_run(run_dir, selection=True)
+    local = not args.workers and args.scheduler is None
+    jobs = plan_candidates(
+        base,
+        run_dir,
+        windows=windows,
+        widths=WIDTH_CANDIDATES if hidden_auto else (None,),
+        eval_horizon=args.eval_horizon,
+        threads=args.threads if args.threads is not None or local else 1,
+    )
+    run_dir.mkdir(parents=True, exist_ok=True)
+    selection = select(
+        jobs,
+        run_dir,
+        workers=args.workers or 0,
+        scheduler=args.scheduler,
+        progress=not args.no_progress,
+    )
+    print(selection.table())
+    best = selection.best
+    print(
+        f"chosen: {best.name} (best validation loss {best.best_val_loss:.4g}, normalised, at "
+        f"epoch {best.best_epoch}); its run is the model of {run_dir}"
+    )
+    print(table(read_json(run_dir / METRICS_FILE, what="metrics")))
+    print(f"run written to {run_dir}")
+    return 0
 
 
 def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> RunRecipe:
@@ -276,21 +378,33 @@ def run(args: argparse.Namespace) -> int:
     for flag, value in (("--threads", args.threads), ("--eval-horizon", args.eval_horizon)):
         if value is not None and value < 1:
             raise OptionError(f"{flag} must be an integer >= 1, got {value}")
+    auto = [flag for flag in ("window", "hidden") if getattr(args, flag) == AUTO]
+    if not auto and (args.workers is not None or args.scheduler is not None):
+        flag = "--workers" if args.workers is not None else "--scheduler"
+        raise OptionError(f"{flag} applies to --window auto or --hidden auto only")
+    if auto and args.resume is not None:
+        raise CheckpointError(
+            f"--{auto[0]} auto does not combine with --resume: run the same selection again "
+            "(same DATA, options and --out) to continue it"
+        )
+    if args.resume is not None and (args.resume / CANDIDATES_FILE).is_file():
+        raise CheckpointError(
+            f"{args.resume} holds a selection of candidates ({CANDIDATES_FILE}): run the same "
+            f"selection again to continue it, or resume one candidate's folder"
+        )
     if args.threads is not None:
         import torch
 
         torch.set_num_threads(args.threads)
+    if auto:
+        return _run_selection(args)
     if args.resume is not None:
         run_dir: Path = args.resume
         recipe = _resume_recipe(args, run_dir)
     else:
         recipe = _recipe(args)
         run_dir = args.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
-        _paths.check_folder(run_dir)
-        if (run_dir / CHECKPOINT_FILE).exists():
-            raise CheckpointError(
-                f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
-            )
+        _check_new_run(run_dir)
     bar = _progress.LazyBar(
         recipe.options().epochs,
         f"train {recipe.model}",

@@ -1,0 +1,312 @@
+"""Selection on validation: ``canonid train … --window auto`` (and ``--hidden auto``).
+
+Every candidate — a window ℓ of :data:`WINDOW_CANDIDATES` that the data allow, times a width of
+:data:`WIDTH_CANDIDATES` with ``--hidden auto`` — is one :class:`CandidateJob`: a ``canonid
+train`` run folder ``RUN/candidates/<name>`` trained with the same options and seed, run through
+:func:`canonid.runner.run_jobs` (serially, on local processes or on a Dask cluster). The
+candidate with the lowest best validation loss (normalised output-error rollouts on the
+validation split; the test split plays no part) is chosen and its run becomes the run folder's
+model: its ``run.json``, model files, history, metrics and figures are copied into ``RUN``, so
+``canonid evaluate RUN``, ``canonid analyze --run RUN`` and ``canonid export RUN`` read it. The
+table of candidates is ``RUN/candidates.json`` (:class:`Selection`) and ``RUN/candidates.md``.
+
+A candidate whose folder holds a finished ``result.json`` of the same recipe is not trained
+again, and one with a checkpoint continues from it: running the same selection again
+continues an interrupted one.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, ClassVar
+
+from canonid.jobs import StoredJob, run_job
+from canonid.runfolder import (
+    HISTORY_FILE,
+    METRICS_FILE,
+    RUN_FILE,
+    RunRecipe,
+    load_splits,
+    train_run,
+)
+from canonid.runner import run_jobs
+from learning import NETS
+from learning.training import CHECKPOINT_FILE, OptionError
+from models.errors import CheckpointError, DataError
+from models.io import atomic_write_json, atomic_write_text, read_json
+
+__all__ = [
+    "CANDIDATES_DIR",
+    "CANDIDATES_FILE",
+    "WIDTH_CANDIDATES",
+    "WINDOW_CANDIDATES",
+    "Candidate",
+    "CandidateJob",
+    "Selection",
+    "allowed_windows",
+    "plan_candidates",
+    "select",
+]
+
+#: the windows ℓ that ``--window auto`` tries (those the data allow)
+WINDOW_CANDIDATES = (2, 5, 10, 20)
+#: the hidden widths that ``--hidden auto`` tries (three layers, up to the default 256)
+WIDTH_CANDIDATES = ((64, 64, 64), (128, 128, 128), (256, 256, 256))
+CANDIDATES_FILE = "candidates.json"
+CANDIDATES_TABLE = "candidates.md"
+CANDIDATES_DIR = "candidates"
+SELECTION_FORMAT = "canonid-candidates"
+#: the files of the chosen candidate's run that become the run folder's (not its checkpoint:
+#: a selection continues by running it again, a candidate by resuming its own folder)
+ADOPTED = (
+    RUN_FILE,
+    "config.json",
+    "weights.pt",
+    "normalisation.json",
+    HISTORY_FILE,
+    "training_curve.png",
+    METRICS_FILE,
+    "rollouts.png",
+)
+
+
+def candidate_name(window: int, hidden: Sequence[int] | None) -> str:
+    """``l10`` or ``l10-h128x3`` (folder names)."""
+    if hidden is None:
+        return f"l{window}"
+    if len(set(hidden)) == 1:
+        return f"l{window}-h{hidden[0]}x{len(hidden)}"
+    return f"l{window}-h{'-'.join(str(w) for w in hidden)}"
+
+
+@dataclass(frozen=True)
+class CandidateJob(StoredJob):
+    """One candidate: train ``run_recipe`` into ``folder`` and score it (:func:`train_run`)."""
+
+    folder: str
+    run_recipe: RunRecipe
+    eval_horizon: int | None = None
+    threads: int | None = None
+    kind: ClassVar[str] = "candidate"
+
+    @property
+    def hidden(self) -> list[int] | None:
+        """The hidden widths set in the recipe (``None``: the network's default)."""
+        option = NETS[self.run_recipe.model].hidden_option
+        if option is None or option not in self.run_recipe.net_options:
+            return None
+        return list(self.run_recipe.net_options[option])
+
+    @property
+    def name(self) -> str:
+        """The folder's name (:func:`candidate_name`)."""
+        return self.where.name
+
+    def recipe(self) -> dict[str, Any]:
+        """The run's recipe without the command line that asked for it, and the scoring."""
+        body = self.run_recipe.to_dict()
+        del body["command"]
+        return {**body, "eval_horizon": self.eval_horizon}
+
+    def work(self) -> dict[str, Any]:
+        result = train_run(
+            self.run_recipe,
+            self.where,
+            resume=(self.where / CHECKPOINT_FILE).is_file(),
+            eval_horizon=self.eval_horizon,
+        )
+        return {
+            "window": self.run_recipe.window,
+            "hidden": self.hidden,
+            "best_val_loss": result.fit.best_val_loss,
+            "best_epoch": result.fit.best_epoch,
+            "epochs_run": result.fit.epochs_run,
+            "stopped": result.fit.stopped,
+            "rollout_mse": result.evaluation.rollout_mse,
+            "rollout_mse_clean": result.evaluation.rollout_mse_clean,
+            "split": result.evaluation.split,
+            "seconds": result.seconds,
+        }
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One row of the table of candidates (losses normalised, MSEs in physical units)."""
+
+    name: str
+    folder: str
+    window: int
+    hidden: list[int] | None
+    best_val_loss: float
+    best_epoch: int
+    epochs_run: int
+    stopped: str
+    rollout_mse: float
+    rollout_mse_clean: float | None
+    split: str
+    seconds: float
+
+
+@dataclass(frozen=True)
+class Selection:
+    """The candidates of a selection and the chosen one (lowest ``best_val_loss``; the first
+    listed among equals)."""
+
+    candidates: list[Candidate]
+    chosen: str
+    criterion: str = "best_val_loss"
+
+    @property
+    def best(self) -> Candidate:
+        return next(c for c in self.candidates if c.name == self.chosen)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": SELECTION_FORMAT,
+            "version": 1,
+            "criterion": self.criterion,
+            "chosen": self.chosen,
+            "candidates": [dataclasses.asdict(c) for c in self.candidates],
+        }
+
+    @classmethod
+    def from_dict(cls, data: Any, *, where: str) -> Selection:
+        if not isinstance(data, Mapping) or data.get("format") != SELECTION_FORMAT:
+            raise CheckpointError(f"{where} is not a canonid table of candidates")
+        try:
+            rows = [Candidate(**row) for row in data["candidates"]]
+            return cls(rows, str(data["chosen"]), str(data["criterion"]))
+        except (KeyError, TypeError) as exc:
+            raise CheckpointError(f"{where}: malformed table of candidates ({exc})") from exc
+
+    @classmethod
+    def read(cls, run_dir: Path) -> Selection:
+        path = run_dir / CANDIDATES_FILE
+        return cls.from_dict(read_json(path, what="table of candidates"), where=str(path))
+
+    def table(self) -> str:
+        """A Markdown table of the candidates, the chosen one marked."""
+        lines = [
+            "| candidate | ℓ | hidden | best validation loss (normalised) | at epoch | "
+            "rollout MSE (test) | y_clean | chosen |",
+            "|---|---|---|---|---|---|---|---|",
+        ]
+        for c in self.candidates:
+            hidden = "default" if c.hidden is None else "×".join(str(w) for w in c.hidden)
+            clean = "-" if c.rollout_mse_clean is None else f"{c.rollout_mse_clean:.3g}"
+            mark = "**yes**" if c.name == self.chosen else ""
+            lines.append(
+                f"| {c.name} | {c.window} | {hidden} | {c.best_val_loss:.4g} | {c.best_epoch} | "
+                f"{c.rollout_mse:.3g} | {clean} | {mark} |"
+            )
+        return "\n".join(lines)
+
+
+def allowed_windows(base: RunRecipe, windows: Sequence[int]) -> list[int]:
+    """The ``windows`` that the data of ``base`` allow: every training and validation record
+    holds ℓ + 1 samples, the longest ones the training and validation rollouts after ℓ, and a
+    scored record ℓ + 1; none allowed is a :class:`DataError`."""
+    dataset, train, val, test_name, data_path = load_splits(base)
+    opts = base.options()
+    scored = list(dataset.split(test_name))
+
+    def fits(ell: int) -> bool:
+        return (
+            min(t.T for t in [*train, *val]) >= ell + 1
+            and max(t.T for t in train) >= ell + opts.horizon
+            and max(t.T for t in val) >= ell + opts.rollout_horizon
+            and max(t.T for t in scored) >= ell + 1
+        )
+
+    kept = [ell for ell in windows if fits(ell)]
+    if not kept:
+        raise DataError(
+            f"{data_path}: no candidate window of {list(windows)} fits the records (shortest "
+            f"training or validation record {min(t.T for t in [*train, *val])} samples, training "
+            f"rollouts {opts.horizon}, validation rollouts {opts.rollout_horizon})"
+        )
+    return kept
+
+
+def plan_candidates(
+    base: RunRecipe,
+    run_dir: Path,
+    *,
+    windows: Sequence[int],
+    widths: Sequence[Sequence[int] | None] = (None,),
+    eval_horizon: int | None = None,
+    threads: int | None = None,
+) -> list[CandidateJob]:
+    """One job per (window, width), in that order, each in ``run_dir/candidates/<name>``;
+    a width of ``None`` keeps ``base``'s network options."""
+    hidden_option = NETS[base.model].hidden_option
+    jobs = []
+    for ell in windows:
+        for width in widths:
+            net = dict(base.net_options)
+            if width is not None:
+                if hidden_option is None:
+                    raise OptionError(f"{base.model} has no hidden widths to choose")
+                net[hidden_option] = list(width)
+            recipe = dataclasses.replace(base, window=int(ell), net_options=net)
+            name = candidate_name(int(ell), None if width is None else list(width))
+            jobs.append(
+                CandidateJob(
+                    folder=str(run_dir / CANDIDATES_DIR / name),
+                    run_recipe=recipe,
+                    eval_horizon=eval_horizon,
+                    threads=threads,
+                )
+            )
+    return jobs
+
+
+def select(
+    jobs: Sequence[CandidateJob],
+    run_dir: Path,
+    *,
+    workers: int = 0,
+    scheduler: str | None = None,
+    progress: bool = True,
+) -> Selection:
+    """Run the candidates through :func:`canonid.runner.run_jobs`, choose the lowest best
+    validation loss, make its run the model of ``run_dir`` and write the table of candidates
+    (see the module docstring). A candidate folder of another recipe is refused before any
+    candidate runs."""
+    for job in jobs:
+        job.cached()
+    outcomes = run_jobs(
+        run_job,
+        list(jobs),
+        workers=workers,
+        scheduler=scheduler,
+        progress=progress,
+        description="candidates",
+    )
+    rows = [
+        Candidate(name=job.name, folder=job.folder, **outcome.result)
+        for job, outcome in zip(jobs, outcomes)
+    ]
+    best = min(rows, key=lambda c: c.best_val_loss)  # the first of equals
+    selection = Selection(rows, best.name)
+    _adopt(Path(best.folder), run_dir)
+    atomic_write_json(run_dir / CANDIDATES_FILE, selection.to_dict())
+    atomic_write_text(
+        run_dir / CANDIDATES_TABLE,
+        f"# Candidates (chosen on {selection.criterion}: {best.name})\n\n{selection.table()}\n",
+    )
+    return selection
+
+
+def _adopt(source: Path, run_dir: Path) -> None:
+    """Copy the chosen candidate's run files into ``run_dir`` (each replaced atomically)."""
+    for name in ADOPTED:
+        if (source / name).is_file():
+            tmp = run_dir / f".{name}.tmp"
+            shutil.copyfile(source / name, tmp)
+            os.replace(tmp, run_dir / name)

@@ -1,0 +1,86 @@
+"""``canonid train --window auto`` / ``--hidden auto``: candidates trained through the job runner,
+the lowest validation loss kept, the table written, the chosen run the folder's model."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from cli_helpers import one_line_error
+from learning_helpers import siso_dataset_file
+
+from canonid.cli import main
+from canonid.selection import Selection
+
+FAST = ["--profile", "tiny", "--epochs", "2", "--no-progress", "--device", "cpu"]
+
+
+@pytest.fixture(scope="module")
+def dataset_path(tmp_path_factory):
+    return siso_dataset_file(tmp_path_factory.mktemp("data"), T=60)
+
+
+@pytest.fixture(scope="module")
+def selection(dataset_path, tmp_path_factory):
+    run = tmp_path_factory.mktemp("auto") / "run"
+    argv = ["train", str(dataset_path), "--window", "auto", "--hidden", "8,8", "--out", str(run)]
+    assert main([*argv, *FAST]) == 0
+    return run
+
+
+def test_window_auto_keeps_the_lowest_validation_loss_and_writes_the_table(selection):
+    table = Selection.read(selection)
+    # T = 60: ℓ = 20 leaves 40 samples, enough for the tiny profile's rollouts of 10 and 20
+    assert [c.window for c in table.candidates] == [2, 5, 10, 20]
+    best = min(table.candidates, key=lambda c: c.best_val_loss)
+    assert table.chosen == best.name and table.best == best
+    assert all(c.hidden == [8, 8] for c in table.candidates)
+    assert (selection / "candidates.md").read_text().count("**yes**") == 1
+    config = json.loads((selection / "config.json").read_text())
+    assert config["net"]["window"] == best.window
+    recipe = json.loads((selection / "run.json").read_text())
+    assert recipe["window"] == best.window
+    for c in table.candidates:
+        assert (selection / "candidates" / c.name / "result.json").is_file()
+    assert not (selection / "checkpoint.pt").exists()  # a selection is not resumed as one run
+
+
+def test_the_chosen_run_is_the_folders_model(selection, capsys):
+    assert main(["evaluate", str(selection)]) == 0
+    metrics = json.loads((selection / "metrics.json").read_text())
+    assert metrics["window"] == Selection.read(selection).best.window
+    capsys.readouterr()
+
+
+def test_running_the_selection_again_reuses_every_candidate(selection, dataset_path, capsys):
+    before = {p: p.stat().st_mtime_ns for p in selection.glob("candidates/*/weights.pt")}
+    argv = ["train", str(dataset_path), "--window", "auto", "--hidden", "8,8"]
+    assert main([*argv, "--out", str(selection), *FAST]) == 0
+    assert {p: p.stat().st_mtime_ns for p in selection.glob("candidates/*/weights.pt")} == before
+    assert "chosen:" in capsys.readouterr().out
+
+
+def test_hidden_auto_tries_the_width_grid(dataset_path, tmp_path):
+    run = tmp_path / "widths"
+    argv = ["train", str(dataset_path), "--window", "3", "--hidden", "auto", "--out", str(run)]
+    assert main([*argv, *FAST, "--epochs", "1"]) == 0
+    table = Selection.read(run)
+    assert [c.hidden for c in table.candidates] == [[64] * 3, [128] * 3, [256] * 3]
+    assert table.chosen == min(table.candidates, key=lambda c: c.best_val_loss).name
+
+
+def test_combinations_that_make_no_sense_are_refused(selection, dataset_path, tmp_path, capsys):
+    data = str(dataset_path)
+    code = main(["train", "--resume", str(selection), "--window", "auto", *FAST])
+    one_line_error(capsys, code, "--window auto does not combine with --resume")
+    code = main(["train", "--resume", str(selection), *FAST])
+    one_line_error(capsys, code, "holds a selection of candidates")
+    code = main(["train", data, "--window", "3", "--out", str(selection), *FAST])
+    one_line_error(capsys, code, "holds a selection of candidates", "another --out")
+    code = main(["train", data, "--window", "3", "--workers", "2", "--out", str(tmp_path), *FAST])
+    one_line_error(capsys, code, "--workers applies to --window auto or --hidden auto only")
+    code = main(["train", data, "--window", "auto", "--model", "classic-gru", "--hidden", "auto"])
+    one_line_error(capsys, code, "--hidden does not apply to classic-gru")
+    argv = ["train", data, "--window", "auto", "--hidden", "8,8", "--lr", "0.5"]
+    code = main([*argv, "--out", str(selection), *FAST])
+    one_line_error(capsys, code, "another recipe", "train_options")
