@@ -1,11 +1,12 @@
-"""Start-up benchmark: wall time of ``canonid --help``, ``canonid systems``, ``canonid generate
---help`` (what ``generate`` loads before its first flight) and ``import canonid``, each in a
-fresh interpreter beside the interpreter alone, and whether it loaded torch or CasADi.
+"""Start-up benchmark: wall and CPU time of ``canonid --help``, ``canonid systems``, ``canonid
+generate --help`` (what ``generate`` loads before its first flight) and ``import canonid``, each
+in a fresh interpreter beside the interpreter alone, and whether it loaded torch or CasADi.
 
 ``--baseline REF`` measures the tree of git revision ``REF`` too (exported to a temporary
 folder and run with the same interpreter), the two trees taking turns run by run, so both see
-the same machine load. Reports the median and the minimum of ``--repeats`` runs and the load
-average before and after. Writes the "Start-up" section of ``benchmarks/RESULTS.md``.
+the same machine load. Reports the median and minimum wall time and the median CPU time (user +
+system, which depends little on the load) of ``--repeats`` runs, and the load average before
+and after. Writes the "Start-up" section of ``benchmarks/RESULTS.md``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from __future__ import annotations
 import argparse
 import io
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -49,10 +51,15 @@ def _env(tree: Path) -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": str(tree)}
 
 
-def _seconds(tree: Path, args: list[str]) -> float:
+def _seconds(tree: Path, args: list[str]) -> tuple[float, float]:
+    """Wall and CPU (user + system) seconds of one run; CPU hardly depends on the load."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run([sys.executable, *args], cwd=tree, env=_env(tree), capture_output=True)
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu
 
 
 def _heavy_modules(tree: Path, args: list[str]) -> list[str]:
@@ -87,7 +94,7 @@ def main() -> int:
         for tree in trees.values():  # warm the file cache once
             for case in CASES.values():
                 _seconds(tree, case)
-        times: dict[tuple[str, str], list[float]] = {}
+        times: dict[tuple[str, str], list[tuple[float, float]]] = {}
         for _ in range(repeats):
             for label, tree in trees.items():
                 for case, cmd in CASES.items():
@@ -99,19 +106,22 @@ def main() -> int:
         }
         load_after = _load()
     rows = [
-        "| command | tree | median (s) | min (s) | loads |",
-        "|---|---|---:|---:|---|",
+        "| command | tree | median wall (s) | min wall (s) | median CPU (s) | loads |",
+        "|---|---|---:|---:|---:|---|",
     ]
     for case in CASES:
         for label in trees:
-            t = times[(label, case)]
+            wall = [w for w, _ in times[(label, case)]]
+            cpu = statistics.median(c for _, c in times[(label, case)])
             loads = ", ".join(heavy[(label, case)]) or "neither torch nor CasADi"
             rows.append(
-                f"| `{case}` | {label} | {statistics.median(t):.2f} | {min(t):.2f} | {loads} |"
+                f"| `{case}` | {label} | {statistics.median(wall):.2f} | {min(wall):.2f} | "
+                f"{cpu:.2f} | {loads} |"
             )
     body = (
-        f"Wall time of a fresh interpreter (`{Path(sys.executable).name}`), {repeats} runs "
-        "each after one warm-up, the trees taking turns; load average (1/5/15 min) "
+        f"Wall and CPU (user + system) time of a fresh interpreter "
+        f"(`{Path(sys.executable).name}`), {repeats} runs each after one warm-up, the trees "
+        "taking turns; load average (1/5/15 min) "
         f"{load_before} before, {load_after} after.\n\n" + "\n".join(rows)
     )
     write_section("Start-up", body)

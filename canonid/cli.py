@@ -5,14 +5,15 @@ Each subcommand lives in its own module under :mod:`canonid.commands` and expose
 the command being run is imported: ``canonid --help`` and ``canonid systems`` load neither torch
 nor CasADi. Errors raised on purpose (:class:`models.errors.CanonidError`) and errors of the file
 system (``OSError``: a full disk, a read-only folder) print as one line on stderr with a non-zero
-exit; ``--debug`` shows the traceback instead. Any other exception is a bug and keeps its
-traceback.
+exit; ``--debug`` shows the traceback instead. A reader that closes the pipe (``canonid systems |
+head -1``) ends the command quietly. Any other exception is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
 from collections.abc import Sequence
 
@@ -24,6 +25,8 @@ __all__ = ["build_parser", "main"]
 
 EXIT_ERROR = 1
 EXIT_INTERRUPTED = 130
+#: the shell's status of a program ended by SIGPIPE
+EXIT_BROKEN_PIPE = 141
 
 
 def build_parser(command: str | None = None, *, every: bool = False) -> argparse.ArgumentParser:
@@ -57,6 +60,16 @@ def _command(argv: Sequence[str]) -> str | None:
     return next((word for word in argv if not word.startswith("-")), None)
 
 
+def _silence_stdout() -> None:
+    """Point stdout at the null device, so that the interpreter's last flush at exit does not
+    fail on the closed pipe again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):  # a stdout with no file descriptor
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     args = build_parser(_command(argv)).parse_args(argv)
@@ -65,7 +78,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         format="%(levelname)s %(name)s: %(message)s",
     )
     try:
-        return int(args.func(args) or 0)
+        status = int(args.func(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not at exit
+        return status
+    except BrokenPipeError:  # the reader stopped (canonid systems | head -1): nothing to say
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
     except CanonidError as exc:
         if args.debug:
             raise

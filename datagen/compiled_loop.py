@@ -24,8 +24,10 @@ simulator then runs the flight step by step, which handles failures and divergen
 
 from __future__ import annotations
 
+import contextlib
+import io
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -38,6 +40,17 @@ from models.sets import Box
 __all__ = ["CHUNK", "CompiledLoop", "loop_functions"]
 
 log = logging.getLogger(__name__)
+
+
+@contextlib.contextmanager
+def casadi_dump_captured() -> Iterator[io.StringIO]:
+    """Catch what CasADi writes to ``sys.stderr`` inside the block: before it raises a failed
+    evaluation it prints the inputs of every function in the call (hundreds of lines per
+    failed flight); callers log the text at debug level instead."""
+    text = io.StringIO()
+    with contextlib.redirect_stderr(text):
+        yield text
+
 
 #: steps per chunk call (600-sample flights: 12 calls); the rest of a flight goes step by step
 CHUNK = 50
@@ -125,11 +138,12 @@ class CompiledLoop:
         xs, us, oks = [], [], []
         for t, n, function in pieces:
             try:
-                x_next, memory, u, x, ok = function(
-                    *carried, *(a[:, t : t + n] for a in per_step), lo, hi
-                )
+                with casadi_dump_captured() as dump:
+                    x_next, memory, u, x, ok = function(
+                        *carried, *(a[:, t : t + n] for a in per_step), lo, hi
+                    )
             except RuntimeError as exc:  # a solver failure (error_on_fail)
-                log.debug("compiled loop stopped at sample %d: %s", t, exc)
+                log.debug("compiled loop stopped at sample %d: %s\n%s", t, exc, dump.getvalue())
                 return None
             us.append(u.full())
             xs.append(x.full())

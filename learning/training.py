@@ -66,11 +66,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from learning import presets
 from learning.data import Normalisation, Series, WindowBank, as_series
 from learning.linear import initialise_linear
 from learning.model import Model, check_same, load_state
 from learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
+from learning.presets import net_options as preset_net_options
 from models.errors import CanonidError, CheckpointError, ShapeError
 from models.io import atomic_write_bytes
 
@@ -310,6 +310,23 @@ def _check_lengths(series: Sequence[Series], window: int, what: str) -> None:
                 f"{what}, trajectory {i}: has {s.T} samples; window ℓ = {window} needs at least "
                 f"ℓ + 1 = {window + 1} (ℓ to burn in, one to predict)"
             )
+
+
+def _fit_validation_horizon(opts: TrainOptions, window: int, longest: int) -> TrainOptions:
+    """``opts`` with the validation rollout cut to what the longest validation trajectory holds
+    after its ℓ-sample burn-in, with a warning; the model's recorded options keep the cut."""
+    fits = longest - window
+    if fits >= opts.rollout_horizon:
+        return opts
+    log.warning(
+        "validation rollouts cut from %d to %d steps: the longest validation trajectory has %d "
+        "samples, window ℓ = %d",
+        opts.rollout_horizon,
+        fits,
+        longest,
+        window,
+    )
+    return dataclasses.replace(opts, val_horizon=fits)
 
 
 def _draw_windows(
@@ -602,7 +619,7 @@ def fit(
     if model not in NETS:
         raise UnknownModelError(f"unknown model {model!r}; expected one of {list(NETS)}")
     train_s = as_series(train, what="training data")
-    options_all = presets.net_options(model, net_options)
+    options_all = preset_net_options(model, net_options)
 
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
@@ -667,17 +684,14 @@ def fit_net(
         )
     _check_lengths(train_s, window, "training data")
     _check_lengths(val_s, window, "validation data")
-    for what, series, span in (
-        ("training", train_s, window + opts.horizon),
-        ("validation", val_s, window + opts.rollout_horizon),
-    ):
-        longest = max(s.T for s in series)
-        if longest < span:
-            raise ShapeError(
-                f"window ℓ = {window} plus {what} rollout horizon {span - window} needs "
-                f"trajectories of at least {span} samples; the longest {what} trajectory has "
-                f"{longest} (lower the horizon)"
-            )
+    longest = max(s.T for s in train_s)
+    if longest < window + opts.horizon:
+        raise ShapeError(
+            f"window ℓ = {window} plus training rollout horizon {opts.horizon} needs "
+            f"trajectories of at least {window + opts.horizon} samples; the longest training "
+            f"trajectory has {longest} (lower the horizon)"
+        )
+    opts = _fit_validation_horizon(opts, window, max(s.T for s in val_s))
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:
         raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")

@@ -59,6 +59,13 @@ def test_fast_commands_do_not_load_torch(argv, allowed):
     assert _loaded_after(_cli(*argv)) <= allowed
 
 
+def test_generate_runs_to_its_dataset_without_torch(tmp_path):
+    out = tmp_path / "tank"
+    argv = ("generate", "tank", "--out", str(out), "--n-train", "1", "--n-val", "0")
+    assert "torch" not in _loaded_after(_cli(*argv, "--n-test", "0", "--no-progress"))
+    assert (out / "dataset.npz").is_file()
+
+
 @pytest.mark.parametrize("name", sorted(set(canonid.__all__) - {"__version__"}))
 def test_public_names_are_the_library_objects_and_documented(name):
     home = importlib.import_module(canonid._EXPORTS[name])

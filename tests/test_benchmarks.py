@@ -4,6 +4,7 @@ the CSV export, one-line errors, and ``canonid benchmark`` end to end on a synth
 from __future__ import annotations
 
 import json
+import logging
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -349,3 +350,22 @@ def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_pa
     err = capsys.readouterr().err.strip()
     assert "canonid train rejected the options" in err and "'x'" in err and "\n" not in err
     assert not (tmp_path / "r").exists()  # refused before anything was written
+
+
+def test_ced_with_the_default_profile_cuts_its_short_validation_rollouts(tmp_path, caplog):
+    """CED's validation tails (80 samples here, as in the real files) are shorter than ℓ + the
+    quick profile's 100-step validation rollout: training cuts the rollout to what fits, says
+    so in one line and records the cut length with the model."""
+    write_benchmark("ced", tmp_path)
+    run = tmp_path / "run"
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run), "--no-progress"]
+    with caplog.at_level(logging.WARNING, logger="learning.training"):
+        assert main([*argv, "--threads", "1", "--train-args=--epochs 2"]) == 0
+    assert [r.getMessage() for r in caplog.records if "cut" in r.getMessage()] == [
+        "validation rollouts cut from 100 to 76 steps: the longest validation trajectory has "
+        "80 samples, window ℓ = 4"
+    ]
+    model = json.loads((run / "config.json").read_text())
+    assert model["info"]["training"]["options"]["val_horizon"] == 76
+    report = json.loads((run / "benchmark.json").read_text())
+    assert [s["test"] for s in report["scores"]] == ["low-amplitude", "high-amplitude"]

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
 import pytest
 
 from canonid import __version__
-from canonid.cli import build_parser, main
+from canonid.cli import EXIT_BROKEN_PIPE, build_parser, main
 from models.registry import system_names
 
 
@@ -45,6 +46,26 @@ def test_console_entry_point_errors_are_one_line():
     )
     assert res.returncode != 0
     assert "Traceback" not in res.stderr and "invalid choice" in res.stderr
+
+
+@pytest.mark.parametrize("argv", [["systems"], ["systems", "--json"], ["--help"]])
+def test_a_reader_that_stops_ends_the_command_quietly(argv):
+    """``canonid systems | head -1``: the pipe is closed (here before the first write, so the
+    test does not depend on timing); no traceback, no error line."""
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        res = subprocess.run(
+            [sys.executable, "-m", "canonid", *argv],
+            stdout=write_end,
+            stderr=subprocess.PIPE,
+            text=True,
+            timeout=120,
+        )
+    finally:
+        os.close(write_end)
+    assert res.stderr == ""
+    assert res.returncode in (0, EXIT_BROKEN_PIPE)
 
 
 def test_parser_builds():

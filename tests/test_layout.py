@@ -180,14 +180,7 @@ def _cycles(modules: list[str]) -> list[list[str]]:
     [
         "models",
         "datagen",
-        pytest.param(
-            "learning",
-            marks=pytest.mark.xfail(
-                strict=True,
-                reason="learning.nets ↔ learning.nets.reduced (the registry lookup of "
-                "check_reducible), left to the rework of learning/nets",
-            ),
-        ),
+        "learning",
         "analysis",
         "canonid",
     ],

@@ -52,7 +52,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from datagen.compiled_loop import CompiledLoop, loop_functions
+from datagen.compiled_loop import CompiledLoop, casadi_dump_captured, loop_functions
 from datagen.controllers._compiled import compile_functions
 from datagen.controllers.base import Controller, ControlStep
 from models._validate import as_matrix, as_vector
@@ -333,9 +333,10 @@ class NMPC(Controller):
 
     def _solve_once(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
         try:
-            plan = self._solve(self._guess, params)
+            with casadi_dump_captured() as dump:
+                plan = self._solve(self._guess, params)
         except RuntimeError as exc:  # error_on_fail: failed or non-converged
-            log.debug("NMPC solve failed: %s", exc)
+            log.debug("NMPC solve failed: %s\n%s", exc, dump.getvalue())
             return f"{self.solver_used} failed", None
         w = np.asarray(plan, dtype=np.float64).ravel()
         if not np.all(np.isfinite(w)):

@@ -20,7 +20,15 @@ from learning.nets.classic_gru import ClassicGRU
 from learning.nets.masti import Masti
 from learning.nets.ours_gru import OursGRU
 from learning.nets.ours_mlp import OursMLP
-from learning.nets.reduced import NotReducibleError, ReducedNet, check_reducible
+from learning.nets.reduced import ReducedNet
+from learning.nets.registry import (
+    ALL_NETS,
+    NETS,
+    NotReducibleError,
+    UnknownModelError,
+    check_reducible,
+    model_names,
+)
 from models.errors import CanonidError
 
 __all__ = [
@@ -40,24 +48,6 @@ __all__ = [
     "check_reducible",
     "model_names",
 ]
-
-
-class UnknownModelError(CanonidError, ValueError):
-    """A model name that is not in the registry, or a configuration its class refuses."""
-
-
-#: the registry: name → class (tests are parametrised over it)
-NETS: dict[str, type[SequenceModel]] = {
-    cls.name: cls for cls in (OursMLP, OursGRU, ClassicGRU, Masti, ARX)
-}
-
-#: every network a saved model may hold: the identification models and the reduced model
-ALL_NETS: dict[str, type[SequenceModel]] = {**NETS, ReducedNet.name: ReducedNet}
-
-
-def model_names() -> list[str]:
-    """Registered model names, in table order."""
-    return list(NETS)
 
 
 def build_net(name: str, **config: Any) -> SequenceModel:

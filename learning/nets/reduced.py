@@ -38,30 +38,10 @@ from torch import nn
 
 from learning.canonical import pairs_to_state, shift
 from learning.nets.base import CanonicalModel, SequenceModel, mlp, output_error
-from models.errors import CanonidError, ShapeError
+from learning.nets.registry import ALL_NETS, NotReducibleError, check_reducible
+from models.errors import ShapeError
 
 __all__ = ["NotReducibleError", "ReducedNet", "check_reducible"]
-
-
-class NotReducibleError(CanonidError, ValueError):
-    """The model asked for cannot be reduced (only canonical models can)."""
-
-
-def check_reducible(name: str) -> type[CanonicalModel]:
-    """The class of registered model ``name`` if it is a canonical model, else
-    :class:`NotReducibleError` naming the models that can be reduced."""
-    from learning.nets import ALL_NETS  # the registry imports this module
-
-    cls = ALL_NETS.get(name)
-    if cls is None or not issubclass(cls, CanonicalModel):
-        reducible = [
-            f"{c.label} ({n!r})" for n, c in ALL_NETS.items() if issubclass(c, CanonicalModel)
-        ]
-        label = f"{cls.label} ({name!r})" if cls is not None else repr(name)
-        raise NotReducibleError(
-            f"only canonical models can be reduced ({', '.join(reducible)}); got {label}"
-        )
-    return cls
 
 
 class ReducedNet(SequenceModel):
@@ -255,3 +235,7 @@ class ReducedNet(SequenceModel):
             "reconstruction": float(recon.detach()),
         }
         return loss, parts
+
+
+# a saved model may hold the reduced model: registered here, where its class is defined
+ALL_NETS[ReducedNet.name] = ReducedNet
