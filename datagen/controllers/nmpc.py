@@ -32,6 +32,19 @@ policy ``(warm start, x[t], reference rows) -> (u_0, shifted plan, plan finite)`
 of the NMPC's own system and falls back on the step loop (and the failure handling above) for a
 flight in which a solve fails.
 
+Gauss-Newton SQP (``hessian="gauss-newton"``): for a prediction model whose exact Hessian is
+costly (a learned MLP: every solve differentiates the network twice per stage), each solve is a
+short sequential quadratic programme instead. From the warm start ``w̄`` (first state set to
+``x[t]``) it linearises ``f`` and the tracked quantity (``x`` or ``h``) at every stage of ``w̄``
+(one CasADi call mapped over the N stages), solves the quadratic programme with the same cost,
+bounds and constraint order in which ``f`` and ``h`` are replaced by their linearisations — the
+Gauss-Newton Hessian: the cost's own, no second derivatives of the model — by the same solver,
+and repeats from its solution until no entry ``w_i`` of the plan moves by more than
+``sqp_tol · (1 + |w_i|)`` or after
+``sqp_max_iter`` programmes. A fixed point is a KKT point of the NLP above (the linearisations
+are exact there), so both options plan the same inputs when both converge. No compiled loop:
+flights go step by step.
+
 Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver, with the step and the
 compiled loop around it, to C, compiles it on first use and caches the library (see
 :mod:`datagen.controllers._compiled`); ``"fatrop"`` is the plugin of the CasADi wheel;
@@ -59,11 +72,14 @@ from models._validate import as_matrix, as_vector
 from models.base import System
 from models.errors import ShapeError
 
-__all__ = ["COMPILE_LIMIT", "NMPC", "SOLVERS"]
+__all__ = ["COMPILE_LIMIT", "HESSIANS", "NMPC", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
 SOLVERS = ("auto", "fatrop-c", "fatrop", "ipopt")
+
+#: ``"exact"``: the NLP's exact Hessian; ``"gauss-newton"``: SQP on linearisations (docstring)
+HESSIANS = ("exact", "gauss-newton")
 
 #: ``solver="auto"`` compiles only prediction models with fewer SX instructions than this (a
 #: 64 × 64 MLP has ~15,000; gcc had not finished its solver after 5 min and 9 GB)
@@ -93,6 +109,11 @@ class NMPC(Controller):
         max_iter: iteration limit per solve (a solve that reaches it has failed).
         cache_dir: where ``"fatrop-c"`` keeps compiled solvers (default: the user's cache
             folder, see :func:`datagen.controllers._compiled.default_cache_dir`).
+        hessian: one of :data:`HESSIANS`; ``"gauss-newton"`` runs with the plugin solvers
+            (``"auto"`` means ``"fatrop"``).
+        sqp_max_iter, sqp_tol: the Gauss-Newton SQP's limit on quadratic programmes per solve
+            and its relative step tolerance (a solve that reaches the limit keeps its last plan
+            and says so in ``info["status"]``).
     """
 
     name = "nmpc"
@@ -114,11 +135,23 @@ class NMPC(Controller):
         mu_init: float = 1e-3,
         max_iter: int = 100,
         cache_dir: str | os.PathLike[str] | None = None,
+        hessian: str = "exact",
+        sqp_max_iter: int = 10,
+        sqp_tol: float = 1e-4,
     ) -> None:
         if int(horizon) != horizon or horizon < 1:
             raise ShapeError(f"NMPC horizon must be an integer >= 1, got {horizon!r}")
         if solver not in SOLVERS:
             raise ShapeError(f"NMPC solver must be one of {SOLVERS}, got {solver!r}")
+        if hessian not in HESSIANS:
+            raise ShapeError(f"NMPC hessian must be one of {HESSIANS}, got {hessian!r}")
+        if hessian == "gauss-newton" and solver == "fatrop-c":
+            raise ShapeError("NMPC hessian='gauss-newton' runs with solver 'fatrop' or 'ipopt'")
+        if int(sqp_max_iter) != sqp_max_iter or sqp_max_iter < 1 or not sqp_tol > 0:
+            raise ShapeError(
+                f"NMPC sqp_max_iter must be an integer >= 1 and sqp_tol > 0, got "
+                f"{sqp_max_iter!r} and {sqp_tol!r}"
+            )
         if terminal not in ("lqr", "none"):
             raise ShapeError(f"NMPC terminal must be 'lqr' or 'none', got {terminal!r}")
         if track not in ("state", "output"):
@@ -149,6 +182,8 @@ class NMPC(Controller):
         self.terminal = terminal
         self.P = self._terminal_weight() if terminal == "lqr" else self.Q
         self.tol, self.mu_init, self.max_iter = float(tol), float(mu_init), int(max_iter)
+        self.hessian = hessian
+        self.sqp_max_iter, self.sqp_tol = int(sqp_max_iter), float(sqp_tol)
 
         self._nw = nx * (N + 1) + nu * N
         self._u_index = np.concatenate(
@@ -161,9 +196,20 @@ class NMPC(Controller):
         self._ng = nx * (N + 1)
         self._zeros_g = np.zeros(self._ng)
 
-        nlp = self._nlp()
-        self.solver_used, self._solve, loop = self._build(nlp, solver, cache_dir)
-        self._loop = CompiledLoop(system, *loop, window=N + 1, initial_memory=self._initial_guess)
+        self._loop: CompiledLoop | None = None
+        if hessian == "gauss-newton":
+            self._linearisation_layout()
+            nlp = self._quadratic_programme()
+            self.solver_used, self._solve, _ = self._build(
+                nlp, "fatrop" if solver == "auto" else solver, cache_dir, loop=False
+            )
+        else:
+            nlp = self._nlp()
+            self.solver_used, self._solve, loop = self._build(nlp, solver, cache_dir)
+            assert loop is not None
+            self._loop = CompiledLoop(
+                system, *loop, window=N + 1, initial_memory=self._initial_guess
+            )
         self._reference: np.ndarray | None = None
         self._guess = np.zeros(self._nw)
         self._plan: np.ndarray | None = None  # (N, nu) inputs of the last usable plan
@@ -190,24 +236,106 @@ class NMPC(Controller):
         Q, R, P = ca.DM(self.Q), ca.DM(self.R), ca.DM(self.P)
         u_eq = ca.DM(self.u_eq)
 
-        def tracked(x: ca.MX, u: Any) -> ca.MX:
-            return x if self.track == "state" else self.system.h(x, u)
-
         w, g = [], [X[0] - x_now]
         cost: Any = 0
         for k in range(N):
             w += [X[k], U[k]]
-            e, du = tracked(X[k], U[k]) - ref[:, k], U[k] - u_eq
+            e, du = self._tracked(X[k], U[k]) - ref[:, k], U[k] - u_eq
             cost += ca.bilin(Q, e, e) + ca.bilin(R, du, du)
             g.append(X[k + 1] - self.system.f(X[k], U[k]))
         w.append(X[N])
-        e = tracked(X[N], u_eq) - ref[:, N]
+        e = self._tracked(X[N], u_eq) - ref[:, N]
         cost += ca.bilin(P, e, e)
         return {"x": ca.vcat(w), "f": cost, "g": ca.vcat(g), "p": ca.vertcat(x_now, ca.vec(ref))}
 
+    def _tracked(self, x: Any, u: Any) -> Any:
+        return x if self.track == "state" else self.system.h(x, u)
+
+    def _linearisation_layout(self) -> None:
+        """The layout of the linearisations the quadratic programme reads: the structural
+        nonzeros of ``J = ∂(f, tracked)/∂(x, u)`` (stages) and of ``∂tracked/∂x`` (terminal)."""
+        nx, nu, nr = self.system.n_x, self.system.n_u, self._n_ref
+        f, h = self.system.f, self.system.h
+        if self.track == "state":
+            r_x, r_u = ca.Sparsity.diag(nx), ca.Sparsity(nx, nu)
+        else:
+            r_x, r_u = h.jac_sparsity(0, 0), h.jac_sparsity(0, 1)
+        self._stage_sparsity = ca.vertcat(
+            ca.horzcat(f.jac_sparsity(0, 0), f.jac_sparsity(0, 1)), ca.horzcat(r_x, r_u)
+        )
+        self._terminal_sparsity = r_x
+        # positions of the nonzeros in the column-major flattening of the dense matrices
+        self._stage_nz = np.asarray(self._stage_sparsity.find(), dtype=np.int64)
+        self._terminal_nz = np.asarray(r_x.find(), dtype=np.int64)
+        self._stage_size = len(self._stage_nz) + nx + nr
+        assert self._stage_sparsity.shape == (nx + nr, nx + nu)
+
+    def _linearise(self, w: np.ndarray) -> np.ndarray:
+        """The parameters of the quadratic programme at the plan ``w``: per stage ``k < N`` the
+        nonzeros of ``J`` and ``c = (f, tracked) − J (x̄_k, ū_k)`` at ``(x̄_k, ū_k)``, then the
+        nonzeros of ``C_N`` and ``d_N`` of the terminal term at ``(x̄_N, u_eq)``."""
+        nx, nu, N = self.system.n_x, self.system.n_u, self.horizon
+        stages = w[: (nx + nu) * N].reshape(N, nx + nu)
+        xs = np.vstack([stages[:, :nx], w[None, self._nw - nx :]])
+        us = np.vstack([stages[:, nx:], self.u_eq[None, :]])
+        lin = self.system.linearise(xs, us)
+        if self.track == "state":
+            r, r_x = xs, np.broadcast_to(np.eye(nx), (N + 1, nx, nx))
+            r_u = np.zeros((N + 1, nx, nu))
+        else:
+            r, r_x, r_u = lin.h, lin.h_x, lin.h_u
+        J = np.concatenate(
+            [
+                np.concatenate([lin.f_x[:N], lin.f_u[:N]], axis=2),
+                np.concatenate([r_x[:N], r_u[:N]], axis=2),
+            ],
+            axis=1,
+        )
+        value = np.concatenate([lin.f[:N], r[:N]], axis=1)
+        c = value - np.einsum("kij,kj->ki", J, stages)
+        flat = J.transpose(0, 2, 1).reshape(N, -1)[:, self._stage_nz]
+        CN = r_x[N]
+        dN = r[N] - CN @ xs[N]
+        return np.concatenate([np.hstack([flat, c]).ravel(), CN.T.ravel()[self._terminal_nz], dN])
+
+    def _quadratic_programme(self) -> dict[str, Any]:
+        """The NLP of the module docstring with ``f`` and the tracked quantity replaced by the
+        linearisations in the parameters (after ``x[t]`` and the reference rows; layout of
+        :meth:`_linearise`)."""
+        nx, nu, N, nr = self.system.n_x, self.system.n_u, self.horizon, self._n_ref
+        X = [ca.SX.sym(f"x{k}", nx) for k in range(N + 1)]
+        U = [ca.SX.sym(f"u{k}", nu) for k in range(N)]
+        x_now = ca.SX.sym("x_now", nx)
+        ref = ca.SX.sym("ref", nr, N + 1)
+        n_stage, n_terminal = len(self._stage_nz), len(self._terminal_nz)
+        lin = ca.SX.sym("lin", self._stage_size * N + n_terminal + nr)
+        Q, R, P = ca.DM(self.Q), ca.DM(self.R), ca.DM(self.P)
+        w, g = [], [X[0] - x_now]
+        cost: Any = 0
+        for k in range(N):
+            at = k * self._stage_size
+            J = ca.SX(self._stage_sparsity, lin[at : at + n_stage])
+            value = ca.mtimes(J, ca.vertcat(X[k], U[k])) + lin[at + n_stage : at + self._stage_size]
+            w += [X[k], U[k]]
+            e, du = value[nx:] - ref[:, k], U[k] - self.u_eq
+            cost += ca.bilin(Q, e, e) + ca.bilin(R, du, du)
+            g.append(X[k + 1] - value[:nx])
+        w.append(X[N])
+        at = self._stage_size * N
+        CN = ca.SX(self._terminal_sparsity, lin[at : at + n_terminal])
+        e = ca.mtimes(CN, X[N]) + lin[at + n_terminal :] - ref[:, N]
+        cost += ca.bilin(P, e, e)
+        params = ca.vertcat(x_now, ca.vec(ref), lin)
+        return {"x": ca.vcat(w), "f": cost, "g": ca.vcat(g), "p": params}
+
     def _build(
-        self, nlp: dict[str, Any], solver: str, cache_dir: str | os.PathLike[str] | None
-    ) -> tuple[str, ca.Function, tuple[ca.Function, ca.Function]]:
+        self,
+        nlp: dict[str, Any],
+        solver: str,
+        cache_dir: str | os.PathLike[str] | None,
+        *,
+        loop: bool = True,
+    ) -> tuple[str, ca.Function, tuple[ca.Function, ca.Function] | None]:
         """The solver used, the step function ``(initial guess, parameters) -> plan`` and the
         compiled loop's (step, chunk) functions for ``solver``.
 
@@ -228,7 +356,7 @@ class NMPC(Controller):
                 },
             }
             step = self._step_function(ca.nlpsol("nmpc", "ipopt", nlp, opts))
-            return "ipopt", step, self._loop_functions(step)
+            return "ipopt", step, self._loop_functions(step) if loop else None
         fatrop_opts: dict[str, Any] = {
             **common,
             "structure_detection": "auto",
@@ -241,13 +369,15 @@ class NMPC(Controller):
             },
         }
         step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
-        loop = self._loop_functions(step)
+        if not loop:
+            return "fatrop", step, None
+        loops = self._loop_functions(step)
         size = self.system.f.n_instructions() + self.system.h.n_instructions()
         if solver == "auto" and size >= COMPILE_LIMIT:
             log.info("NMPC: %d SX instructions in f and h, not compiled (plugin)", size)
         elif solver in ("auto", "fatrop-c"):
             compiled = compile_functions(
-                (step, *loop),
+                (step, *loops),
                 name=f"nmpc_{self.system.name}_N{self.horizon}",
                 cache_dir=cache_dir,
                 libraries=("fatrop", "blasfeo"),
@@ -258,7 +388,7 @@ class NMPC(Controller):
                 raise ShapeError(
                     "solver 'fatrop-c' needs a working C compiler (gcc); use solver='fatrop'"
                 )
-        return "fatrop", step, loop
+        return "fatrop", step, loops
 
     def _step_function(self, nlpsol: ca.Function) -> ca.Function:
         guess = ca.MX.sym("guess", self._nw)
@@ -304,16 +434,15 @@ class NMPC(Controller):
         rows = np.minimum(np.arange(t, t + N + 1), T - 1)
         params = np.concatenate([x, self._reference[rows].ravel()])
         self._guess[: self.system.n_x] = x
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         status, w = self._solve_once(params)
         elapsed = time.perf_counter() - start
+        times = {"solve_time": elapsed, "solve_cpu": time.process_time() - start_cpu}
         if w is not None:
             self._plan = w[self._u_index]
             self._since_plan = 0
             self._guess = self._shifted(w)
-            return ControlStep(
-                u=self._plan[0].copy(), info={"status": status, "solve_time": elapsed}
-            )
+            return ControlStep(u=self._plan[0].copy(), info={"status": status, **times})
         # fall back on the previous plan, shifted
         if self._plan is None:
             u = self.u_eq.copy()
@@ -321,17 +450,19 @@ class NMPC(Controller):
             self._since_plan += 1
             u = self._plan[min(self._since_plan, N - 1)].copy()
             self._guess = self._shifted(self._guess)
-        return ControlStep(u=u, ok=False, info={"status": status, "solve_time": elapsed})
+        return ControlStep(u=u, ok=False, info={"status": status, **times})
 
     def _initial_guess(self, reference: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """The warm start of a new flight (what :meth:`reset` sets)."""
         self.reset(reference, x0)
         return self._guess.copy()
 
-    def compiled_loop(self) -> CompiledLoop:
+    def compiled_loop(self) -> CompiledLoop | None:
         return self._loop
 
     def _solve_once(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
+        if self.hessian == "gauss-newton":
+            return self._sqp(params)
         try:
             plan = self._solve(self._guess, params)
         except RuntimeError as exc:  # error_on_fail: failed or non-converged
@@ -341,6 +472,25 @@ class NMPC(Controller):
         if not np.all(np.isfinite(w)):
             return "non-finite plan", None
         return "ok", w
+
+    def _sqp(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
+        """The Gauss-Newton SQP from the warm start (see the module docstring)."""
+        w = self._guess.copy()
+        for iteration in range(1, self.sqp_max_iter + 1):
+            lin = self._linearise(w)
+            try:
+                plan = self._solve(w, np.concatenate([params, lin]))
+            except RuntimeError as exc:
+                log.debug("NMPC quadratic programme failed: %s", exc)
+                return f"{self.solver_used} failed (SQP iteration {iteration})", None
+            new = np.asarray(plan, dtype=np.float64).ravel()
+            if not np.all(np.isfinite(new)):
+                return "non-finite plan", None
+            converged = np.all(np.abs(new - w) <= self.sqp_tol * (1.0 + np.abs(new)))
+            w = new
+            if converged:
+                return f"ok (SQP, {iteration} QPs)", w
+        return f"ok (SQP iteration limit, {self.sqp_max_iter} QPs)", w
 
     def _shifted(self, w: np.ndarray) -> np.ndarray:
         """Drop stage 0 of a plan and repeat the last stage: ``(x1,u1,…,x_{N-1},u_{N-1},x_N,
@@ -365,6 +515,12 @@ class NMPC(Controller):
             "tol": self.tol,
             "mu_init": self.mu_init,
             "max_iter": self.max_iter,
+            "hessian": self.hessian,
+            **(
+                {"sqp_max_iter": self.sqp_max_iter, "sqp_tol": self.sqp_tol}
+                if self.hessian == "gauss-newton"
+                else {}
+            ),
             "formulation": "multiple shooting, x_{k+1} - f(x_k, u_k) = 0, warm start by shift",
             "fallback": "failed solve: next input of the shifted previous plan (u_eq if none)",
         }
