@@ -36,14 +36,19 @@ Gauss-Newton SQP (``hessian="gauss-newton"``): for a prediction model whose exac
 costly (a learned MLP: every solve differentiates the network twice per stage), each solve is a
 short sequential quadratic programme instead. From the warm start ``w̄`` (first state set to
 ``x[t]``) it linearises ``f`` and the tracked quantity (``x`` or ``h``) at every stage of ``w̄``
-(one CasADi call mapped over the N stages), solves the quadratic programme with the same cost,
-bounds and constraint order in which ``f`` and ``h`` are replaced by their linearisations — the
-Gauss-Newton Hessian: the cost's own, no second derivatives of the model — by the same solver,
-and repeats from its solution until no entry ``w_i`` of the plan moves by more than
-``sqp_tol · (1 + |w_i|)`` or after
-``sqp_max_iter`` programmes. A fixed point is a KKT point of the NLP above (the linearisations
-are exact there), so both options plan the same inputs when both converge. No compiled loop:
-flights go step by step.
+(:meth:`models.base.System.linearise`, one batched call), writes the NLP above with ``f`` and
+``h`` replaced by these linearisations — the Gauss-Newton Hessian: the cost's own, no second
+derivatives of the model — and eliminates the states (condensing: ``x_k`` is affine in the
+inputs), which leaves a dense quadratic programme in the ``N · n_u`` inputs with their bounds,
+solved by DAQP (an active-set solver in the CasADi wheel). The states of the plan follow from
+the linearised dynamics. It repeats from that plan until no entry ``w_i`` moves by more than
+``sqp_tol · (1 + |w_i|)`` or after ``sqp_max_iter`` programmes; once a step is not at most half
+the previous one (Gauss-Newton can oscillate, e.g. on an unstable model), the next linearisation
+point is the midpoint of the plan and the solution (a damped fixed-point step: the same fixed
+point; an oscillation of ratio −1 becomes contracting). A fixed point is a KKT point of the NLP
+above (the linearisations are exact there), so both options plan the same inputs when both
+converge. Condensing makes a learned model's long state (``ℓ (n_u + n_y)`` entries) cheap: the
+programme's size does not depend on it. No compiled loop: flights go step by step.
 
 Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver, with the step and the
 compiled loop around it, to C, compiles it on first use and caches the library (see
@@ -109,8 +114,8 @@ class NMPC(Controller):
         max_iter: iteration limit per solve (a solve that reaches it has failed).
         cache_dir: where ``"fatrop-c"`` keeps compiled solvers (default: the user's cache
             folder, see :func:`datagen.controllers._compiled.default_cache_dir`).
-        hessian: one of :data:`HESSIANS`; ``"gauss-newton"`` runs with the plugin solvers
-            (``"auto"`` means ``"fatrop"``).
+        hessian: one of :data:`HESSIANS`; ``"gauss-newton"`` solves its programmes with DAQP
+            (``solver`` stays ``"auto"``).
         sqp_max_iter, sqp_tol: the Gauss-Newton SQP's limit on quadratic programmes per solve
             and its relative step tolerance (a solve that reaches the limit keeps its last plan
             and says so in ``info["status"]``).
@@ -145,8 +150,11 @@ class NMPC(Controller):
             raise ShapeError(f"NMPC solver must be one of {SOLVERS}, got {solver!r}")
         if hessian not in HESSIANS:
             raise ShapeError(f"NMPC hessian must be one of {HESSIANS}, got {hessian!r}")
-        if hessian == "gauss-newton" and solver == "fatrop-c":
-            raise ShapeError("NMPC hessian='gauss-newton' runs with solver 'fatrop' or 'ipopt'")
+        if hessian == "gauss-newton" and solver != "auto":
+            raise ShapeError(
+                "NMPC hessian='gauss-newton' solves condensed quadratic programmes with DAQP; "
+                f"leave solver='auto' (got {solver!r})"
+            )
         if int(sqp_max_iter) != sqp_max_iter or sqp_max_iter < 1 or not sqp_tol > 0:
             raise ShapeError(
                 f"NMPC sqp_max_iter must be an integer >= 1 and sqp_tol > 0, got "
@@ -198,15 +206,17 @@ class NMPC(Controller):
 
         self._loop: CompiledLoop | None = None
         if hessian == "gauss-newton":
-            self._linearisation_layout()
-            nlp = self._quadratic_programme()
-            self.solver_used, self._solve, _ = self._build(
-                nlp, "fatrop" if solver == "auto" else solver, cache_dir, loop=False
+            n_in = N * nu
+            self.solver_used = "daqp"
+            self._qp = ca.conic(
+                "nmpc_qp",
+                "daqp",
+                {"h": ca.Sparsity.dense(n_in, n_in), "a": ca.Sparsity(0, n_in)},
+                {"error_on_fail": True, "print_time": False},
             )
         else:
             nlp = self._nlp()
             self.solver_used, self._solve, loop = self._build(nlp, solver, cache_dir)
-            assert loop is not None
             self._loop = CompiledLoop(
                 system, *loop, window=N + 1, initial_memory=self._initial_guess
             )
@@ -251,91 +261,62 @@ class NMPC(Controller):
     def _tracked(self, x: Any, u: Any) -> Any:
         return x if self.track == "state" else self.system.h(x, u)
 
-    def _linearisation_layout(self) -> None:
-        """The layout of the linearisations the quadratic programme reads: the structural
-        nonzeros of ``J = ∂(f, tracked)/∂(x, u)`` (stages) and of ``∂tracked/∂x`` (terminal)."""
-        nx, nu, nr = self.system.n_x, self.system.n_u, self._n_ref
-        f, h = self.system.f, self.system.h
-        if self.track == "state":
-            r_x, r_u = ca.Sparsity.diag(nx), ca.Sparsity(nx, nu)
-        else:
-            r_x, r_u = h.jac_sparsity(0, 0), h.jac_sparsity(0, 1)
-        self._stage_sparsity = ca.vertcat(
-            ca.horzcat(f.jac_sparsity(0, 0), f.jac_sparsity(0, 1)), ca.horzcat(r_x, r_u)
-        )
-        self._terminal_sparsity = r_x
-        # positions of the nonzeros in the column-major flattening of the dense matrices
-        self._stage_nz = np.asarray(self._stage_sparsity.find(), dtype=np.int64)
-        self._terminal_nz = np.asarray(r_x.find(), dtype=np.int64)
-        self._stage_size = len(self._stage_nz) + nx + nr
-        assert self._stage_sparsity.shape == (nx + nr, nx + nu)
+    def _condensed_step(self, w: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """The plan solving the quadratic programme linearised at ``w`` (module docstring):
+        ``x_k = S_k U + s_k`` from the linearised dynamics, the tracking errors ``G_k U + g_k``,
+        the dense programme in ``U`` by DAQP, the states from ``U``.
 
-    def _linearise(self, w: np.ndarray) -> np.ndarray:
-        """The parameters of the quadratic programme at the plan ``w``: per stage ``k < N`` the
-        nonzeros of ``J`` and ``c = (f, tracked) − J (x̄_k, ū_k)`` at ``(x̄_k, ū_k)``, then the
-        nonzeros of ``C_N`` and ``d_N`` of the terminal term at ``(x̄_N, u_eq)``."""
-        nx, nu, N = self.system.n_x, self.system.n_u, self.horizon
+        Raises:
+            RuntimeError: DAQP failed.
+        """
+        nx, nu, N, nr = self.system.n_x, self.system.n_u, self.horizon, self._n_ref
         stages = w[: (nx + nu) * N].reshape(N, nx + nu)
         xs = np.vstack([stages[:, :nx], w[None, self._nw - nx :]])
         us = np.vstack([stages[:, nx:], self.u_eq[None, :]])
         lin = self.system.linearise(xs, us)
         if self.track == "state":
-            r, r_x = xs, np.broadcast_to(np.eye(nx), (N + 1, nx, nx))
-            r_u = np.zeros((N + 1, nx, nu))
+            r, r_x, r_u = (
+                xs,
+                np.broadcast_to(np.eye(nx), (N + 1, nx, nx)),
+                np.zeros((N + 1, nx, nu)),
+            )
         else:
             r, r_x, r_u = lin.h, lin.h_x, lin.h_u
-        J = np.concatenate(
-            [
-                np.concatenate([lin.f_x[:N], lin.f_u[:N]], axis=2),
-                np.concatenate([r_x[:N], r_u[:N]], axis=2),
-            ],
-            axis=1,
-        )
-        value = np.concatenate([lin.f[:N], r[:N]], axis=1)
-        c = value - np.einsum("kij,kj->ki", J, stages)
-        flat = J.transpose(0, 2, 1).reshape(N, -1)[:, self._stage_nz]
-        CN = r_x[N]
-        dN = r[N] - CN @ xs[N]
-        return np.concatenate([np.hstack([flat, c]).ravel(), CN.T.ravel()[self._terminal_nz], dN])
-
-    def _quadratic_programme(self) -> dict[str, Any]:
-        """The NLP of the module docstring with ``f`` and the tracked quantity replaced by the
-        linearisations in the parameters (after ``x[t]`` and the reference rows; layout of
-        :meth:`_linearise`)."""
-        nx, nu, N, nr = self.system.n_x, self.system.n_u, self.horizon, self._n_ref
-        X = [ca.SX.sym(f"x{k}", nx) for k in range(N + 1)]
-        U = [ca.SX.sym(f"u{k}", nu) for k in range(N)]
-        x_now = ca.SX.sym("x_now", nx)
-        ref = ca.SX.sym("ref", nr, N + 1)
-        n_stage, n_terminal = len(self._stage_nz), len(self._terminal_nz)
-        lin = ca.SX.sym("lin", self._stage_size * N + n_terminal + nr)
-        Q, R, P = ca.DM(self.Q), ca.DM(self.R), ca.DM(self.P)
-        w, g = [], [X[0] - x_now]
-        cost: Any = 0
-        for k in range(N):
-            at = k * self._stage_size
-            J = ca.SX(self._stage_sparsity, lin[at : at + n_stage])
-            value = ca.mtimes(J, ca.vertcat(X[k], U[k])) + lin[at + n_stage : at + self._stage_size]
-            w += [X[k], U[k]]
-            e, du = value[nx:] - ref[:, k], U[k] - self.u_eq
-            cost += ca.bilin(Q, e, e) + ca.bilin(R, du, du)
-            g.append(X[k + 1] - value[:nx])
-        w.append(X[N])
-        at = self._stage_size * N
-        CN = ca.SX(self._terminal_sparsity, lin[at : at + n_terminal])
-        e = ca.mtimes(CN, X[N]) + lin[at + n_terminal :] - ref[:, N]
-        cost += ca.bilin(P, e, e)
-        params = ca.vertcat(x_now, ca.vec(ref), lin)
-        return {"x": ca.vcat(w), "f": cost, "g": ca.vcat(g), "p": params}
+        ref = params[nx:].reshape(N + 1, nr)
+        # offsets of the linearisations: f ≈ A x + B u + c, tracked ≈ C x + D u + d
+        c = lin.f - np.einsum("kij,kj->ki", lin.f_x, xs) - np.einsum("kij,kj->ki", lin.f_u, us)
+        d = r - np.einsum("kij,kj->ki", r_x, xs) - np.einsum("kij,kj->ki", r_u, us)
+        S = np.zeros((N + 1, nx, N * nu))
+        s = np.zeros((N + 1, nx))
+        s[0] = params[:nx]
+        G = np.zeros((N + 1, nr, N * nu))
+        g = np.zeros((N + 1, nr))
+        for k in range(N + 1):
+            G[k] = r_x[k] @ S[k]
+            g[k] = r_x[k] @ s[k] + d[k] - ref[k]
+            if k == N:
+                break
+            G[k, :, k * nu : (k + 1) * nu] += r_u[k]
+            S[k + 1] = lin.f_x[k] @ S[k]
+            S[k + 1, :, k * nu : (k + 1) * nu] += lin.f_u[k]
+            s[k + 1] = lin.f_x[k] @ s[k] + c[k]
+        weights = np.concatenate([np.broadcast_to(self.Q, (N, nr, nr)), self.P[None]], axis=0)
+        QG = weights @ G
+        H = 2.0 * np.einsum("kia,kib->ab", G, QG) + 2.0 * np.kron(np.eye(N), self.R)
+        grad = 2.0 * np.einsum("kia,ki->a", QG, g) - 2.0 * np.tile(self.R @ self.u_eq, N)
+        lo, hi = self._lbx[self._u_index].ravel(), self._ubx[self._u_index].ravel()
+        sol = self._qp(h=0.5 * (H + H.T), g=grad, lbx=lo, ubx=hi)
+        U = np.asarray(sol["x"], dtype=np.float64).ravel()
+        states = S @ U + s
+        plan = np.empty(self._nw)
+        plan[self._u_index.ravel()] = U
+        for k in range(N + 1):
+            plan[k * (nx + nu) : k * (nx + nu) + nx] = states[k]
+        return plan
 
     def _build(
-        self,
-        nlp: dict[str, Any],
-        solver: str,
-        cache_dir: str | os.PathLike[str] | None,
-        *,
-        loop: bool = True,
-    ) -> tuple[str, ca.Function, tuple[ca.Function, ca.Function] | None]:
+        self, nlp: dict[str, Any], solver: str, cache_dir: str | os.PathLike[str] | None
+    ) -> tuple[str, ca.Function, tuple[ca.Function, ca.Function]]:
         """The solver used, the step function ``(initial guess, parameters) -> plan`` and the
         compiled loop's (step, chunk) functions for ``solver``.
 
@@ -356,7 +337,7 @@ class NMPC(Controller):
                 },
             }
             step = self._step_function(ca.nlpsol("nmpc", "ipopt", nlp, opts))
-            return "ipopt", step, self._loop_functions(step) if loop else None
+            return "ipopt", step, self._loop_functions(step)
         fatrop_opts: dict[str, Any] = {
             **common,
             "structure_detection": "auto",
@@ -369,8 +350,6 @@ class NMPC(Controller):
             },
         }
         step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
-        if not loop:
-            return "fatrop", step, None
         loops = self._loop_functions(step)
         size = self.system.f.n_instructions() + self.system.h.n_instructions()
         if solver == "auto" and size >= COMPILE_LIMIT:
@@ -476,20 +455,21 @@ class NMPC(Controller):
     def _sqp(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
         """The Gauss-Newton SQP from the warm start (see the module docstring)."""
         w = self._guess.copy()
+        step, previous = 1.0, np.inf
         for iteration in range(1, self.sqp_max_iter + 1):
-            lin = self._linearise(w)
             try:
-                plan = self._solve(w, np.concatenate([params, lin]))
+                new = self._condensed_step(w, params)
             except RuntimeError as exc:
                 log.debug("NMPC quadratic programme failed: %s", exc)
                 return f"{self.solver_used} failed (SQP iteration {iteration})", None
-            new = np.asarray(plan, dtype=np.float64).ravel()
             if not np.all(np.isfinite(new)):
                 return "non-finite plan", None
-            converged = np.all(np.abs(new - w) <= self.sqp_tol * (1.0 + np.abs(new)))
-            w = new
-            if converged:
-                return f"ok (SQP, {iteration} QPs)", w
+            moved = float(np.max(np.abs(new - w) / (1.0 + np.abs(new))))
+            if moved <= self.sqp_tol:
+                return f"ok (SQP, {iteration} QPs)", new
+            if moved > 0.5 * previous:  # not contracting (GN oscillates): half steps from now on
+                step = 0.5
+            w, previous = w + step * (new - w), moved
         return f"ok (SQP iteration limit, {self.sqp_max_iter} QPs)", w
 
     def _shifted(self, w: np.ndarray) -> np.ndarray:
