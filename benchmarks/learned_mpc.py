@@ -193,7 +193,8 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     """Both controllers on the first ``--references`` test references of ``case``."""
     run, learned = learned_of(run_dir, case)
     ell = learned.regressor.window
-    flights = list(run.dataset.split("test"))[: args.references]
+    count = args.drone_references if case.name == "drone2d" else None
+    flights = list(run.dataset.split("test"))[: count or args.references]
     limit = args.drone_steps if case.name == "drone2d" else None
     rows: dict[str, Row] = {}
     for name, system, hessian in (
@@ -294,6 +295,9 @@ def main() -> int:
     parser.add_argument("--references", type=int, default=10)
     parser.add_argument(
         "--drone-steps", type=int, help="at most this many drone samples per reference"
+    )
+    parser.add_argument(
+        "--drone-references", type=int, help="drone references (default --references)"
     )
     parser.add_argument("--solver", default="fatrop", help="NMPC solver (default fatrop)")
     parser.add_argument(
