@@ -1,21 +1,28 @@
-"""NMPC on a learned model against NMPC on the true model, tracking tank level references.
+"""NMPC on a learned model against NMPC on the true model: tank levels and planar-drone positions.
 
-The learned model is a trained Ours (MLP) run on tank data (``--run``), built as a CasADi system
-from its weights (:func:`canonid.learned.learned_system`). Both controllers are the same
+The learned models are trained Ours (MLP) runs (``--run`` on tank data, ``--drone-run`` on
+planar-drone data), built as CasADi systems from their weights
+(:func:`canonid.learned.learned_system`). Per system both controllers are the same
 :class:`datagen.controllers.nmpc.NMPC` with an output reference (``track="output"``), the same
-horizon, weights, input bounds (the tank's U) and solver; they differ only in the prediction
-model and in what they are fed:
+horizon, weights, input bounds (the true system's U) and solver; they differ in the prediction
+model, in what they are fed and (``--hessian``) in how the learned model's NLP is solved:
 
-* NMPC on the true model: the true state ``x[t]`` (state feedback, no noise);
+* NMPC on the true model: the true state ``x[t]`` (state feedback, no noise), exact Hessian;
 * NMPC on the learned model: its state ``z_t``, the window of the last ℓ applied inputs and
-  *measured* outputs (uniform noise in the dataset's noise box) — no observer.
+  *measured* outputs (uniform noise in the dataset's noise box) — no observer; by default the
+  Gauss-Newton SQP (``hessian="gauss-newton"``: no second derivatives of the network, Jacobians
+  in numpy), which plans the same inputs as the exact Hessian when both converge.
 
-Each closed loop runs on the true tank along one of the first ``--references`` references of the
-dataset's test split, from the recorded state at sample ℓ (the ℓ recorded samples before it fill
-the learned model's first window). Reported per controller: the tracking RMSE of the true
-(noise-free) level against the reference over samples ℓ … T−1, the median and 95th percentile
-of the solve times, and the failed solves. Also the learned model's γ_f bracket on its training
-hull (:mod:`analysis.certify`) beside the true tank's on its X.
+Each closed loop runs on the true system along one of the first ``--references`` references of
+the dataset's test split, from the recorded state at sample ℓ (the ℓ recorded samples before it
+fill the learned model's first window). Reported per controller: the tracking RMSE of the true
+(noise-free) tracked outputs against the reference over samples ℓ … T−1 (tank: the level; drone:
+px and pz — θ has weight 0), the median solve time (wall clock and the process's CPU time: the
+machine is shared), the 95th percentile of the wall time and the failed solves. With
+``--exact-steps`` the learned tank NMPC also runs with the exact Hessian on the first reference
+for that many steps, beside the Gauss-Newton one (the cost before the option existed). Also the
+learned tank model's γ_f bracket on its training hull (:mod:`analysis.certify`) beside the true
+tank's on its X.
 
 Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md.
 """
@@ -27,7 +34,9 @@ import json
 import os
 import sys
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's packages
@@ -40,150 +49,341 @@ from analysis.estimate import Budget
 from analysis.lipschitz import lipschitz_bracket
 from canonid.learned import learned_system
 from datagen.controllers.nmpc import NMPC
+from models.base import System
+from models.drone2d import Drone2D
 from models.learned import LearnedSystem
 from models.tank import Tank
 
 HORIZON = 20
-OUTPUT_WEIGHT, INPUT_WEIGHT = 1.0, 1e-3
-LEVEL_EQ = 2.5  # the input term pulls towards the input that holds this level
+LEVEL_EQ = 2.5  # tank: the input term pulls towards the input that holds this level
 
 
-def controller(system, tank: Tank, solver: str, cache: Path | None) -> NMPC:
+@dataclass(frozen=True)
+class Case:
+    """One system of the benchmark: its NMPC weights and which outputs are scored."""
+
+    name: str
+    system: System
+    u_eq: list[float]
+    output_weights: list[float]
+    input_weights: list[float]
+    scored: list[int]  # output columns in the RMSE
+    note: str
+    envelope: bool  # count the loops whose true state leaves the system's X (its flight box)
+
+
+def cases() -> dict[str, Case]:
+    tank, drone = Tank(), Drone2D()
+    return {
+        "tank": Case(
+            "tank",
+            tank,
+            [tank.equilibrium_input(LEVEL_EQ)],
+            [1.0],
+            [1e-3],
+            [0],
+            f"Q = 1 on the level, R = 1e-3 on u − u_eq(level {LEVEL_EQ}), U = [0, 6]",
+            False,  # the tank's X is the analysis box, which the test flights leave
+        ),
+        "drone2d": Case(
+            "drone2d",
+            drone,
+            [drone.hover_speed] * 2,
+            [5.0, 5.0, 0.0],
+            [1e-3, 1e-3],
+            [0, 1],
+            "Q = (5, 5, 0) on (px, pz, θ) (the data's NMPC weights on the pose), R = 1e-3 on "
+            "each rotor's deviation from hover, U = [0, 250]² rad/s",
+            True,
+        ),
+    }
+
+
+@dataclass
+class Row:
+    rmses: list[float] = field(default_factory=list)
+    wall: list[float] = field(default_factory=list)
+    cpu: list[float] = field(default_factory=list)
+    failures: int = 0
+    sqp_limit: int = 0
+    left_X: list[int] = field(default_factory=list)  # the step each reference's loop left X
+    build: float = 0.0
+    solver: str = ""
+
+    def summary(self) -> dict[str, Any]:
+        return {
+            "rmse": float(np.mean(self.rmses)),
+            "rmses": self.rmses,
+            "median_wall_ms": 1e3 * float(np.median(self.wall)),
+            "p95_wall_ms": 1e3 * float(np.percentile(self.wall, 95)),
+            "median_cpu_ms": 1e3 * float(np.median(self.cpu)),
+            "failures": self.failures,
+            "sqp_limit": self.sqp_limit,
+            "left_X": self.left_X,
+            "solves": len(self.wall),
+            "build_s": self.build,
+            "solver": self.solver,
+        }
+
+
+def controller(system: System, case: Case, solver: str, hessian: str) -> NMPC:
     return NMPC(
         system,
-        u_eq=[tank.equilibrium_input(LEVEL_EQ)],
+        u_eq=case.u_eq,
         horizon=HORIZON,
         track="output",
-        output_weights=[OUTPUT_WEIGHT],
-        input_weights=[INPUT_WEIGHT],
+        output_weights=case.output_weights,
+        input_weights=case.input_weights,
         terminal="none",
-        solver=solver,
-        cache_dir=cache,
+        solver="auto" if hessian == "gauss-newton" else solver,  # Gauss-Newton: DAQP
+        hessian=hessian,
     )
 
 
-def closed_loop(nmpc: NMPC, tank: Tank, flight, ell: int, *, learned: bool, noise, rng):
-    """Track ``flight.reference`` from sample ℓ; returns (clean outputs, solve times, failures)."""
-    T = flight.T
-    ref = flight.reference[ell:]
+def closed_loop(nmpc: NMPC, case: Case, flight, ell: int, steps: int, *, learned, noise, rng):
+    """Track the reference's first ``n_y`` columns from sample ℓ for ``steps`` samples; returns
+    the clean outputs ``(steps, n_y)``, the applied inputs and the per-solve records."""
+    true = case.system
+    ref = flight.reference[ell : ell + steps, : true.n_y]
     u_hist = list(flight.u[:ell])
     y_hist = list(flight.y[:ell])
     x = flight.x[ell].copy()
-    state = (
-        (lambda: np.concatenate([u_hist[-ell:], y_hist[-ell:]], axis=1).ravel())
-        if learned
-        else None
-    )
+
+    def state() -> np.ndarray:
+        return np.concatenate([u_hist[-ell:], y_hist[-ell:]], axis=1).ravel()
+
     nmpc.reset(ref, state() if learned else x)
-    ys, times, failures = [], [], 0
-    for k in range(T - ell):
+    ys, us, infos = [], [], []
+    left = None  # the first step at which the true state is outside the system's X
+    for k in range(steps):
         step = nmpc(k, state() if learned else x)
-        failures += not step.ok
-        times.append(step.info["solve_time"])
-        y_clean = tank.output(x, step.u)
-        ys.append(y_clean[0])
+        infos.append({"ok": step.ok, **step.info})
+        y_clean = true.output(x, step.u)
+        ys.append(y_clean)
+        us.append(step.u)
         u_hist.append(step.u)
         y_hist.append(y_clean + rng.uniform(noise.lo, noise.hi))
-        x = tank.step(x, step.u)
-    return np.array(ys), np.array(times), failures
+        x = true.step(x, step.u)
+        if case.envelope and left is None and not true.X.contains(x):
+            left = k + 1
+    infos[-1]["left_X"] = left
+    return np.array(ys), np.array(us), infos
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--run", type=Path, required=True, help="an Ours (MLP) run on tank data")
-    parser.add_argument("--references", type=int, default=10)
-    parser.add_argument(
-        "--solver", default="fatrop", help="NMPC solver for both (default fatrop, not compiled)"
-    )
-    parser.add_argument("--cache", type=Path, help="folder of compiled solvers (fatrop-c)")
-    parser.add_argument("--gamma-seconds", type=float, default=30.0)
-    args = parser.parse_args()
-    started = time.perf_counter()
-    run = learned_system(args.run)
-    tank = Tank()
+def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
+    ref = flight.reference[ell : ell + len(y), case.scored]
+    return float(np.sqrt(np.mean((y[:, case.scored] - ref) ** 2)))
+
+
+def learned_of(run_dir: Path, case: Case):
+    run = learned_system(run_dir)
     learned = LearnedSystem(
         run.system.network,
         dt=run.system.dt,
         input_names=run.system.input_names,
         output_names=run.system.output_names,
         X=run.system.X,
-        U=tank.U,  # the same input bounds for both controllers (inside the training hull)
+        U=case.system.U,  # the same input bounds for both controllers
         W=run.system.W,
     )
+    return run, learned
+
+
+def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, Any]:
+    """Both controllers on the first ``--references`` test references of ``case``."""
+    run, learned = learned_of(run_dir, case)
     ell = learned.regressor.window
-    flights = list(run.dataset.split("test"))[: args.references]
-    rows = {"true model": ([], [], 0), "learned model": ([], [], 0)}
-    per_reference = []
-    build: dict[str, tuple[str, float]] = {}
-    for name, system, is_learned in (("true model", tank, False), ("learned model", learned, True)):
+    count = args.drone_references if case.name == "drone2d" else None
+    flights = list(run.dataset.split("test"))[: count or args.references]
+    limit = args.drone_steps if case.name == "drone2d" else None
+    rows: dict[str, Row] = {}
+    for name, system, hessian in (
+        ("true model", case.system, "exact"),
+        ("learned model", learned, args.hessian),
+    ):
+        row = rows[name] = Row()
         t0 = time.perf_counter()
-        nmpc = controller(system, tank, args.solver, args.cache)
-        build[name] = (nmpc.solver_used, time.perf_counter() - t0)
-        rmses, times, failures = [], [], 0
+        nmpc = controller(system, case, args.solver, hessian)
+        row.build, row.solver = time.perf_counter() - t0, f"{nmpc.solver_used}, {hessian}"
         for i, flight in enumerate(flights):
+            steps = min(flight.T - ell, limit or flight.T)
             rng = np.random.default_rng(1000 + i)
-            y, t, f = closed_loop(
-                nmpc, tank, flight, ell, learned=is_learned, noise=learned.W, rng=rng
+            y, _, infos = closed_loop(
+                nmpc, case, flight, ell, steps, learned=system is learned, noise=learned.W, rng=rng
             )
-            rmses.append(float(np.sqrt(np.mean((y - flight.reference[ell:, 0]) ** 2))))
-            times.extend(t)
-            failures += f
-        rows[name] = (rmses, times, failures)
-        print(f"{name}: RMSE {np.mean(rmses):.4f} (mean of {len(rmses)})", flush=True)
-    for i in range(len(flights)):
-        per_reference.append((rows["true model"][0][i], rows["learned model"][0][i]))
-
-    budget = Budget(seconds=args.gamma_seconds)
-    gamma = learned_gamma(learned, budget=budget)
-    tank_gamma = lipschitz_bracket(tank.f, tank.X, tank.U, budget=budget)
-
-    true_rmse = float(np.mean(rows["true model"][0]))
-    learned_rmse = float(np.mean(rows["learned model"][0]))
-    info = run.model.info
-    recipe = json.loads((args.run / "run.json").read_text())
+            row.rmses.append(rmse(case, y, flight, ell))
+            row.wall += [info["solve_time"] for info in infos]
+            row.cpu += [info["solve_cpu"] for info in infos]
+            row.failures += sum(not info["ok"] for info in infos)
+            row.sqp_limit += sum("limit" in info["status"] for info in infos)
+            if infos[-1]["left_X"] is not None:
+                row.left_X.append(infos[-1]["left_X"])
+            print(f"{case.name} {name} ref {i}: RMSE {row.rmses[-1]:.4f}", flush=True)
     net = learned.regressor
-    lines = [
-        f"Learned model: `{args.run}` — Ours (MLP), ℓ = {ell}, hidden "
-        f"{[layer.n_out for layer in net.layers[:-1]]}, activation "
-        f"{learned.parameters['activation']}, residual {learned.parameters['residual']}, "
-        f"profile `{info.get('profile')}`, a short training on the default tank dataset "
-        f"(`canonid generate tank`): `{' '.join(recipe['command'])}` "
-        f"({recipe['train_options'].get('epochs')} epochs). NMPC for both: output "
-        f"reference, N = {HORIZON}, Q = {OUTPUT_WEIGHT}, "
-        f"R = {INPUT_WEIGHT} on u − u_eq(level {LEVEL_EQ}), U = [0, 6], solver "
-        + ", ".join(f"`{s}` ({n}, built in {b:.0f} s)" for n, (s, b) in build.items())
-        + f". Test references: the first {len(flights)} of the test split, "
-        f"samples {ell} … {flights[0].T - 1}. Load average at the end: "
-        f"{os.getloadavg()[0]:.1f} (shared machine).",
-        "",
-        "| prediction model | fed with | tracking RMSE (mean of refs) | median solve [ms] "
-        "| p95 solve [ms] | failed solves |",
-        "|---|---|---|---|---|---|",
-    ]
-    for name, fed in (("true model", "true state x[t]"), ("learned model", "measured window z_t")):
-        rmses, times, failures = rows[name]
-        lines.append(
-            f"| {name} | {fed} | {np.mean(rmses):.4f} | {1e3 * np.median(times):.1f} | "
-            f"{1e3 * np.percentile(times, 95):.1f} | {failures} |"
+    recipe = json.loads((run_dir / "run.json").read_text())
+    return {
+        "run": str(run_dir),
+        "window": ell,
+        "hidden": [layer.n_out for layer in net.layers[:-1]],
+        "activation": learned.parameters["activation"],
+        "residual": learned.parameters["residual"],
+        "affine": learned.parameters["affine"],
+        "profile": run.model.info.get("profile"),
+        "command": " ".join(recipe["command"]),
+        "epochs": recipe["train_options"].get("epochs"),
+        "samples": f"{ell} … {ell + min(flights[0].T - ell, limit or flights[0].T) - 1}",
+        "references": len(flights),
+        "rows": {name: {**row.summary(), "envelope": case.envelope} for name, row in rows.items()},
+    }
+
+
+def exact_against_gauss_newton(case: Case, run_dir: Path, args) -> dict[str, Any]:
+    """The learned tank NMPC on the first reference for ``--exact-steps`` steps, both Hessians."""
+    run, learned = learned_of(run_dir, case)
+    ell = learned.regressor.window
+    flight = next(iter(run.dataset.split("test")))
+    out: dict[str, Any] = {"steps": args.exact_steps}
+    inputs = {}
+    for hessian in ("exact", "gauss-newton"):
+        t0 = time.perf_counter()
+        nmpc = controller(learned, case, args.solver, hessian)
+        build = time.perf_counter() - t0
+        rng = np.random.default_rng(1000)
+        y, u, infos = closed_loop(
+            nmpc, case, flight, ell, args.exact_steps, learned=True, noise=learned.W, rng=rng
         )
-    lines += [
-        "",
-        f"Ratio learned / true tracking RMSE: **{learned_rmse / true_rmse:.2f}** (goal ≤ 1.5).",
-        "",
-        "Per reference (true, learned): "
-        + ", ".join(f"({a:.3f}, {b:.3f})" for a, b in per_reference),
-        "",
-        f"γ_f of the learned model on its training hull (dim z = {learned.n_x}): sampled lower "
-        f"bound {gamma.bracket.lower.value:.4g}; certified upper bounds "
-        f"{gamma.bracket.upper.value:.4g} (interval branch-and-bound, "
-        f"{gamma.bracket.upper.details.get('stop')}, {args.gamma_seconds:g} s) and "
-        f"{gamma.layer_norms.value:.4g} (product of layer norms, loose). The true tank's γ_f on "
-        f"its X × U: [{tank_gamma.lower.value:.4g}, {tank_gamma.upper.value:.4g}] (state x, "
-        "not the window z: a different quantity, set beside it).",
-        "",
-        f"Wall time {time.perf_counter() - started:.0f} s.",
+        inputs[hessian] = u
+        out[hessian] = {
+            "build_s": build,
+            "rmse": rmse(case, y, flight, ell),
+            "median_cpu_ms": 1e3 * float(np.median([i["solve_cpu"] for i in infos])),
+            "median_wall_ms": 1e3 * float(np.median([i["solve_time"] for i in infos])),
+        }
+        print(f"{hessian}: {out[hessian]}", flush=True)
+    out["max_du"] = float(np.max(np.abs(inputs["exact"] - inputs["gauss-newton"])))
+    return out
+
+
+def table(results: dict[str, Any]) -> list[str]:
+    lines = [
+        "| system | prediction model | fed with | solver, Hessian | tracking RMSE (mean of refs) "
+        "| median solve wall [ms] | median solve CPU [ms] | p95 wall [ms] | failed solves "
+        "| loops that left X (drone: the flight box) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
-    write_section("NMPC on a learned model", "\n".join(lines))
+    for system, res in results.items():
+        for name, fed in (
+            ("true model", "true state x[t]"),
+            ("learned model", "measured window z_t"),
+        ):
+            r = res["rows"][name]
+            limit = f" ({r['sqp_limit']} at the SQP limit)" if r["sqp_limit"] else ""
+            left = f" (after {r['left_X']} steps)" if r["left_X"] else ""
+            envelope = f"{len(r['left_X'])} of {len(r['rmses'])}{left}" if r["envelope"] else "–"
+            lines.append(
+                f"| {system} | {name} | {fed} | {r['solver']} | {r['rmse']:.4f} | "
+                f"{r['median_wall_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['p95_wall_ms']:.1f} "
+                f"| {r['failures']} of {r['solves']}{limit} | {envelope} |"
+            )
+    return lines
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--run", type=Path, help="an Ours (MLP) run on tank data")
+    parser.add_argument("--drone-run", type=Path, help="an Ours (MLP) run on drone2d data")
+    parser.add_argument("--references", type=int, default=10)
+    parser.add_argument(
+        "--drone-steps", type=int, help="at most this many drone samples per reference"
+    )
+    parser.add_argument(
+        "--drone-references", type=int, help="drone references (default --references)"
+    )
+    parser.add_argument("--solver", default="fatrop", help="NMPC solver (default fatrop)")
+    parser.add_argument(
+        "--hessian",
+        default="gauss-newton",
+        choices=("exact", "gauss-newton"),
+        help="the learned model's NMPC (default gauss-newton)",
+    )
+    parser.add_argument("--exact-steps", type=int, default=40)
+    parser.add_argument("--gamma-seconds", type=float, default=30.0)
+    parser.add_argument("--json", type=Path, help="also write the numbers here")
+    parser.add_argument("--no-write", action="store_true", help="do not touch RESULTS.md")
+    args = parser.parse_args()
+    started = time.perf_counter()
+    all_cases = cases()
+    results: dict[str, Any] = {}
+    for key, run_dir in (("tank", args.run), ("drone2d", args.drone_run)):
+        if run_dir is not None:
+            results[key] = compare(all_cases[key], run_dir, args)
+            if args.json:
+                args.json.write_text(json.dumps(results, indent=1))
+    exact = None
+    if args.run is not None and args.exact_steps > 0:
+        exact = exact_against_gauss_newton(all_cases["tank"], args.run, args)
+    lines: list[str] = []
+    for key, res in results.items():
+        lines.append(
+            f"Learned {key} model: `{res['run']}` — Ours (MLP), ℓ = {res['window']}, hidden "
+            f"{res['hidden']}, activation {res['activation']}, residual {res['residual']}, "
+            f"affine path {res['affine']}, profile `{res['profile']}`, {res['epochs']} epochs: "
+            f"`{res['command']}`. NMPC: {all_cases[key].note}. Test references: the first "
+            f"{res['references']} of the test split, samples {res['samples']}."
+        )
+        lines.append("")
+    lines += [
+        f"NMPC for both: output reference, N = {HORIZON}, terminal weight Q, solver "
+        f"`{args.solver}` (the plugin, not compiled). Learned model's NLP: Hessian "
+        f"`{args.hessian}`. Load average at the end: {os.getloadavg()[0]:.1f} (shared "
+        "machine: wall times are inflated, the CPU column is the process's own time).",
+        "",
+        *table(results),
+        "",
+    ]
+    for key, res in results.items():
+        rows = res["rows"]
+        ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
+        goal = " (goal ≤ 1.5)" if key == "tank" else ""
+        lines += [
+            f"{key}: ratio learned / true tracking RMSE **{ratio:.2f}**{goal}. Per reference "
+            "(true, learned): "
+            + ", ".join(
+                f"({a:.3f}, {b:.3f})"
+                for a, b in zip(rows["true model"]["rmses"], rows["learned model"]["rmses"])
+            ),
+            "",
+        ]
+    if exact is not None:
+        e, g = exact["exact"], exact["gauss-newton"]
+        lines += [
+            f"Exact Hessian against Gauss-Newton SQP, learned tank NMPC, first reference, "
+            f"{exact['steps']} steps: build {e['build_s']:.0f} s / {g['build_s']:.1f} s, median "
+            f"solve CPU {e['median_cpu_ms']:.1f} ms / {g['median_cpu_ms']:.1f} ms (wall "
+            f"{e['median_wall_ms']:.0f} / {g['median_wall_ms']:.0f} ms), tracking RMSE "
+            f"{e['rmse']:.6f} / {g['rmse']:.6f}, largest difference of the applied inputs "
+            f"{exact['max_du']:.2e}.",
+            "",
+        ]
+    if args.run is not None:
+        _, learned = learned_of(args.run, all_cases["tank"])
+        tank = all_cases["tank"].system
+        budget = Budget(seconds=args.gamma_seconds)
+        gamma = learned_gamma(learned, budget=budget)
+        tank_gamma = lipschitz_bracket(tank.f, tank.X, tank.U, budget=budget)
+        lines += [
+            f"γ_f of the learned tank model on its training hull (dim z = {learned.n_x}): "
+            f"sampled lower bound {gamma.bracket.lower.value:.4g}; certified upper bounds "
+            f"{gamma.bracket.upper.value:.4g} (interval branch-and-bound, "
+            f"{gamma.bracket.upper.details.get('stop')}, {args.gamma_seconds:g} s) and "
+            f"{gamma.layer_norms.value:.4g} (product of layer norms, loose). The true tank's "
+            f"γ_f on its X × U: [{tank_gamma.lower.value:.4g}, {tank_gamma.upper.value:.4g}] "
+            "(state x, not the window z: a different quantity, set beside it).",
+            "",
+        ]
+    lines.append(f"Wall time {time.perf_counter() - started:.0f} s.")
+    if not args.no_write:
+        write_section("NMPC on a learned model", "\n".join(lines))
     print("\n".join(lines))
     return 0
 

@@ -21,7 +21,7 @@ from models.errors import SetError, ShapeError
 from models.io import jsonable
 from models.sets import Box
 
-__all__ = ["SimResult", "System"]
+__all__ = ["Linearisation", "SimResult", "System"]
 
 
 @dataclass(frozen=True)
@@ -35,6 +35,20 @@ class SimResult:
     x: np.ndarray
     y: np.ndarray
     x_final: np.ndarray
+
+
+@dataclass(frozen=True)
+class Linearisation:
+    """``f``, ``h`` and their Jacobians at ``N`` points ``(x_k, u_k)`` (:meth:`System.linearise`):
+    ``f`` ``(N, n_x)``, ``h`` ``(N, n_y)``, ``f_x`` ``(N, n_x, n_x)``, ``f_u`` ``(N, n_x, n_u)``,
+    ``h_x`` ``(N, n_y, n_x)``, ``h_u`` ``(N, n_y, n_u)``."""
+
+    f: np.ndarray
+    h: np.ndarray
+    f_x: np.ndarray
+    f_u: np.ndarray
+    h_x: np.ndarray
+    h_u: np.ndarray
 
 
 class System(ABC):
@@ -178,6 +192,27 @@ class System(ABC):
         um = as_matrix(u, self.n_u, f"{self.name}: inputs u", rows=xm.shape[0])
         out = self._mapped("h", xm.shape[0])(xm.T, um.T)
         return np.asarray(out, dtype=np.float64).T.reshape(xm.shape[0], self.n_y)
+
+    def linearise(self, x: Any, u: Any) -> Linearisation:
+        """``f``, ``h`` and their Jacobians at the ``N`` rows of ``x`` ``(N, n_x)`` and ``u``
+        ``(N, n_u)`` (CasADi's automatic differentiation, mapped over the rows)."""
+        xm = as_matrix(x, self.n_x, f"{self.name}: states x")
+        um = as_matrix(u, self.n_u, f"{self.name}: inputs u", rows=xm.shape[0])
+        n = xm.shape[0]
+        key = ("linearise", n)
+        if key not in self._maps:
+            xs, us = ca.SX.sym("x", self.n_x), ca.SX.sym("u", self.n_u)
+            fx, hx = self.f(xs, us), self.h(xs, us)
+            jacobians = [ca.jacobian(v, s) for v in (fx, hx) for s in (xs, us)]
+            self._maps[key] = ca.Function("linearise", [xs, us], [fx, hx, *jacobians]).map(n)
+        out = self._maps[key](xm.T, um.T)
+        f, h, *jac = (np.asarray(o, dtype=np.float64) for o in out)
+        rows = (self.n_x, self.n_x, self.n_y, self.n_y)
+        cols = (self.n_x, self.n_u, self.n_x, self.n_u)
+        f_x, f_u, h_x, h_u = (
+            a.reshape(r, n, c).transpose(1, 0, 2) for a, r, c in zip(jac, rows, cols)
+        )
+        return Linearisation(f=f.T, h=h.T, f_x=f_x, f_u=f_u, h_x=h_x, h_u=h_u)
 
     def simulate(self, x0: Any, u: Any) -> SimResult:
         """Open-loop simulation from ``x0`` under inputs ``u`` of shape ``(T, n_u)``."""

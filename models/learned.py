@@ -34,7 +34,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from models.base import System
+from models._validate import as_matrix
+from models.base import Linearisation, System
 from models.canonical import cut_windows
 from models.errors import DataError, ShapeError
 from models.io import atomic_write_bytes
@@ -276,6 +277,16 @@ class LearnedSystem(System):
         return regressor_expr(reg, zn, un) * reg.y_std + reg.y_mean
 
     # ------------------------------------------------------------------ numeric helpers
+    def linearise(self, x: Any, u: Any) -> Linearisation:
+        """:meth:`System.linearise`; for an MLP canonical model in numpy (same numbers, much
+        faster for wide networks), else by CasADi."""
+        net = self.network
+        if isinstance(net, ReducedNet) or net.recurrent:
+            return super().linearise(x, u)
+        xm = as_matrix(x, self.n_x, f"{self.name}: states x")
+        um = as_matrix(u, self.n_u, f"{self.name}: inputs u", rows=xm.shape[0])
+        return _mlp_linearisation(net, xm, um)
+
     def state_of_window(self, z: Any) -> np.ndarray:
         """The state ``x[t]`` of a measured window ``z_t`` (physical, :mod:`models.canonical`
         ordering): ``z_t`` itself for a canonical model, ``E(z̃_t)`` for a reduced one.
@@ -291,6 +302,62 @@ class LearnedSystem(System):
             )
         out = np.asarray(self.encoder.map(za.shape[0])(za.T)).T.reshape(za.shape[0], self.n_x)
         return out[0] if single else out
+
+
+def _forward_with_slopes(layer: Layer, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The layer on the rows of ``v`` and the slopes ``σ'`` of its activation there (numpy)."""
+    pre = v @ layer.weight.T + layer.bias
+    if layer.activation == "relu":
+        return np.maximum(pre, 0.0), (pre > 0).astype(np.float64)
+    if layer.activation == "tanh":
+        t = np.tanh(pre)
+        return t, 1.0 - t * t
+    if layer.activation == "silu":  # the SX form above: v (1 + tanh(v/2)) / 2
+        t = np.tanh(0.5 * pre)
+        return 0.5 * pre * (1.0 + t), 0.5 * (1.0 + t) + 0.25 * pre * (1.0 - t * t)
+    return pre, np.ones_like(pre)
+
+
+def _mlp_linearisation(net: CanonicalNet, x: np.ndarray, u: np.ndarray) -> Linearisation:
+    """:meth:`System.linearise` of a canonical MLP model in numpy: one batched forward pass and
+    ``n_y`` reverse sweeps through the layers, as matrix products (a 3 × 256 network's SX graph
+    has about 700,000 instructions; BLAS does the same arithmetic much faster)."""
+    n, d, p, n_y = x.shape[0], net.state_dim, net.n_u + net.n_y, net.n_y
+    zn = (x - net.z_mean) / net.z_std
+    un = (u - net.u_mean) / net.u_std
+    a = np.hstack([zn, un]) if net.feedthrough else zn
+    v, slopes = a, []
+    for layer in net.layers:
+        v, slope = _forward_with_slopes(layer, v)
+        slopes.append(slope)
+    raw = v
+    grad = np.broadcast_to(net.layers[-1].weight, (n, n_y, net.layers[-1].n_in))
+    for layer, slope in zip(net.layers[-2::-1], slopes[-2::-1]):
+        grad = (grad * slope[:, None, :]) @ layer.weight  # d raw / d(layer input)
+    if net.affine is not None:
+        raw = raw + a @ net.affine[0].T + net.affine[1]
+        grad = grad + net.affine[0]
+    if net.residual_scale is None:
+        yn, d_yn = raw, np.array(grad)
+    else:
+        yn = zn[:, d - n_y :] + raw * net.residual_scale
+        d_yn = net.residual_scale[:, None] * grad
+        d_yn[:, :, d - n_y : d] += np.eye(n_y)
+    y = yn * net.y_std + net.y_mean
+    y_z = net.y_std[:, None] * d_yn[:, :, :d] / net.z_std
+    y_u = (
+        net.y_std[:, None] * d_yn[:, :, d:] / net.u_std
+        if net.feedthrough
+        else np.zeros((n, n_y, net.n_u))
+    )
+    f_x = np.zeros((n, d, d))
+    f_x[:, : d - p, p:] = np.eye(d - p)
+    f_x[:, d - n_y :, :] = y_z
+    f_u = np.zeros((n, d, net.n_u))
+    f_u[:, d - p : d - n_y, :] = np.eye(net.n_u)
+    f_u[:, d - n_y :, :] = y_u
+    f = np.hstack([x[:, p:], u, y])
+    return Linearisation(f=f, h=y, f_x=f_x, f_u=f_u, h_x=y_z, h_u=y_u)
 
 
 def _encode_reduced(net: ReducedNet, zn: ca.SX) -> ca.SX:

@@ -17,6 +17,7 @@ from learning.data import Normalisation
 from learning.export import NotExportableError
 from learning.model import Model
 from learning.nets import NETS, ReducedNet, build_net
+from models.base import System
 from models.errors import ShapeError
 from models.learned import LearnedSystem
 from models.network import CanonicalNet, Layer
@@ -199,12 +200,8 @@ def _affine_net(hidden: tuple[int, ...], *, residual: bool, rng) -> CanonicalNet
     )
 
 
-@pytest.mark.parametrize("residual", [False, True])
-@pytest.mark.parametrize("hidden", [(), (5,)])
-def test_the_affine_path_is_added_in_normalised_units(hidden, residual, rng):
-    """Ĥ = y_mean + y_std ⊙ (ỹ_prev + s ⊙ (MLP(a) + L a + c)) by hand, for a hand-built net."""
-    net = _affine_net(hidden, residual=residual, rng=rng)
-    system = LearnedSystem(
+def _unit_system(net: CanonicalNet) -> LearnedSystem:
+    return LearnedSystem(
         net,
         dt=1.0,
         input_names=("a", "b"),
@@ -213,6 +210,14 @@ def test_the_affine_path_is_added_in_normalised_units(hidden, residual, rng):
         U=Box(-np.ones(2), np.ones(2)),
         W=Box([0.0], [0.0]),
     )
+
+
+@pytest.mark.parametrize("residual", [False, True])
+@pytest.mark.parametrize("hidden", [(), (5,)])
+def test_the_affine_path_is_added_in_normalised_units(hidden, residual, rng):
+    """Ĥ = y_mean + y_std ⊙ (ỹ_prev + s ⊙ (MLP(a) + L a + c)) by hand, for a hand-built net."""
+    net = _affine_net(hidden, residual=residual, rng=rng)
+    system = _unit_system(net)
     z = rng.normal(size=(20, 9))
     u = rng.normal(size=(20, 2))
     a = np.hstack([(z - net.z_mean) / net.z_std, (u - net.u_mean) / net.u_std])
@@ -307,3 +312,25 @@ def test_the_affine_path_of_a_gru_regressor_reads_the_window_not_the_gru_state(f
     base = LearnedSystem(plain, dt=1.0, **names, **box).h_batch(z, u)
     added = LearnedSystem(with_affine, dt=1.0, **names, **box).h_batch(z, u)
     np.testing.assert_allclose(added - base, 3.0 * 0.3 * (x @ L.T + c), rtol=1e-10, atol=1e-12)
+
+
+@pytest.mark.parametrize("activation", ["relu", "tanh", "silu"])
+@pytest.mark.parametrize("feedthrough", [False, True])
+@pytest.mark.parametrize("residual", [False, True])
+def test_the_numpy_linearisation_equals_casadis(activation, feedthrough, residual, rng):
+    """``LearnedSystem.linearise`` (numpy, for the MLP) == ``System.linearise`` (CasADi AD)."""
+    system = as_system(mlp_model(activation=activation, feedthrough=feedthrough, residual=residual))
+    x = rng.normal(size=(7, system.n_x))
+    u = rng.normal(size=(7, system.n_u))
+    fast, reference = system.linearise(x, u), System.linearise(system, x, u)
+    for key in ("f", "h", "f_x", "f_u", "h_x", "h_u"):
+        np.testing.assert_allclose(getattr(fast, key), getattr(reference, key), atol=1e-9)
+
+
+def test_the_numpy_linearisation_includes_the_affine_path(rng):
+    net = _affine_net((5,), residual=True, rng=rng)
+    system = _unit_system(net)
+    x, u = rng.normal(size=(4, system.n_x)), rng.normal(size=(4, system.n_u))
+    fast, reference = system.linearise(x, u), System.linearise(system, x, u)
+    np.testing.assert_allclose(fast.f_x, reference.f_x, atol=1e-9)
+    np.testing.assert_allclose(fast.h_u, reference.h_u, atol=1e-9)

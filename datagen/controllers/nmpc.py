@@ -32,6 +32,24 @@ policy ``(warm start, x[t], reference rows) -> (u_0, shifted plan, plan finite)`
 of the NMPC's own system and falls back on the step loop (and the failure handling above) for a
 flight in which a solve fails.
 
+Gauss-Newton SQP (``hessian="gauss-newton"``): for a prediction model whose exact Hessian is
+costly (a learned MLP: every solve differentiates the network twice per stage), each solve is a
+short sequential quadratic programme instead. From the warm start ``w̄`` (first state set to
+``x[t]``) it linearises ``f`` and the tracked quantity (``x`` or ``h``) at every stage of ``w̄``
+(:meth:`models.base.System.linearise`, one batched call), writes the NLP above with ``f`` and
+``h`` replaced by these linearisations — the Gauss-Newton Hessian: the cost's own, no second
+derivatives of the model — and eliminates the states (condensing: ``x_k`` is affine in the
+inputs), which leaves a dense quadratic programme in the ``N · n_u`` inputs with their bounds,
+solved by DAQP (an active-set solver in the CasADi wheel). The states of the plan follow from
+the linearised dynamics. It repeats from that plan until no entry ``w_i`` moves by more than
+``sqp_tol · (1 + |w_i|)`` or after ``sqp_max_iter`` programmes; once a step is not at most half
+the previous one (Gauss-Newton can oscillate, e.g. on an unstable model), the next linearisation
+point is the midpoint of the plan and the solution (a damped fixed-point step: the same fixed
+point; an oscillation of ratio −1 becomes contracting). A fixed point is a KKT point of the NLP
+above (the linearisations are exact there), so both options plan the same inputs when both
+converge. Condensing makes a learned model's long state (``ℓ (n_u + n_y)`` entries) cheap: the
+programme's size does not depend on it. No compiled loop: flights go step by step.
+
 Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver, with the step and the
 compiled loop around it, to C, compiles it on first use and caches the library (see
 :mod:`datagen.controllers._compiled`); ``"fatrop"`` is the plugin of the CasADi wheel;
@@ -59,11 +77,14 @@ from models._validate import as_matrix, as_vector
 from models.base import System
 from models.errors import ShapeError
 
-__all__ = ["COMPILE_LIMIT", "NMPC", "SOLVERS"]
+__all__ = ["COMPILE_LIMIT", "HESSIANS", "NMPC", "SOLVERS"]
 
 log = logging.getLogger(__name__)
 
 SOLVERS = ("auto", "fatrop-c", "fatrop", "ipopt")
+
+#: ``"exact"``: the NLP's exact Hessian; ``"gauss-newton"``: SQP on linearisations (docstring)
+HESSIANS = ("exact", "gauss-newton")
 
 #: ``solver="auto"`` compiles only prediction models with fewer SX instructions than this (a
 #: 64 × 64 MLP has ~15,000; gcc had not finished its solver after 5 min and 9 GB)
@@ -93,6 +114,11 @@ class NMPC(Controller):
         max_iter: iteration limit per solve (a solve that reaches it has failed).
         cache_dir: where ``"fatrop-c"`` keeps compiled solvers (default: the user's cache
             folder, see :func:`datagen.controllers._compiled.default_cache_dir`).
+        hessian: one of :data:`HESSIANS`; ``"gauss-newton"`` solves its programmes with DAQP
+            (``solver`` stays ``"auto"``).
+        sqp_max_iter, sqp_tol: the Gauss-Newton SQP's limit on quadratic programmes per solve
+            and its relative step tolerance (a solve that reaches the limit keeps its last plan
+            and says so in ``info["status"]``).
     """
 
     name = "nmpc"
@@ -114,11 +140,26 @@ class NMPC(Controller):
         mu_init: float = 1e-3,
         max_iter: int = 100,
         cache_dir: str | os.PathLike[str] | None = None,
+        hessian: str = "exact",
+        sqp_max_iter: int = 10,
+        sqp_tol: float = 1e-4,
     ) -> None:
         if int(horizon) != horizon or horizon < 1:
             raise ShapeError(f"NMPC horizon must be an integer >= 1, got {horizon!r}")
         if solver not in SOLVERS:
             raise ShapeError(f"NMPC solver must be one of {SOLVERS}, got {solver!r}")
+        if hessian not in HESSIANS:
+            raise ShapeError(f"NMPC hessian must be one of {HESSIANS}, got {hessian!r}")
+        if hessian == "gauss-newton" and solver != "auto":
+            raise ShapeError(
+                "NMPC hessian='gauss-newton' solves condensed quadratic programmes with DAQP; "
+                f"leave solver='auto' (got {solver!r})"
+            )
+        if int(sqp_max_iter) != sqp_max_iter or sqp_max_iter < 1 or not sqp_tol > 0:
+            raise ShapeError(
+                f"NMPC sqp_max_iter must be an integer >= 1 and sqp_tol > 0, got "
+                f"{sqp_max_iter!r} and {sqp_tol!r}"
+            )
         if terminal not in ("lqr", "none"):
             raise ShapeError(f"NMPC terminal must be 'lqr' or 'none', got {terminal!r}")
         if track not in ("state", "output"):
@@ -149,6 +190,8 @@ class NMPC(Controller):
         self.terminal = terminal
         self.P = self._terminal_weight() if terminal == "lqr" else self.Q
         self.tol, self.mu_init, self.max_iter = float(tol), float(mu_init), int(max_iter)
+        self.hessian = hessian
+        self.sqp_max_iter, self.sqp_tol = int(sqp_max_iter), float(sqp_tol)
 
         self._nw = nx * (N + 1) + nu * N
         self._u_index = np.concatenate(
@@ -161,9 +204,22 @@ class NMPC(Controller):
         self._ng = nx * (N + 1)
         self._zeros_g = np.zeros(self._ng)
 
-        nlp = self._nlp()
-        self.solver_used, self._solve, loop = self._build(nlp, solver, cache_dir)
-        self._loop = CompiledLoop(system, *loop, window=N + 1, initial_memory=self._initial_guess)
+        self._loop: CompiledLoop | None = None
+        if hessian == "gauss-newton":
+            n_in = N * nu
+            self.solver_used = "daqp"
+            self._qp = ca.conic(
+                "nmpc_qp",
+                "daqp",
+                {"h": ca.Sparsity.dense(n_in, n_in), "a": ca.Sparsity(0, n_in)},
+                {"error_on_fail": True, "print_time": False},
+            )
+        else:
+            nlp = self._nlp()
+            self.solver_used, self._solve, loop = self._build(nlp, solver, cache_dir)
+            self._loop = CompiledLoop(
+                system, *loop, window=N + 1, initial_memory=self._initial_guess
+            )
         self._reference: np.ndarray | None = None
         self._guess = np.zeros(self._nw)
         self._plan: np.ndarray | None = None  # (N, nu) inputs of the last usable plan
@@ -190,20 +246,73 @@ class NMPC(Controller):
         Q, R, P = ca.DM(self.Q), ca.DM(self.R), ca.DM(self.P)
         u_eq = ca.DM(self.u_eq)
 
-        def tracked(x: ca.MX, u: Any) -> ca.MX:
-            return x if self.track == "state" else self.system.h(x, u)
-
         w, g = [], [X[0] - x_now]
         cost: Any = 0
         for k in range(N):
             w += [X[k], U[k]]
-            e, du = tracked(X[k], U[k]) - ref[:, k], U[k] - u_eq
+            e, du = self._tracked(X[k], U[k]) - ref[:, k], U[k] - u_eq
             cost += ca.bilin(Q, e, e) + ca.bilin(R, du, du)
             g.append(X[k + 1] - self.system.f(X[k], U[k]))
         w.append(X[N])
-        e = tracked(X[N], u_eq) - ref[:, N]
+        e = self._tracked(X[N], u_eq) - ref[:, N]
         cost += ca.bilin(P, e, e)
         return {"x": ca.vcat(w), "f": cost, "g": ca.vcat(g), "p": ca.vertcat(x_now, ca.vec(ref))}
+
+    def _tracked(self, x: Any, u: Any) -> Any:
+        return x if self.track == "state" else self.system.h(x, u)
+
+    def _condensed_step(self, w: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """The plan solving the quadratic programme linearised at ``w`` (module docstring):
+        ``x_k = S_k U + s_k`` from the linearised dynamics, the tracking errors ``G_k U + g_k``,
+        the dense programme in ``U`` by DAQP, the states from ``U``.
+
+        Raises:
+            RuntimeError: DAQP failed.
+        """
+        nx, nu, N, nr = self.system.n_x, self.system.n_u, self.horizon, self._n_ref
+        stages = w[: (nx + nu) * N].reshape(N, nx + nu)
+        xs = np.vstack([stages[:, :nx], w[None, self._nw - nx :]])
+        us = np.vstack([stages[:, nx:], self.u_eq[None, :]])
+        lin = self.system.linearise(xs, us)
+        if self.track == "state":
+            r, r_x, r_u = (
+                xs,
+                np.broadcast_to(np.eye(nx), (N + 1, nx, nx)),
+                np.zeros((N + 1, nx, nu)),
+            )
+        else:
+            r, r_x, r_u = lin.h, lin.h_x, lin.h_u
+        ref = params[nx:].reshape(N + 1, nr)
+        # offsets of the linearisations: f ≈ A x + B u + c, tracked ≈ C x + D u + d
+        c = lin.f - np.einsum("kij,kj->ki", lin.f_x, xs) - np.einsum("kij,kj->ki", lin.f_u, us)
+        d = r - np.einsum("kij,kj->ki", r_x, xs) - np.einsum("kij,kj->ki", r_u, us)
+        S = np.zeros((N + 1, nx, N * nu))
+        s = np.zeros((N + 1, nx))
+        s[0] = params[:nx]
+        G = np.zeros((N + 1, nr, N * nu))
+        g = np.zeros((N + 1, nr))
+        for k in range(N + 1):
+            G[k] = r_x[k] @ S[k]
+            g[k] = r_x[k] @ s[k] + d[k] - ref[k]
+            if k == N:
+                break
+            G[k, :, k * nu : (k + 1) * nu] += r_u[k]
+            S[k + 1] = lin.f_x[k] @ S[k]
+            S[k + 1, :, k * nu : (k + 1) * nu] += lin.f_u[k]
+            s[k + 1] = lin.f_x[k] @ s[k] + c[k]
+        weights = np.concatenate([np.broadcast_to(self.Q, (N, nr, nr)), self.P[None]], axis=0)
+        QG = weights @ G
+        H = 2.0 * np.einsum("kia,kib->ab", G, QG) + 2.0 * np.kron(np.eye(N), self.R)
+        grad = 2.0 * np.einsum("kia,ki->a", QG, g) - 2.0 * np.tile(self.R @ self.u_eq, N)
+        lo, hi = self._lbx[self._u_index].ravel(), self._ubx[self._u_index].ravel()
+        sol = self._qp(h=0.5 * (H + H.T), g=grad, lbx=lo, ubx=hi)
+        U = np.asarray(sol["x"], dtype=np.float64).ravel()
+        states = S @ U + s
+        plan = np.empty(self._nw)
+        plan[self._u_index.ravel()] = U
+        for k in range(N + 1):
+            plan[k * (nx + nu) : k * (nx + nu) + nx] = states[k]
+        return plan
 
     def _build(
         self, nlp: dict[str, Any], solver: str, cache_dir: str | os.PathLike[str] | None
@@ -241,13 +350,13 @@ class NMPC(Controller):
             },
         }
         step = self._step_function(ca.nlpsol("nmpc", "fatrop", nlp, fatrop_opts))
-        loop = self._loop_functions(step)
+        loops = self._loop_functions(step)
         size = self.system.f.n_instructions() + self.system.h.n_instructions()
         if solver == "auto" and size >= COMPILE_LIMIT:
             log.info("NMPC: %d SX instructions in f and h, not compiled (plugin)", size)
         elif solver in ("auto", "fatrop-c"):
             compiled = compile_functions(
-                (step, *loop),
+                (step, *loops),
                 name=f"nmpc_{self.system.name}_N{self.horizon}",
                 cache_dir=cache_dir,
                 libraries=("fatrop", "blasfeo"),
@@ -258,7 +367,7 @@ class NMPC(Controller):
                 raise ShapeError(
                     "solver 'fatrop-c' needs a working C compiler (gcc); use solver='fatrop'"
                 )
-        return "fatrop", step, loop
+        return "fatrop", step, loops
 
     def _step_function(self, nlpsol: ca.Function) -> ca.Function:
         guess = ca.MX.sym("guess", self._nw)
@@ -304,16 +413,15 @@ class NMPC(Controller):
         rows = np.minimum(np.arange(t, t + N + 1), T - 1)
         params = np.concatenate([x, self._reference[rows].ravel()])
         self._guess[: self.system.n_x] = x
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         status, w = self._solve_once(params)
         elapsed = time.perf_counter() - start
+        times = {"solve_time": elapsed, "solve_cpu": time.process_time() - start_cpu}
         if w is not None:
             self._plan = w[self._u_index]
             self._since_plan = 0
             self._guess = self._shifted(w)
-            return ControlStep(
-                u=self._plan[0].copy(), info={"status": status, "solve_time": elapsed}
-            )
+            return ControlStep(u=self._plan[0].copy(), info={"status": status, **times})
         # fall back on the previous plan, shifted
         if self._plan is None:
             u = self.u_eq.copy()
@@ -321,17 +429,19 @@ class NMPC(Controller):
             self._since_plan += 1
             u = self._plan[min(self._since_plan, N - 1)].copy()
             self._guess = self._shifted(self._guess)
-        return ControlStep(u=u, ok=False, info={"status": status, "solve_time": elapsed})
+        return ControlStep(u=u, ok=False, info={"status": status, **times})
 
     def _initial_guess(self, reference: np.ndarray, x0: np.ndarray) -> np.ndarray:
         """The warm start of a new flight (what :meth:`reset` sets)."""
         self.reset(reference, x0)
         return self._guess.copy()
 
-    def compiled_loop(self) -> CompiledLoop:
+    def compiled_loop(self) -> CompiledLoop | None:
         return self._loop
 
     def _solve_once(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
+        if self.hessian == "gauss-newton":
+            return self._sqp(params)
         try:
             with casadi_dump_captured() as dump:
                 plan = self._solve(self._guess, params)
@@ -342,6 +452,26 @@ class NMPC(Controller):
         if not np.all(np.isfinite(w)):
             return "non-finite plan", None
         return "ok", w
+
+    def _sqp(self, params: np.ndarray) -> tuple[str, np.ndarray | None]:
+        """The Gauss-Newton SQP from the warm start (see the module docstring)."""
+        w = self._guess.copy()
+        step, previous = 1.0, np.inf
+        for iteration in range(1, self.sqp_max_iter + 1):
+            try:
+                new = self._condensed_step(w, params)
+            except RuntimeError as exc:
+                log.debug("NMPC quadratic programme failed: %s", exc)
+                return f"{self.solver_used} failed (SQP iteration {iteration})", None
+            if not np.all(np.isfinite(new)):
+                return "non-finite plan", None
+            moved = float(np.max(np.abs(new - w) / (1.0 + np.abs(new))))
+            if moved <= self.sqp_tol:
+                return f"ok (SQP, {iteration} QPs)", new
+            if moved > 0.5 * previous:  # not contracting (GN oscillates): half steps from now on
+                step = 0.5
+            w, previous = w + step * (new - w), moved
+        return f"ok (SQP iteration limit, {self.sqp_max_iter} QPs)", w
 
     def _shifted(self, w: np.ndarray) -> np.ndarray:
         """Drop stage 0 of a plan and repeat the last stage: ``(x1,u1,…,x_{N-1},u_{N-1},x_N,
@@ -366,6 +496,12 @@ class NMPC(Controller):
             "tol": self.tol,
             "mu_init": self.mu_init,
             "max_iter": self.max_iter,
+            "hessian": self.hessian,
+            **(
+                {"sqp_max_iter": self.sqp_max_iter, "sqp_tol": self.sqp_tol}
+                if self.hessian == "gauss-newton"
+                else {}
+            ),
             "formulation": "multiple shooting, x_{k+1} - f(x_k, u_k) = 0, warm start by shift",
             "fallback": "failed solve: next input of the shifted previous plan (u_eq if none)",
         }
