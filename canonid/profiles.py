@@ -14,6 +14,10 @@ steps however the data are cut.
 :class:`learning.reduction.ReductionOptions` (sizes of E and D, the share of epochs with Ĥ frozen,
 loss weights, ``linear_skip``) in one mapping.
 
+:func:`load_profile` gives a profile typed (:class:`Profile`: :class:`~learning.training.
+TrainOptions`, :class:`ReduceStage`, :class:`ReproduceStage`), validated when it is built: a
+misspelt key at any level is an error naming it.
+
 ``reproduce`` (read by :mod:`canonid.reproduce`) says what ``canonid reproduce`` runs: the default
 systems, windows, models and number of seeds of Table 1 (jobs start in the listed order, the
 longest first); per system the dataset (``data``: seed, flights per split, samples per flight);
@@ -30,12 +34,25 @@ the per-system rollout figure.
 from __future__ import annotations
 
 import copy
+import dataclasses
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any
 
 from learning.reduction import ReductionOptions
 from learning.training import OptionError, TrainOptions
 
-__all__ = ["PROFILES", "profile", "profile_names", "reduce_options", "train_options"]
+__all__ = [
+    "PROFILES",
+    "Profile",
+    "ReduceStage",
+    "ReproduceStage",
+    "load_profile",
+    "profile",
+    "profile_names",
+    "reduce_options",
+    "train_options",
+]
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
     "quick": {
@@ -287,16 +304,122 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
 }
 
 
+def _refuse_unknown(data: Mapping[str, Any], known: set[str] | frozenset[str], where: str) -> None:
+    unknown = sorted(set(data) - set(known))
+    if unknown:
+        raise OptionError(f"{where}: unknown key(s) {unknown}; known: {sorted(known)}")
+
+
+_TRAIN_KEYS = frozenset(f.name for f in dataclasses.fields(TrainOptions))
+
+
+@dataclass(frozen=True)
+class ReduceStage:
+    """The ``reduce`` stage: the auto-encoder's training options and the reduction's."""
+
+    train: TrainOptions
+    reduction: ReductionOptions
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str) -> ReduceStage:
+        """Split one mapping into the two option sets; an unknown key is refused by name."""
+        reduction_keys = {f.name for f in dataclasses.fields(ReductionOptions)}
+        _refuse_unknown(data, _TRAIN_KEYS | reduction_keys, where)
+        return cls(
+            TrainOptions.from_dict({k: v for k, v in data.items() if k in _TRAIN_KEYS}),
+            ReductionOptions.from_dict({k: v for k, v in data.items() if k not in _TRAIN_KEYS}),
+        )
+
+
+@dataclass(frozen=True)
+class ReproduceStage:
+    """The ``reproduce`` stage (see the module docstring for each field); built from the
+    profile's mapping, every level of which refuses a key it does not know, by name."""
+
+    systems: tuple[str, ...]
+    windows: tuple[int, ...]
+    models: tuple[str, ...]
+    seeds: int
+    data: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    train: Mapping[str, Any] = field(default_factory=dict)
+    networks: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    evaluation: Mapping[str, Any] = field(default_factory=dict)
+    analysis: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    compression: Mapping[str, Any] = field(default_factory=dict)
+    rollouts: Mapping[str, Any] = field(default_factory=dict)
+
+    #: the keys of the nested mappings that have a fixed set of them
+    EVALUATION_KEYS = frozenset({"horizon", "stride"})
+    COMPRESSION_KEYS = frozenset({"models", "windows", "rates", "seeds", "epochs"})
+    ROLLOUTS_KEYS = frozenset({"window"})
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], *, where: str) -> ReproduceStage:
+        known = {f.name for f in dataclasses.fields(cls)}
+        _refuse_unknown(data, known, where)
+        missing = sorted(k for k in ("systems", "windows", "models", "seeds") if k not in data)
+        if missing:
+            raise OptionError(f"{where}: missing key(s) {missing}")
+        for key, keys in (
+            ("evaluation", cls.EVALUATION_KEYS),
+            ("compression", cls.COMPRESSION_KEYS),
+            ("rollouts", cls.ROLLOUTS_KEYS),
+        ):
+            _refuse_unknown(data.get(key, {}), keys, f"{where}.{key}")
+        train = dict(data.get("train", {}))
+        _refuse_unknown(train, _TRAIN_KEYS | {"per_model", "per_system"}, f"{where}.train")
+        for group in ("per_model", "per_system"):
+            for name, overrides in train.get(group, {}).items():
+                _refuse_unknown(overrides, _TRAIN_KEYS, f"{where}.train.{group}.{name}")
+        body = copy.deepcopy(dict(data))
+        for key in ("systems", "windows", "models"):
+            body[key] = tuple(body[key])
+        return cls(**body)
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A profile, typed and validated: its ``train`` stage, ``reduce`` stage and, if it has
+    one, its ``reproduce`` stage."""
+
+    name: str
+    train: TrainOptions
+    reduce: ReduceStage
+    reproduce: ReproduceStage | None
+
+    @classmethod
+    def from_dict(cls, name: str, data: Mapping[str, Any]) -> Profile:
+        where = f"profile {name!r}"
+        _refuse_unknown(data, {"train", "reduce", "reproduce"}, where)
+        try:
+            train = TrainOptions.from_dict(data["train"])
+            reduce = ReduceStage.from_dict(data["reduce"], where=f"{where}, reduce")
+        except KeyError as exc:
+            raise OptionError(f"{where}: missing stage {exc}") from None
+        except OptionError as exc:
+            raise OptionError(f"{where}: {exc}") from None
+        stage = data.get("reproduce")
+        reproduce = (
+            None if stage is None else ReproduceStage.from_dict(stage, where=f"{where}, reproduce")
+        )
+        return cls(name, train, reduce, reproduce)
+
+
 def profile_names() -> list[str]:
     return list(PROFILES)
 
 
+def load_profile(name: str) -> Profile:
+    """Profile ``name``, typed and validated (a misspelt key is an error naming it)."""
+    if name not in PROFILES:
+        raise OptionError(f"unknown profile {name!r}; expected one of {profile_names()}")
+    return Profile.from_dict(name, PROFILES[name])
+
+
 def profile(name: str) -> dict[str, dict[str, Any]]:
-    """A copy of profile ``name`` (stage → options)."""
-    try:
-        return copy.deepcopy(PROFILES[name])
-    except KeyError:
-        raise OptionError(f"unknown profile {name!r}; expected one of {profile_names()}") from None
+    """A copy of profile ``name`` (stage → options), validated by :func:`load_profile`."""
+    load_profile(name)
+    return copy.deepcopy(PROFILES[name])
 
 
 def train_options(name: str, **overrides: Any) -> TrainOptions:

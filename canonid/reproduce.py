@@ -58,8 +58,8 @@ import numpy as np
 
 from analysis.report import AnalysisReport
 from canonid.paper import table1_value
-from canonid.profiles import profile as load_profile
-from canonid.profiles import train_options
+from canonid.profiles import load_profile, train_options
+from canonid.profiles import profile as profile_stages
 from canonid.reduction import SweepPlan, compression_sweep
 from canonid.reproduce_jobs import (
     ANALYSIS_KEYS,
@@ -181,18 +181,17 @@ def settings_from_profile(
     command: str | None = None,
 ) -> ReproduceSettings:
     """:class:`ReproduceSettings` from profile ``profile``; ``None`` keeps the profile's value."""
-    stages = load_profile(profile)
-    if "reproduce" not in stages:
+    stage = load_profile(profile).reproduce
+    if stage is None:
         raise OptionError(f"profile {profile!r} has no 'reproduce' stage")
-    stage = stages["reproduce"]
     return ReproduceSettings(
         profile=profile,
-        systems=tuple(systems or stage["systems"]),
-        windows=tuple(windows or stage["windows"]),
-        models=tuple(models or stage["models"]),
-        seeds=int(seeds if seeds is not None else stage["seeds"]),
+        systems=tuple(systems or stage.systems),
+        windows=tuple(windows or stage.windows),
+        models=tuple(models or stage.models),
+        seeds=int(seeds if seeds is not None else stage.seeds),
         out=Path(out),
-        stage=stage,
+        stage=profile_stages(profile)["reproduce"],
         workers=workers,
         scheduler=scheduler,
         resume=resume,
