@@ -228,3 +228,8 @@ def test_windows_per_epoch_is_kept_by_the_run_and_fixed_on_resume(dataset_path, 
     err = capsys.readouterr().err
     assert "windows_per_epoch must be an integer >= 1" in err
     assert len(err.strip().splitlines()) == 1
+    before = len((run / "history.csv").read_text().splitlines())
+    assert main(resume) == 0  # no --device: the run keeps the device it recorded
+    recipe = json.loads((run / "run.json").read_text())
+    assert recipe["train_options"]["device"] == "cpu"
+    assert len((run / "history.csv").read_text().splitlines()) == before + 1

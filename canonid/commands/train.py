@@ -85,7 +85,11 @@ def register(sub: Any) -> None:
         "an epoch is ⌈N / batch⌉ optimiser steps however the data are cut)",
     )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
-    p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    p.add_argument(
+        "--device",
+        choices=("auto", "cpu", "cuda"),
+        help="training device (default auto; a resumed run keeps its recorded device)",
+    )
     p.add_argument(
         "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/MODEL-lL)"
     )
@@ -181,7 +185,7 @@ def _recipe(args: argparse.Namespace) -> RunRecipe:
         horizon=args.horizon,
         windows_per_epoch=args.windows_per_epoch,
         seed=args.seed,
-        device=args.device,
+        device=args.device or "auto",
     )
     chosen: dict[str, Any] = {
         key: getattr(args, key)
@@ -370,7 +374,8 @@ def _resume_recipe(args: argparse.Namespace, run_dir: Path) -> RunRecipe:
     for key in ("epochs",):
         if getattr(args, key) is not None:
             opts[key] = getattr(args, key)
-    opts["device"] = args.device
+    if args.device is not None:
+        opts["device"] = args.device
     return dataclasses.replace(recipe, train_options=TrainOptions.from_dict(opts).to_dict())
 
 
