@@ -108,7 +108,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             },
             "rollouts": {"window": 10},
         },
-        # chosen on validation (docs: Identification, "The quick profile")
+        # chosen on validation over three systems (docs: Identification, "Defaults and …")
         "train": {
             "epochs": 600,
             "batch_size": 32,
