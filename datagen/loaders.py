@@ -368,12 +368,26 @@ def _csv(
 ) -> Dataset:
     where = ", ".join(str(f) for f in files)
     if not inputs or not outputs:
-        raise DataError(f"{where}: CSV data need the input and output column names")
+        raise DataError(
+            f"{where}: CSV data need the input and output column names (CLI: --inputs COL,... "
+            f"--outputs COL,...); the header has {_csv_header(files[0])}"
+        )
     if dt is None:
-        raise DataError(f"{where}: CSV data need the sampling time dt (seconds)")
+        raise DataError(f"{where}: CSV data need the sampling time dt in seconds (CLI: --dt)")
     return load_csv(
         files, inputs=inputs, outputs=outputs, dt=dt, experiment_column=experiment_column
     )
+
+
+def _csv_header(path: Path) -> str:
+    """The column names of ``path``'s first line, quoted, for an error message."""
+    try:
+        with path.open(newline="", encoding="utf-8", errors="replace") as f:
+            names = next(csv.reader(f), [])
+    except OSError as exc:
+        return f"no readable first line ({exc.strerror})"
+    names = [n.strip() for n in names if n.strip()]
+    return ", ".join(repr(n) for n in names) if names else "no column names"
 
 
 # ---------------------------------------------------------------------------------- splits

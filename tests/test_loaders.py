@@ -135,6 +135,9 @@ def test_bad_user_data_is_named(tmp_path, experiments):
         load_csv(tmp_path / "c.csv", inputs=["u"], outputs=["y"], dt=1.0)
     with pytest.raises(DataError, match="need the sampling time"):
         load_data(tmp_path / "a.csv", inputs=["u"], outputs=["y"])
+    # without column names the message lists the header's, so the user can pick them
+    with pytest.raises(DataError, match=r"--inputs COL.*the header has 'u', 'y'"):
+        load_data(tmp_path / "a.csv", dt=1.0)
     write_npz(tmp_path / "m.npz", {"u": np.zeros((5, 1)), "y": np.zeros((4, 1))})
     with pytest.raises(DataError, match="u has 5 samples but y has 4"):
         load_npz(tmp_path / "m.npz", dt=1.0)
