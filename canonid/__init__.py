@@ -8,10 +8,8 @@ in this package's modules. A typical session::
 
     system = canonid.get_system("tank")                      # a registered true system
     data = canonid.load_data("data/tank")                    # canonid dataset, CSV or .npz
-    result = canonid.fit(
-        data.split("train"), data.split("val"), model="mlp", window=2,
-        options=canonid.TrainOptions(epochs=200),
-    )
+    result = canonid.fit(data.split("train"), data.split("val"), window=2)  # `canonid train`'s
+    # defaults: the quick profile; canonid.train_options("quick", epochs=50) shortens it
     scores = canonid.evaluate(result.model, data.split("test"), horizon=100)
     report = canonid.analyze(system, [2])                    # γ_f, α_ℓ, Proposition 2
     checks = report.learned_checks([result.model.export()], data.split("train"),
@@ -22,7 +20,8 @@ Systems and data
     :class:`Trajectory`, :func:`load_data` (a dataset, CSV file or folder, or ``.npz``),
     :class:`GenerationConfig` and :func:`generate_dataset` (closed-loop data).
 Identification (torch)
-    :func:`fit` with :class:`TrainOptions`, :class:`Model` (``Model.load(run_dir)``,
+    :func:`fit` (by default the options ``canonid train`` uses: :func:`train_options` of the
+    ``quick`` profile) with :class:`TrainOptions`, :class:`Model` (``Model.load(run_dir)``,
     ``.export()``), :func:`evaluate`, :func:`reduce_model` with :class:`ReductionOptions`.
 Analysis
     :func:`analyze` → :class:`AnalysisReport`; every number is an :class:`Estimate` that says
@@ -49,7 +48,8 @@ _EXPORTS = {
     "load_data": "datagen.loaders",
     "GenerationConfig": "datagen.generate",
     "generate_dataset": "datagen.generate",
-    "fit": "learning.training",
+    "fit": "canonid.api",
+    "train_options": "canonid.profiles",
     "TrainOptions": "learning.training",
     "Model": "learning.model",
     "evaluate": "learning.evaluate",
@@ -78,18 +78,21 @@ __all__ = [
     "load_data",
     "reduce_model",
     "system_names",
+    "train_options",
 ]
 
 if TYPE_CHECKING:  # what the lazy names are, for type checkers and editors
     from analysis.estimate import Estimate
     from analysis.report import AnalysisReport, analyze
+    from canonid.api import fit
+    from canonid.profiles import train_options
     from datagen.dataset import Dataset, Trajectory
     from datagen.generate import GenerationConfig, generate_dataset
     from datagen.loaders import load_data
     from learning.evaluate import evaluate
     from learning.model import Model
     from learning.reduction import ReductionOptions, reduce_model
-    from learning.training import TrainOptions, fit
+    from learning.training import TrainOptions
     from models.registry import get_system, system_names
 
 

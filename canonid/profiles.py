@@ -43,6 +43,7 @@ from learning.reduction import ReductionOptions
 from learning.training import OptionError, TrainOptions
 
 __all__ = [
+    "DEFAULT_PROFILE",
     "PROFILES",
     "Profile",
     "ReduceStage",
@@ -53,6 +54,9 @@ __all__ = [
     "reduce_options",
     "train_options",
 ]
+
+#: the profile every command and ``canonid.fit`` use when none is named
+DEFAULT_PROFILE = "quick"
 
 PROFILES: dict[str, dict[str, dict[str, Any]]] = {
     "quick": {

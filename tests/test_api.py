@@ -73,6 +73,22 @@ def test_public_names_are_the_library_objects_and_documented(name):
     assert f"`{name}`" in (canonid.__doc__ or ""), f"{name} is not in canonid's docstring"
 
 
+def test_fit_defaults_to_the_options_canonid_train_uses(monkeypatch):
+    # canonid.fit without options trains with the quick profile's train stage, as the CLI does
+    from canonid.api import fit
+    from canonid.profiles import DEFAULT_PROFILE, train_options
+    from learning import training
+
+    seen = {}
+    monkeypatch.setattr(training, "fit", lambda *a, **kw: seen.update(kw))
+    fit([], [], window=3)
+    assert seen["options"] == train_options(DEFAULT_PROFILE)
+    assert seen["options"] != training.TrainOptions()
+    custom = train_options("tiny", epochs=2)
+    fit([], [], window=3, options=custom, net_options={"hidden": [8]})
+    assert seen["options"] is custom and seen["net_options"] == {"hidden": [8]}
+
+
 def test_public_names_are_listed_once():
     assert sorted(canonid.__all__) == sorted(["__version__", *canonid._EXPORTS])
     assert set(canonid.__all__) <= set(dir(canonid))

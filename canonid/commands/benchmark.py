@@ -33,7 +33,7 @@ from canonid.benchmark import (
     score_parts,
 )
 from canonid.commands import train
-from canonid.profiles import profile_names
+from canonid.profiles import DEFAULT_PROFILE, profile_names
 from datagen.benchmarks import BENCHMARKS, benchmark, benchmark_names, find_files, load_benchmark
 from datagen.loaders import split_train_val
 from learning import Model, OptionError, model_names
@@ -75,7 +75,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--profile",
         choices=profile_names(),
-        default="quick",
+        default=DEFAULT_PROFILE,
         help="training budget (default quick)",
     )
     p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/NAME-MODEL)")

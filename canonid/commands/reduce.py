@@ -14,7 +14,7 @@ from typing import Any
 
 from canonid.commands import _paths, _progress
 from canonid.commands.evaluate import table
-from canonid.profiles import profile_names, reduce_options
+from canonid.profiles import DEFAULT_PROFILE, profile_names, reduce_options
 from canonid.reduction import (
     DEFAULT_RATES,
     ReductionJob,
@@ -59,7 +59,7 @@ def register(sub: Any) -> None:
     )
     mode.add_argument("--sweep", action="store_true", help="the compression study")
     p.add_argument(
-        "--profile", choices=profile_names(), default="quick", help="budget (default quick)"
+        "--profile", choices=profile_names(), default=DEFAULT_PROFILE, help="budget (default quick)"
     )
     p.add_argument(
         "--out",

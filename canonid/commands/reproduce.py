@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _paths
-from canonid.profiles import profile_names
+from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.reproduce import reproduce, settings_from_profile
 from models.errors import ShapeError
 
@@ -48,7 +48,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--profile",
         choices=profile_names(),
-        default="quick",
+        default=DEFAULT_PROFILE,
         help="budgets and defaults of every stage (default quick; paper = the paper's sizes)",
     )
     p.add_argument("--systems", type=_names, metavar="S,...", help="e.g. tank,drone2d,quadrotor")

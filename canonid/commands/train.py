@@ -18,7 +18,7 @@ from typing import Any
 
 from canonid.commands import _data, _paths, _progress
 from canonid.commands.evaluate import table
-from canonid.profiles import profile_names, train_options
+from canonid.profiles import DEFAULT_PROFILE, profile_names, train_options
 from canonid.runfolder import DEFAULT_VAL_FRACTION, METRICS_FILE, RunRecipe, train_run
 from canonid.selection import (
     CANDIDATES_FILE,
@@ -36,7 +36,6 @@ from models.io import read_json
 
 __all__ = ["register", "run"]
 
-DEFAULT_PROFILE = "quick"
 AUTO = "auto"
 
 
