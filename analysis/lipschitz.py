@@ -87,8 +87,18 @@ def _point(values: np.ndarray) -> str:
     return "[" + ", ".join(f"{v:.6g}" for v in values) + "]"
 
 
-def _norms(jac: ca.Function, pts: np.ndarray, n_x: int) -> np.ndarray:
-    _, j = batched(jac, pts[:, :n_x], pts[:, n_x:])
+#: ``(x, u)`` rows → the Jacobians ``∂f/∂x`` there, ``(N, n_out, n_x)``: a fast numpy path for a
+#: function whose SX graph is slow to evaluate (a wide learned network)
+JacobianRows = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def _norms(
+    jac: ca.Function, pts: np.ndarray, n_x: int, rows: JacobianRows | None = None
+) -> np.ndarray:
+    if rows is None:
+        _, j = batched(jac, pts[:, :n_x], pts[:, n_x:])
+    else:
+        j = np.asarray(rows(pts[:, :n_x], pts[:, n_x:]), dtype=np.float64)
     if j.ndim == 2:
         j = j[:, :, None] if n_x == 1 else j[:, None, :]
     with np.errstate(invalid="ignore"):
@@ -109,6 +119,7 @@ def lipschitz_lower(
     budget: Budget | None = None,
     seed: int = 0,
     where: str = "X × U",
+    jacobian: JacobianRows | None = None,
 ) -> Estimate:
     """Sampled and locally maximised ``sup ‖∂fun/∂x‖₂`` over ``X × U``: a **lower bound**.
 
@@ -119,6 +130,8 @@ def lipschitz_lower(
         budget: ``samples`` random points (plus the corners), ``starts`` local maximisations.
         seed: random seed (same seed, same result).
         where: words naming the set, for error messages.
+        jacobian: the Jacobians at many points at once, in place of CasADi's on ``fun`` (the
+            same numbers, e.g. :meth:`models.learned.LearnedSystem.linearise`).
 
     Raises:
         SetError: the Jacobian is not finite at a sampled point (γ unbounded).
@@ -131,7 +144,7 @@ def lipschitz_lower(
     hi = np.concatenate([X.hi, U.hi])
     rng = np.random.default_rng(seed)
     pts = np.concatenate([_corners(lo, hi), rng.uniform(lo, hi, size=(budget.samples, lo.size))])
-    norms = _norms(jac, pts, n_x)
+    norms = _norms(jac, pts, n_x, jacobian)
     if not np.all(np.isfinite(norms)):
         i = int(np.flatnonzero(~np.isfinite(norms))[0])
         raise _unbounded_error(quantity, fun, where, pts[i], n_x, None)
@@ -144,7 +157,11 @@ def lipschitz_lower(
     jd = ca.jtimes(fun(x, u), x, d)
     starts = []
     for i in np.argsort(-norms)[: budget.starts]:
-        j = np.asarray(jac(pts[i, :n_x], pts[i, n_x:])[1]).reshape(-1, n_x)
+        j = np.asarray(
+            jacobian(pts[i : i + 1, :n_x], pts[i : i + 1, n_x:])[0]
+            if jacobian is not None
+            else jac(pts[i, :n_x], pts[i, n_x:])[1]
+        ).reshape(-1, n_x)
         starts.append(np.concatenate([pts[i], np.linalg.svd(j)[2][0]]))
     ends = local_minima(
         -ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
@@ -153,7 +170,7 @@ def lipschitz_lower(
         list(zip(lo, hi)) + [(None, None)] * n_x,
     )
     for end in ends:
-        value = float(_norms(jac, end[None, : lo.size], n_x)[0])
+        value = float(_norms(jac, end[None, : lo.size], n_x, jacobian)[0])
         if np.isfinite(value) and value > best:
             best, best_pt = value, end[: lo.size]
     return Estimate(
@@ -194,6 +211,8 @@ def lipschitz_upper(
     batch: int = 32,
     where: str = "X × U",
     progress: Progress | None = None,
+    enclosure: Any | None = None,
+    jacobian: JacobianRows | None = None,
 ) -> Estimate:
     """Certified upper bound of ``sup ‖∂fun/∂x‖₂`` over ``X × U`` by interval branch-and-bound.
 
@@ -210,6 +229,11 @@ def lipschitz_upper(
         batch: boxes refined per round (the worst first).
         where: words naming the set, for error messages.
         progress: optional callback ``(message, fraction_done)``.
+        enclosure: encloses ``fun`` and its Jacobian in ``x`` on boxes, called as
+            :class:`~analysis.enclosure.Enclosure` is (default: that class on ``fun``'s SX graph;
+            :class:`analysis.network_enclosure.NetworkEnclosure` is the fast one for an MLP
+            model); its ``method`` attribute, if any, describes the bound.
+        jacobian: point Jacobians for the box centres, as in :func:`lipschitz_lower`.
 
     Raises:
         SetError: a box around a point keeps an unbounded Jacobian enclosure down to width
@@ -220,7 +244,10 @@ def lipschitz_upper(
         raise SetError(f"tol must be >= 0, got {tol}")
     t0 = time.perf_counter()
     n_x = fun.nnz_in(0)
-    enclosure = Enclosure(fun, wrt=0)
+    method = getattr(
+        enclosure, "method", "certified: interval Jacobian branch-and-bound (outward rounding, arb)"
+    )
+    enclosure = enclosure or Enclosure(fun, wrt=0)
     jac = jacobian_function(fun)
     dx, du = varying_dims(fun)
     lo0 = np.concatenate([X.lo, U.lo])
@@ -253,7 +280,7 @@ def lipschitz_upper(
         flagged = res.jac_flags != 0
         ub = np.where(flagged, np.inf, ub)
         centre = 0.5 * blo + 0.5 * bhi
-        norms = _norms(jac, centre, n_x)
+        norms = _norms(jac, centre, n_x, jacobian)
         tiny = np.all(np.where(mask, (bhi - blo) / scale, 0.0) < 1e-9, axis=1)
         stuck = flagged & (tiny | (not mask.any()))
         if stuck.any() or not np.all(np.isfinite(norms)):
@@ -304,7 +331,6 @@ def lipschitz_upper(
         "lower_found": best,
         "split_dims": np.flatnonzero(mask).tolist(),
     }
-    method = "certified: interval Jacobian branch-and-bound (outward rounding, arb)"
     if np.isfinite(upper):
         details["relative_gap"] = (upper - best) / best if best > 0 else None
     else:
@@ -348,6 +374,8 @@ def lipschitz_bracket(
     seed: int = 0,
     where: str = "X × U",
     progress: Progress | None = None,
+    enclosure: Any | None = None,
+    jacobian: JacobianRows | None = None,
 ) -> Bracket:
     """The sampled lower bound and the certified upper bound together.
 
@@ -356,7 +384,15 @@ def lipschitz_bracket(
     value found by either method.
     """
     low = lipschitz_lower(
-        fun, X, U, quantity=quantity, window=window, budget=budget, seed=seed, where=where
+        fun,
+        X,
+        U,
+        quantity=quantity,
+        window=window,
+        budget=budget,
+        seed=seed,
+        where=where,
+        jacobian=jacobian,
     )
     up = lipschitz_upper(
         fun,
@@ -369,6 +405,8 @@ def lipschitz_bracket(
         budget=budget,
         where=where,
         progress=progress,
+        enclosure=enclosure,
+        jacobian=jacobian,
     )
     found = float(up.details["lower_found"])
     if found > low.value:

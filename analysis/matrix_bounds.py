@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from analysis.interval import Interval, _prod_bounds, _sum_lower, _sum_upper
+from analysis.interval import Interval, _prod_bounds, _sum_lower, _sum_upper, interval_sum
 
 __all__ = ["smin_lower", "spectral_upper"]
 
@@ -79,23 +79,28 @@ def _cholesky_pd(g: Interval) -> np.ndarray:
 
     Success proves every symmetric matrix in ``g`` positive definite: each computed pivot
     encloses the exact pivot of every member matrix and all pivots were certainly positive.
+    Column by column, the sums over earlier columns are vectorised (:func:`interval_sum`).
     """
     batch, n, _ = g.shape
     ok = np.ones(batch, dtype=bool)
-    low: dict[tuple[int, int], Interval] = {}
+    low_lo, low_hi = np.zeros((batch, n, n)), np.zeros((batch, n, n))
     for j in range(n):
-        d = g[:, j, j]
-        for k in range(j):
-            d = d - low[j, k].sq()
-        ok &= d.lo > 0
-        d_safe = Interval(np.where(ok, d.lo, 1.0), np.where(ok, d.hi, 1.0))
+        s = g[:, j:, j]  # (B, n − j): the pivot, then the column below it
+        if j:
+            below = Interval(low_lo[:, j + 1 :, :j], low_hi[:, j + 1 :, :j])
+            row = Interval(low_lo[:, j : j + 1, :j], low_hi[:, j : j + 1, :j])
+            pivot = interval_sum(row[:, 0].sq(), axis=1)  # sq: no dependency loss on L_jk²
+            rest = interval_sum(below * row, axis=2)
+            s = s - Interval(
+                np.concatenate([pivot.lo[:, None], rest.lo], axis=1),
+                np.concatenate([pivot.hi[:, None], rest.hi], axis=1),
+            )
+        ok &= s.lo[:, 0] > 0
+        d_safe = Interval(np.where(ok, s.lo[:, 0], 1.0), np.where(ok, s.hi[:, 0], 1.0))
         root = d_safe.sqrt()
-        low[j, j] = root
-        for i in range(j + 1, n):
-            s = g[:, i, j]
-            for k in range(j):
-                s = s - low[i, k] * low[j, k]
-            low[i, j] = s / root
+        low_lo[:, j, j], low_hi[:, j, j] = root.lo, root.hi
+        col = s[:, 1:] / Interval(root.lo[:, None], root.hi[:, None])
+        low_lo[:, j + 1 :, j], low_hi[:, j + 1 :, j] = col.lo, col.hi
     return ok & np.all(np.isfinite(g.lo) & np.isfinite(g.hi), axis=(1, 2))
 
 

@@ -116,6 +116,28 @@ def test_analyze_run_checks_a_csv_trained_tank_model(trained, tmp_path, capsys):
     one_line_error(capsys, code, "the run has n_u=1, n_y=1; drone2d has 2, 3")
 
 
+def test_analyze_run_without_a_system_bounds_the_learned_model_alone(trained, tmp_path, capsys):
+    # real data have no registered system: `analyze --run RUN` bounds the model's own γ_f
+    out = tmp_path / "learned"
+    quick = ["--boxes", "20", "--quiet", "--out", str(out)]
+    capsys.readouterr()
+    assert main(["analyze", "--run", str(trained), *quick]) == 0
+    assert "no registered system, so no α_ℓ" in capsys.readouterr().out
+    body = json.loads((out / "learned_analysis.json").read_text())
+    gamma = body["gamma_f"]
+    assert body["window"] == 3 and gamma["available"] and gamma["state_dim"] == 6
+    assert gamma["lower"]["kind"] == "lower" and gamma["branch_and_bound"]["kind"] == "upper"
+    assert gamma["branch_and_bound"]["details"]["boxes"] <= 20 + 64  # the last round's children
+    assert 0 < gamma["lower"]["value"] <= gamma["best_upper"]
+    one_line_error(capsys, main(["analyze", "--quiet"]), "give a registered SYSTEM")
+    code = main(["analyze", "--run", str(trained), "--window", "5", *quick])
+    one_line_error(capsys, code, "the run's model has window ℓ = 3")
+    code = main(["analyze", "--run", str(trained), "--X", "0:1", *quick])
+    one_line_error(capsys, code, "--X applies to a registered SYSTEM")
+    code = main(["analyze", "tank", "--quiet"])
+    one_line_error(capsys, code, "one of --window L or --windows A-B is required")
+
+
 def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, capsys):
     data = _write_tank_csv(tmp_path / "one.csv", [7], T=600)
     run = tmp_path / "run"

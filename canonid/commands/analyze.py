@@ -2,8 +2,10 @@
 
 Writes ``analysis.json`` (schema: :data:`analysis.report.SCHEMA`, copied into the file), the
 figure ``bound_vs_window.png`` ("bound and observed error versus ℓ", log scale) and prints a
-table. Sets are given as ``lo:hi`` per component separated by commas (``--X 0.05:5,0.05:5``);
-one ``lo:hi`` applies to every component.
+table. Without a system, ``--run RUN`` analyses the learned model alone (data with no registered
+true system, e.g. measurements): γ_f of its ``f`` in z on its training hull, written to
+``learned_analysis.json``. Sets are given as ``lo:hi`` per component separated by commas
+(``--X 0.05:5,0.05:5``); one ``lo:hi`` applies to every component.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from analysis.report import AnalysisReport, analyze
 from canonid.commands import _data, _paths
 from datagen.dataset import Dataset
 from models.errors import CanonidError, DataError, SetError
+from models.io import atomic_write_json, jsonable
 from models.registry import get_system
 from models.sets import Box
 
@@ -31,11 +34,17 @@ def register(sub: Any) -> None:
             "registered system (certified bounds by interval branch-and-bound, sampled bounds "
             "by optimisation), evaluate Proposition 2's bound 2 γ_f^ℓ α_ℓ^-1 ‖w̄‖ and check it "
             "by Monte-Carlo trials of the output-error estimator. Writes analysis.json and the "
-            "figure bound_vs_window.png to --out."
+            "figure bound_vs_window.png to --out. Without SYSTEM, --run RUN bounds γ_f of the "
+            "learned model alone (for data that no registered system produced)."
         ),
     )
-    p.add_argument("system", help="registered system name (see `canonid systems`)")
-    win = p.add_mutually_exclusive_group(required=True)
+    p.add_argument(
+        "system",
+        nargs="?",
+        help="registered system name (see `canonid systems`); leave out with --run to analyse "
+        "the learned model alone",
+    )
+    win = p.add_mutually_exclusive_group()
     win.add_argument("--window", type=int, metavar="L", help="one window ℓ >= 1")
     win.add_argument(
         "--windows", metavar="A-B", help="a range of windows, e.g. 1-10, or a list 2,5,10"
@@ -73,8 +82,8 @@ def register(sub: Any) -> None:
         "--learned-gamma",
         action="store_true",
         help="with --run: also bound γ_f of the learned model on its training hull (sampled, "
-        "interval branch-and-bound within --budget, product of layer norms); minutes for a "
-        "3 × 256 network",
+        "interval branch-and-bound within --budget, product of layer norms; about a minute "
+        "for a 3 × 256 network); always on without SYSTEM",
     )
     p.add_argument(
         "--data",
@@ -83,7 +92,11 @@ def register(sub: Any) -> None:
         help="data for --run: a canonid dataset, or CSV / .npz read with the run's data options "
         "(default: the run's own data, split as training split them)",
     )
-    p.add_argument("--out", type=_paths.folder, help="output folder (default runs/analyze-SYSTEM)")
+    p.add_argument(
+        "--out",
+        type=_paths.folder,
+        help="output folder (default runs/analyze-SYSTEM, or RUN/analysis without SYSTEM)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -221,25 +234,61 @@ def gamma_lines(report: AnalysisReport) -> str:
         f"γ_f at ℓ = {ell}: true system [{true.lower.value:.4g}, {true.upper.value:.4g}] "
         f"(its state x, on H_{{ℓ-1}} × U)"
     ]
-    gamma = learned.get("gamma_f", {})
+    lines.append(learned_gamma_line(learned.get("gamma_f", {})))
+    return "\n".join(lines)
+
+
+def learned_gamma_line(gamma: Mapping[str, Any]) -> str:
+    """The learned model's γ_f bracket in one line (``learned_gamma_record``'s record)."""
     if not gamma.get("available"):
-        lines.append(f"γ_f of the learned model: not computed ({gamma.get('why', 'no run')})")
-        return "\n".join(lines)
-    lines.append(
+        return f"γ_f of the learned model: not computed ({gamma.get('why', 'no run')})"
+    return (
         f"γ_f of the learned model (its state z, dim {gamma['state_dim']}, on the training "
         f"hull): sampled lower bound {_value(gamma['lower'])}, certified upper bound "
         f"{_value(gamma['branch_and_bound'])} (interval branch-and-bound, "
         f"{gamma['branch_and_bound']['details'].get('stop', '')}), "
         f"{_value(gamma['layer_norms'])} (product of layer norms, loose)"
     )
-    return "\n".join(lines)
 
 
-def run(args: argparse.Namespace) -> int:
-    system = get_system(args.system)
-    windows = [args.window] if args.window is not None else parse_windows(args.windows)
-    if args.window is not None and args.window < 1:
-        raise SetError(f"--window must be an integer >= 1, got {args.window}")
+def learned_only(args: argparse.Namespace) -> int:
+    """``canonid analyze --run RUN`` without a system: γ_f of the learned model alone."""
+    for flag, value in (("--windows", args.windows), ("--X", args.X), ("--U", args.U)):
+        if value is not None:
+            raise SetError(f"{flag} applies to a registered SYSTEM; the run's model has its own")
+    if args.W is not None:
+        raise SetError("--W applies to a registered SYSTEM")
+    check_numbers(args)
+    budget = Budget(seconds=args.budget, boxes=args.boxes or 10**9)
+    model = load_trained_model(args.run).export()
+    if args.window is not None and args.window != int(model.window):
+        raise SetError(f"--window {args.window}: the run's model has window ℓ = {model.window}")
+    out = _paths.check_folder(args.out or args.run / "analysis")
+    record = learned_gamma_record(
+        model, args.run, args.data, budget=budget, tol=args.tol, seed=args.seed
+    )
+    if not record["available"]:
+        raise SetError(f"--run {args.run}: {record['why']}")
+    body = {
+        "format": "canonid-learned-analysis",
+        "run": str(args.run),
+        "data": None if args.data is None else str(args.data),
+        "model": repr(model),
+        "window": int(model.window),
+        "gamma_f": record,
+    }
+    path = atomic_write_json(out / "learned_analysis.json", jsonable(body))
+    print(
+        f"learned model ({body['model']}), ℓ = {body['window']}; no registered system, so no "
+        "α_ℓ and no Proposition 2 bound (they need the true system)"
+    )
+    print(learned_gamma_line(record))
+    print(f"analysis written to {path.resolve()}")
+    return 0
+
+
+def check_numbers(args: argparse.Namespace) -> None:
+    """The numeric options every analysis shares, each checked with its flag's name."""
     if args.trials < 0:
         raise SetError(f"--trials must be >= 0, got {args.trials}")
     if not args.budget > 0:
@@ -248,6 +297,25 @@ def run(args: argparse.Namespace) -> int:
         raise SetError(f"--tol must be a positive relative tolerance, got {args.tol}")
     if args.seed < 0:
         raise SetError(f"--seed must be an integer >= 0, got {args.seed}")
+    if args.boxes is not None and args.boxes < 1:
+        raise SetError(f"--boxes must be an integer >= 1, got {args.boxes}")
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.window is not None and args.window < 1:
+        raise SetError(f"--window must be an integer >= 1, got {args.window}")
+    if args.system is None:
+        if args.run is None:
+            raise SetError(
+                "give a registered SYSTEM (see `canonid systems`), or --run RUN to analyse a "
+                "learned model alone"
+            )
+        return learned_only(args)
+    system = get_system(args.system)
+    if args.window is None and args.windows is None:
+        raise SetError("one of --window L or --windows A-B is required with a SYSTEM")
+    windows = [args.window] if args.window is not None else parse_windows(args.windows)
+    check_numbers(args)
     if args.data is not None and args.run is None:
         raise SetError("--data applies to --run RUN only")
     model, dataset, split = None, None, None
@@ -259,8 +327,6 @@ def run(args: argparse.Namespace) -> int:
     U = parse_box(args.U, system.n_u, "U") if args.U else system.U
     W = parse_box(args.W, system.n_y, "W") if args.W else system.W
     out = _paths.check_folder(args.out or Path("runs") / f"analyze-{system.name}")
-    if args.boxes is not None and args.boxes < 1:
-        raise SetError(f"--boxes must be an integer >= 1, got {args.boxes}")
     budget = Budget(seconds=args.budget, boxes=args.boxes or 10**9)
 
     bar = None
