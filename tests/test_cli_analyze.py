@@ -12,9 +12,9 @@ import pytest
 from analysis.linear import canonical_regressor
 from canonid.cli import main
 from canonid.commands.analyze import parse_box, parse_windows
+from canonid.runfolder import RunRecipe
 from datagen.dataset import Dataset, Trajectory
 from models.errors import SetError
-from models.io import atomic_write_json
 from models.registry import get_system
 
 TANK_SETS = ["--X", "0.05:5,0.05:5", "--U", "1:3"]
@@ -109,7 +109,7 @@ def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, m
     ).save(tmp_path / "data.npz")
     run_dir = tmp_path / "run"
     run_dir.mkdir()
-    atomic_write_json(run_dir / "run.json", {"format": "canonid-run", "data": str(data)})
+    RunRecipe(data=str(data), model="mlp", window=window, train_options={}).write(run_dir)
 
     class Exported:
         def __init__(self):
