@@ -18,11 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from canonid.runfolder import RUN_FILE, load, load_splits
+from canonid.runfolder import RUN_FILE, load, load_splits, recipe_of
 from datagen.loaders import is_dataset
 from learning import Model
 from models.errors import DataError
-from models.io import read_json
 from models.learned import LearnedSystem
 from models.sets import Box
 
@@ -60,15 +59,14 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
 
     model = Model.load(run_dir)
     net = model.export().network()  # refuses the non-canonical models first
+    recipe = recipe_of(run_dir)
     if data is None:
-        recipe = read_json(run_dir / RUN_FILE, what="run recipe")
-        if not isinstance(recipe, dict) or "data" not in recipe:
-            raise DataError(f"{run_dir / RUN_FILE}: no field 'data'; give the data explicitly")
+        if recipe is None:
+            raise DataError(f"{run_dir / RUN_FILE} not found: the run names no data; give them")
         dataset, train, *_ = load_splits(recipe)  # the training split as `train` cut it
     else:
-        recipe = read_json(run_dir / RUN_FILE) if (run_dir / RUN_FILE).is_file() else {}
-        recorded = recipe.get("data_options") if isinstance(recipe, dict) else None
-        dataset = load(data, {} if is_dataset(data) else dict(recorded or {}))
+        recorded = recipe.data_options if recipe is not None else {}
+        dataset = load(data, {} if is_dataset(data) else dict(recorded))
         splits = dataset.splits
         train = (
             list(splits["train"]) if "train" in splits else [t for s in splits.values() for t in s]

@@ -43,7 +43,16 @@ from matplotlib.figure import Figure
 
 from canonid.jobs import Job
 from canonid.profiles import reduce_options
-from canonid.runfolder import RUN_FILE, evaluate_run, load_splits, pick_split, write_history
+from canonid.runfolder import (
+    Recipe,
+    ReductionRecipe,
+    evaluate_run,
+    load_splits,
+    pick_split,
+    read_recipe,
+    recipe_of,
+    write_history,
+)
 from canonid.runner import run_jobs
 from learning import EpochReport, Model, evaluate
 from learning.data import as_series
@@ -205,14 +214,8 @@ class ReductionResult:
         return cls(**{k: data[k] for k in fields})
 
 
-def _load_source(source: Path) -> tuple[Model, dict[str, Any]]:
-    recipe = read_json(source / RUN_FILE, what="run recipe")
-    if (
-        not isinstance(recipe, dict)
-        or recipe.get("format") != "canonid-run"
-        or "data" not in recipe
-    ):
-        raise DataError(f"{source / RUN_FILE} is not the recipe of a canonid training run")
+def _load_source(source: Path) -> tuple[Model, Recipe]:
+    recipe = read_recipe(source)
     model = Model.load(source)
     check_reducible(model.name)
     return model, recipe
@@ -230,32 +233,29 @@ def reduce_run(
     if job.resume:
         if not (out / CHECKPOINT_FILE).is_file():
             raise CheckpointError(f"{out} holds no {CHECKPOINT_FILE} to resume from")
-        before = read_json(out / RUN_FILE, what="run recipe")
-        check_same(before if isinstance(before, dict) else {}, key, what=f"run {out}")
+        before = read_recipe(out)
+        if not isinstance(before, ReductionRecipe):
+            raise CheckpointError(f"{out} holds a training run, not a reduction to resume")
+        check_same(dataclasses.asdict(before), key, what=f"run {out}")
     elif (out / CHECKPOINT_FILE).exists():
-        there = read_json(out / RUN_FILE, what="run recipe") if (out / RUN_FILE).is_file() else {}
-        is_reduction = isinstance(there, dict) and there.get("kind") == "reduction"
+        there = recipe_of(out)
         raise CheckpointError(
             f"{out} already holds a reduction run; resume it or choose another output folder"
-            if is_reduction
+            if isinstance(there, ReductionRecipe)
             else f"{out} already holds a training run; choose another output folder"
         )
     dataset, train, val, test_name, data_path = load_splits(recipe)
     out.mkdir(parents=True, exist_ok=True)
-    run_recipe: dict[str, Any] = {
-        **{k: recipe[k] for k in ("data", "data_options", "val", "val_fraction") if k in recipe},
-        "format": "canonid-run",
-        "kind": "reduction",
-        "model": "reduced",
-        "regressor": model.name,
-        "window": model.window,
-        "latent_dim": latent,
+    ReductionRecipe(
+        **recipe.source(),
+        regressor=model.name,
+        window=model.window,
+        latent_dim=latent,
         **key,
-        "train_options": train_opts.to_dict(),
-        "reduction_options": red_opts.to_dict(),
-        "command": list(job.command),
-    }
-    atomic_write_json(out / RUN_FILE, run_recipe)
+        train_options=train_opts.to_dict(),
+        reduction_options=red_opts.to_dict(),
+        command=job.command,
+    ).write(out)
     t0 = time.perf_counter()
     fit = reduce_model(
         model,

@@ -4,8 +4,9 @@ and evaluation.
 ``canonid train``, ``canonid reduce``, ``canonid evaluate``, the reductions of the compression
 study and the Table-1 jobs of ``canonid reproduce`` all write the same folder:
 
-* ``run.json`` (:data:`RUN_FILE`) — the recipe (:class:`RunRecipe` for a training run):
-  ``data``, ``data_options``, ``val``, ``val_fraction``, the model and its options;
+* ``run.json`` (:data:`RUN_FILE`) — the recipe (:class:`RunRecipe` for a training run,
+  :class:`ReductionRecipe` for a reduction; :func:`read_recipe` reads either): ``data``,
+  ``data_options``, ``val``, ``val_fraction``, the model and its options;
 * the model (``config.json``, ``weights.pt``, ``normalisation.json``) and ``checkpoint.pt``;
 * ``history.csv`` and ``training_curve.png`` (:func:`write_history`);
 * ``metrics.json`` (:data:`METRICS_FILE`) and ``rollouts.png`` (:func:`evaluate_run`).
@@ -24,7 +25,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar, TypeAlias
 
 from datagen.dataset import Dataset, Trajectory
 from datagen.loaders import is_dataset, load_data, split_train_val
@@ -40,15 +41,20 @@ __all__ = [
     "METRICS_FILE",
     "RECIPE_VERSION",
     "RUN_FILE",
+    "Recipe",
+    "ReductionRecipe",
     "RunEvaluation",
     "RunRecipe",
     "RunResult",
+    "RunSource",
     "check_compatible",
     "eval_defaults",
     "evaluate_run",
     "load",
     "load_splits",
     "pick_split",
+    "read_recipe",
+    "recipe_of",
     "run_data",
     "train_run",
     "write_history",
@@ -70,32 +76,51 @@ RECIPE_VERSION = 1
 DEFAULT_VAL_FRACTION = 0.2
 
 
-@dataclass(frozen=True)
-class RunRecipe:
-    """What a training run trains, on which data, with which options: ``run.json``.
+@dataclass(frozen=True, kw_only=True)
+class RunSource:
+    """What every run recipe holds: the data, how training split them, and who asked.
 
     Attributes:
         data: the training data (a canonid dataset, a CSV file or folder, an ``.npz``).
-        model, window: the model's registry name and its window ℓ.
-        train_options: :class:`learning.TrainOptions` as a mapping (resolved, profile applied).
-        net_options: the network's constructor options.
-        profile: the profile the options came from.
         data_options: loader options (:data:`DATA_FLAGS`), ``None`` where not given.
         val: a validation file, else ``None`` (DATA's own ``val`` split, else ``val_fraction``).
         val_fraction: share of DATA's ``train`` split held out when it has no ``val`` split.
+        profile: the profile the options came from.
         command: the command line that asked for the run (a record, not part of what is run).
     """
 
     data: str
+    data_options: Mapping[str, Any] = field(default_factory=dict)
+    val: str | None = None
+    val_fraction: float = DEFAULT_VAL_FRACTION
+    profile: str = "quick"
+    command: Sequence[str] = ()
+
+    def source(self) -> dict[str, Any]:
+        """The data fields (JSON-ready): what a run derived from this one trains on."""
+        return {
+            "data": self.data,
+            "data_options": dict(self.data_options),
+            "val": self.val,
+            "val_fraction": self.val_fraction,
+        }
+
+
+@dataclass(frozen=True)
+class RunRecipe(RunSource):
+    """What a training run trains, on which data, with which options: ``run.json``.
+
+    Attributes (and those of :class:`RunSource`):
+        model, window: the model's registry name and its window ℓ.
+        train_options: :class:`learning.TrainOptions` as a mapping (resolved, profile applied).
+        net_options: the network's constructor options.
+    """
+
     model: str
     window: int
     train_options: Mapping[str, Any]
     net_options: Mapping[str, Any] = field(default_factory=dict)
-    profile: str = "quick"
-    data_options: Mapping[str, Any] = field(default_factory=dict)
-    val: str | None = None
-    val_fraction: float = DEFAULT_VAL_FRACTION
-    command: Sequence[str] = ()
+    kind: ClassVar[str] = "train"
 
     def options(self) -> TrainOptions:
         return TrainOptions.from_dict(self.train_options)
@@ -105,10 +130,7 @@ class RunRecipe:
         return {
             "format": RECIPE_FORMAT,
             "version": RECIPE_VERSION,
-            "data": self.data,
-            "data_options": dict(self.data_options),
-            "val": self.val,
-            "val_fraction": self.val_fraction,
+            **self.source(),
             "model": self.model,
             "window": self.window,
             "net_options": dict(self.net_options),
@@ -120,29 +142,7 @@ class RunRecipe:
     @classmethod
     def from_dict(cls, data: Any, *, where: str) -> RunRecipe:
         """Read a ``run.json`` body; a key this version does not know is refused by name."""
-        if not isinstance(data, Mapping) or data.get("format") != RECIPE_FORMAT:
-            raise CheckpointError(f"{where} is not a canonid run recipe")
-        version = data.get("version", 1)
-        if version != RECIPE_VERSION:
-            raise CheckpointError(
-                f"{where}: run recipe version {version!r}; this canonid reads version "
-                f"{RECIPE_VERSION}"
-            )
-        if data.get("kind", "train") != "train":
-            raise CheckpointError(
-                f"{where} is the recipe of a {data['kind']} run, not of a training run"
-            )
-        known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(data) - known - {"format", "version"})
-        if unknown:
-            raise CheckpointError(f"{where}: unknown run recipe key(s) {unknown}")
-        missing = sorted(k for k in ("data", "model", "window", "train_options") if k not in data)
-        if missing:
-            raise CheckpointError(f"{where}: the run recipe lacks {missing}")
-        body = {k: v for k, v in data.items() if k in known}
-        body["data_options"] = dict(body.get("data_options") or {})
-        body["command"] = tuple(body.get("command") or ())
-        return cls(**body)
+        return cls(**_recipe_body(cls, data, where=where))
 
     @classmethod
     def read(cls, run_dir: Path) -> RunRecipe:
@@ -152,6 +152,122 @@ class RunRecipe:
 
     def write(self, run_dir: Path) -> None:
         atomic_write_json(run_dir / RUN_FILE, self.to_dict())
+
+
+@dataclass(frozen=True)
+class ReductionRecipe(RunSource):
+    """What a reduction run reduces, on which data, with which options: the ``run.json`` of
+    ``canonid reduce`` (:func:`canonid.reduction.reduce_run`).
+
+    Attributes (and those of :class:`RunSource`: the source run's data, split as it split them):
+        regressor, window: the reduced model's registry name and its window ℓ.
+        latent_dim: the reduced state's dimension n̄.
+        source_run, compression, seed: the reduction asked for (the source run's absolute path).
+        train_options, reduction_options: the resolved options (profile and overrides applied).
+    """
+
+    regressor: str
+    window: int
+    latent_dim: int
+    source_run: str
+    compression: float
+    seed: int
+    train_options: Mapping[str, Any]
+    reduction_options: Mapping[str, Any]
+    kind: ClassVar[str] = "reduction"
+    #: the model's registry name, the same for every reduction
+    model: ClassVar[str] = "reduced"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON body of ``run.json``."""
+        return {
+            "format": RECIPE_FORMAT,
+            "version": RECIPE_VERSION,
+            "kind": self.kind,
+            **self.source(),
+            "model": self.model,
+            "regressor": self.regressor,
+            "window": self.window,
+            "latent_dim": self.latent_dim,
+            "source_run": self.source_run,
+            "compression": self.compression,
+            "seed": self.seed,
+            "profile": self.profile,
+            "train_options": dict(self.train_options),
+            "reduction_options": dict(self.reduction_options),
+            "command": list(self.command),
+        }
+
+    @classmethod
+    def from_dict(cls, data: Any, *, where: str) -> ReductionRecipe:
+        """Read a ``run.json`` body; a key this version does not know is refused by name."""
+        body = _recipe_body(cls, data, where=where)
+        if data.get("model", cls.model) != cls.model:
+            raise CheckpointError(
+                f"{where}: model {data['model']!r}; a reduction's is {cls.model!r}"
+            )
+        return cls(**body)
+
+    def write(self, run_dir: Path) -> None:
+        atomic_write_json(run_dir / RUN_FILE, self.to_dict())
+
+
+#: the recipe of a run folder (:func:`read_recipe`)
+Recipe: TypeAlias = RunRecipe | ReductionRecipe
+#: the recipe class of each kind of run (a ``run.json`` without ``kind`` is a training run's)
+_KINDS: dict[str, type[Recipe]] = {cls.kind: cls for cls in (RunRecipe, ReductionRecipe)}
+
+
+def _recipe_body(cls: type[Recipe], data: Any, *, where: str) -> dict[str, Any]:
+    """The constructor arguments of ``cls`` from a ``run.json`` body: its format, version and
+    kind checked, unknown keys and missing required ones refused by name."""
+    if not isinstance(data, Mapping) or data.get("format") != RECIPE_FORMAT:
+        raise CheckpointError(f"{where} is not a canonid run recipe")
+    version = data.get("version", 1)
+    if version != RECIPE_VERSION:
+        raise CheckpointError(
+            f"{where}: run recipe version {version!r}; this canonid reads version {RECIPE_VERSION}"
+        )
+    kind = data.get("kind", "train")
+    if kind != cls.kind:
+        raise CheckpointError(
+            f"{where} is the recipe of a {kind} run, not of a {cls.kind} run"
+            if kind in _KINDS
+            else f"{where}: unknown run kind {kind!r}; expected one of {sorted(_KINDS)}"
+        )
+    fields = dataclasses.fields(cls)
+    known = {f.name for f in fields}
+    header = {"format", "version", "kind", "model"} - known  # model: a class constant
+    unknown = sorted(set(data) - known - header)
+    if unknown:
+        raise CheckpointError(f"{where}: unknown run recipe key(s) {unknown}")
+    required = [
+        f.name
+        for f in fields
+        if f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING
+    ]
+    missing = sorted(k for k in required if k not in data)
+    if missing:
+        raise CheckpointError(f"{where}: the run recipe lacks {missing}")
+    body = {k: v for k, v in data.items() if k in known}
+    body["data_options"] = dict(body.get("data_options") or {})
+    body["command"] = tuple(body.get("command") or ())
+    return body
+
+
+def read_recipe(run_dir: Path) -> Recipe:
+    """The recipe of any run folder (a training or a reduction run): ``run_dir/run.json``,
+    refused in one line naming the file when missing, corrupt or of another version."""
+    path = run_dir / RUN_FILE
+    data = read_json(path, what="run recipe")
+    kind = data.get("kind", "train") if isinstance(data, Mapping) else "train"
+    return _KINDS.get(kind, RunRecipe).from_dict(data, where=str(path))
+
+
+def recipe_of(run_dir: Path) -> Recipe | None:
+    """:func:`read_recipe`, or ``None`` when the folder has no ``run.json`` (a model saved
+    without a run)."""
+    return read_recipe(run_dir) if (run_dir / RUN_FILE).is_file() else None
 
 
 @dataclass(frozen=True)
@@ -205,15 +321,13 @@ class RunResult:
 
 
 def load_splits(
-    recipe: Mapping[str, Any] | RunRecipe,
+    recipe: Recipe,
 ) -> tuple[Dataset, list[Trajectory], list[Trajectory], str, str]:
     """The data of ``recipe``: ``(dataset, train, val, scoring split name, data path)``, split as
     :func:`run_data` splits them."""
-    if isinstance(recipe, RunRecipe):
-        recipe = recipe.to_dict()
     dataset, scoring = run_data(recipe)
     train, val = list(dataset.split("train")), list(dataset.split("val"))
-    return dataset, train, val, scoring, str(recipe["data"])
+    return dataset, train, val, scoring, recipe.data
 
 
 def load(path: str | Path, options: Mapping[str, Any]) -> Dataset:
@@ -255,21 +369,21 @@ def check_compatible(
             raise DataError(f"{where}: {len(have)} {kind}(s) {have}, {whose} are {names}")
 
 
-def run_data(recipe: Mapping[str, Any]) -> tuple[Dataset, str]:
+def run_data(recipe: Recipe) -> tuple[Dataset, str]:
     """The data of a training run split as training used them, and the split that scores it.
 
     The splits are ``train``, ``val`` (from the ``--val`` file, else DATA's own ``val`` split,
     else cut off DATA's ``train`` split by ``val_fraction``) and DATA's ``test`` split if any;
     the score uses ``test`` when there is one, else ``val``.
     """
-    data_path, options = str(recipe["data"]), dict(recipe.get("data_options") or {})
+    data_path, options = recipe.data, dict(recipe.data_options)
     dataset = load(data_path, options)
     if "train" not in dataset.splits:
         raise DataError(
             f"{data_path}: no 'train' split to train on; it has {sorted(dataset.splits)}"
         )
-    if recipe.get("val") is not None:
-        val_path = str(recipe["val"])
+    if recipe.val is not None:
+        val_path = recipe.val
         val_set = load(val_path, options)
         check_compatible(val_set, dataset, where=val_path, whose=f"{data_path}'s")
         if "val" in val_set.splits:
@@ -287,9 +401,7 @@ def run_data(recipe: Mapping[str, Any]) -> tuple[Dataset, str]:
             metadata={**dataset.metadata, "validation_split": f"the file {val_path}"},
         )
     elif "val" not in dataset.splits:
-        dataset = split_train_val(
-            dataset, val_fraction=recipe.get("val_fraction", DEFAULT_VAL_FRACTION)
-        )
+        dataset = split_train_val(dataset, val_fraction=recipe.val_fraction)
     return dataset, "test" if "test" in dataset.splits else "val"
 
 

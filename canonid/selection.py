@@ -10,9 +10,9 @@ model: its ``run.json``, model files, history, metrics and figures are copied in
 ``canonid evaluate RUN``, ``canonid analyze --run RUN`` and ``canonid export RUN`` read it. The
 table of candidates is ``RUN/candidates.json`` (:class:`Selection`) and ``RUN/candidates.md``.
 
-A candidate whose folder holds a finished ``result.json`` of the same recipe is not trained
-again, and one with a checkpoint continues from it: running the same selection again
-continues an interrupted one.
+A candidate whose folder holds a finished ``result.json`` of the same recipe (the data by
+checksum, not by path) is not trained again, and one with a checkpoint continues from it:
+running the same selection again continues an interrupted one.
 """
 
 from __future__ import annotations
@@ -35,6 +35,7 @@ from canonid.runfolder import (
     train_run,
 )
 from canonid.runner import run_jobs
+from datagen.loaders import data_checksum
 from learning import NETS
 from learning.training import CHECKPOINT_FILE, OptionError
 from models.errors import CheckpointError, DataError
@@ -86,10 +87,15 @@ def candidate_name(window: int, hidden: Sequence[int] | None) -> str:
 
 @dataclass(frozen=True)
 class CandidateJob(StoredJob):
-    """One candidate: train ``run_recipe`` into ``folder`` and score it (:func:`train_run`)."""
+    """One candidate: train ``run_recipe`` into ``folder`` and score it (:func:`train_run`).
+    ``data_sha256`` and ``val_sha256`` are the checksums of its data and validation file
+    (:func:`datagen.loaders.data_checksum`): a stored result is reused for the same contents,
+    wherever the files lie, and never for other contents at the same path."""
 
     folder: str
     run_recipe: RunRecipe
+    data_sha256: str
+    val_sha256: str | None = None
     eval_horizon: int | None = None
     threads: int | None = None
     kind: ClassVar[str] = "candidate"
@@ -108,10 +114,17 @@ class CandidateJob(StoredJob):
         return self.where.name
 
     def recipe(self) -> dict[str, Any]:
-        """The run's recipe without the command line that asked for it, and the scoring."""
+        """The run's recipe with its data and validation file by checksum, not by path, without
+        the command line that asked for it, and the scoring."""
         body = self.run_recipe.to_dict()
-        del body["command"]
-        return {**body, "eval_horizon": self.eval_horizon}
+        for key in ("command", "data", "val"):
+            del body[key]
+        return {
+            **body,
+            "data_sha256": self.data_sha256,
+            "val_sha256": self.val_sha256,
+            "eval_horizon": self.eval_horizon,
+        }
 
     def work(self) -> dict[str, Any]:
         result = train_run(
@@ -245,6 +258,8 @@ def plan_candidates(
     """One job per (window, width), in that order, each in ``run_dir/candidates/<name>``;
     a width of ``None`` keeps ``base``'s network options."""
     hidden_option = NETS[base.model].hidden_option
+    data_sha256 = data_checksum(base.data)
+    val_sha256 = None if base.val is None else data_checksum(base.val)
     jobs = []
     for ell in windows:
         for width in widths:
@@ -259,6 +274,8 @@ def plan_candidates(
                 CandidateJob(
                     folder=str(run_dir / CANDIDATES_DIR / name),
                     run_recipe=recipe,
+                    data_sha256=data_sha256,
+                    val_sha256=val_sha256,
                     eval_horizon=eval_horizon,
                     threads=threads,
                 )

@@ -21,6 +21,7 @@ split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import math
 import os
@@ -33,9 +34,17 @@ import numpy as np
 
 from datagen.dataset import Dataset, Trajectory
 from models.errors import DataError, ShapeError
-from models.io import read_npz
+from models.io import read_json, read_npz, sha256_file
 
-__all__ = ["from_io_data", "is_dataset", "load_csv", "load_data", "load_npz", "split_train_val"]
+__all__ = [
+    "data_checksum",
+    "from_io_data",
+    "is_dataset",
+    "load_csv",
+    "load_data",
+    "load_npz",
+    "split_train_val",
+]
 
 PathLike = str | os.PathLike[str]
 
@@ -329,6 +338,29 @@ def is_dataset(path: PathLike) -> bool:
     if p.is_dir():
         return (p / "dataset.npz").is_file()
     return p.suffix.lower() in (".npz", ".json") and p.with_suffix(".json").is_file()
+
+
+def data_checksum(path: PathLike) -> str:
+    """The SHA-256 of what :func:`load_data` reads at ``path``: a canonid dataset's recorded
+    checksum (every load validates it), a file's bytes, or a folder of CSV files' names and
+    bytes (the files :func:`load_data` reads, in its order)."""
+    p = Path(path)
+    if is_dataset(p):
+        meta = (p / "dataset.json") if p.is_dir() else p.with_suffix(".json")
+        header = read_json(meta, what="dataset metadata")
+        checksum = header.get("checksum_sha256") if isinstance(header, dict) else None
+        if not isinstance(checksum, str):
+            raise DataError(f"{meta}: no field 'checksum_sha256' (not canonid dataset metadata)")
+        return checksum
+    if p.is_dir():
+        files = sorted(p.glob("*.csv"))
+        if not files:
+            raise DataError(f"{p}: a folder without dataset.npz or CSV files")
+        listing = "".join(f"{f.name}\t{sha256_file(f)}\n" for f in files)
+        return hashlib.sha256(listing.encode()).hexdigest()
+    if not p.is_file():
+        raise DataError(f"data file not found: {p}")
+    return sha256_file(p)
 
 
 def load_data(

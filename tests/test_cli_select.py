@@ -3,6 +3,7 @@ the lowest validation loss kept, the table written, the chosen run the folder's 
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
@@ -10,7 +11,10 @@ from cli_helpers import one_line_error
 from learning_helpers import siso_dataset_file
 
 from canonid.cli import main
-from canonid.selection import Selection
+from canonid.profiles import train_options
+from canonid.runfolder import RunRecipe
+from canonid.selection import Selection, plan_candidates
+from models.errors import CheckpointError
 
 FAST = ["--profile", "tiny", "--epochs", "2", "--no-progress", "--device", "cpu"]
 
@@ -84,3 +88,33 @@ def test_combinations_that_make_no_sense_are_refused(selection, dataset_path, tm
     argv = ["train", data, "--window", "auto", "--hidden", "8,8", "--lr", "0.5"]
     code = main([*argv, "--out", str(selection), *FAST])
     one_line_error(capsys, code, "another recipe", "train_options")
+
+
+def test_a_stored_candidate_is_keyed_on_the_datas_checksum_not_its_path(tmp_path):
+    """Without training: a stored result is reused for the same contents at another path,
+    and refused (not reused) once the file at the same path holds other data."""
+    data = siso_dataset_file(tmp_path / "data", T=60)
+    base = RunRecipe(
+        data=str(data),
+        model="mlp",
+        window=2,
+        profile="tiny",
+        train_options=train_options("tiny", seed=0, device="cpu").to_dict(),
+    )
+
+    def job_for(path):
+        recipe = dataclasses.replace(base, data=str(path))
+        (job,) = plan_candidates(recipe, tmp_path / "run", windows=[2])
+        return job
+
+    job = job_for(data)
+    job.save({"best_val_loss": 1.0})
+    assert job.cached() is not None
+    moved = tmp_path / "moved"
+    moved.mkdir()
+    for name in ("dataset.npz", "dataset.json"):
+        (moved / name).write_bytes((data.parent / name).read_bytes())
+    assert job_for(moved / "dataset.npz").cached() is not None  # same contents elsewhere
+    siso_dataset_file(tmp_path / "data", T=61)  # other contents at the same path
+    with pytest.raises(CheckpointError, match=r"another recipe \(differs in \['data_sha256'\]\)"):
+        job_for(data).cached()

@@ -8,7 +8,14 @@ import numpy as np
 import pytest
 
 from datagen.dataset import Dataset
-from datagen.loaders import from_io_data, load_csv, load_data, load_npz, split_train_val
+from datagen.loaders import (
+    data_checksum,
+    from_io_data,
+    load_csv,
+    load_data,
+    load_npz,
+    split_train_val,
+)
 from models.errors import DataError
 from models.io import write_npz
 
@@ -101,6 +108,25 @@ def test_a_saved_dataset_is_read_by_the_dispatcher(tmp_path, experiments):
     arrays.save(tmp_path / "d" / "dataset.npz")
     same_arrays(load_data(tmp_path / "d"), arrays)
     same_arrays(load_data(tmp_path / "d" / "dataset.npz"), arrays)
+
+
+def test_the_data_checksum_follows_the_contents_not_the_path(tmp_path, experiments):
+    arrays = Dataset.from_arrays([u for u, _ in experiments], [y for _, y in experiments], dt=1.0)
+    npz = arrays.save(tmp_path / "d" / "dataset.npz")
+    recorded = data_checksum(tmp_path / "d")
+    assert data_checksum(npz) == data_checksum(npz.with_suffix(".json")) == recorded
+    folder = tmp_path / "csv"
+    folder.mkdir()
+    for i, (u, y) in enumerate(experiments):
+        write_csv(folder / f"e{i}.csv", np.hstack([u, y]), ["u1", "u2", "y"])
+    before = {p: data_checksum(p) for p in (folder, folder / "e0.csv")}
+    moved = tmp_path / "moved.csv"
+    moved.write_bytes((folder / "e0.csv").read_bytes())
+    assert data_checksum(moved) == before[folder / "e0.csv"]
+    write_csv(folder / "e0.csv", np.hstack(experiments[0]) + 1.0, ["u1", "u2", "y"])
+    assert all(data_checksum(p) != before[p] for p in before)
+    with pytest.raises(DataError, match="not found"):
+        data_checksum(tmp_path / "missing.csv")
 
 
 def test_split_by_experiment_or_by_fraction_of_one_record(experiments):

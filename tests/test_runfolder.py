@@ -15,7 +15,15 @@ from learning_helpers import siso_dataset_file
 from canonid.profiles import train_options
 from canonid.reproduce import table1_rows
 from canonid.reproduce_jobs import TrainJob
-from canonid.runfolder import RUN_FILE, RunEvaluation, RunRecipe, train_run
+from canonid.runfolder import (
+    RUN_FILE,
+    ReductionRecipe,
+    RunEvaluation,
+    RunRecipe,
+    read_recipe,
+    recipe_of,
+    train_run,
+)
 from learning.presets import net_options
 from models.errors import CheckpointError
 
@@ -51,6 +59,41 @@ def test_the_recipe_round_trips_and_names_an_unknown_key(tmp_path):
         RunRecipe.from_dict({**body, "version": 2}, where="run.json")
     with pytest.raises(CheckpointError, match="reduction run"):
         RunRecipe.from_dict({**body, "kind": "reduction"}, where="run.json")
+
+
+def test_one_reader_gives_the_typed_recipe_of_either_kind_or_one_line(tmp_path):
+    reduction = ReductionRecipe(
+        data="d.npz",
+        regressor="mlp",
+        window=3,
+        latent_dim=2,
+        source_run="/runs/mlp",
+        compression=0.5,
+        seed=0,
+        train_options={"epochs": 2},
+        reduction_options={"linear_skip": True},
+        command=("canonid", "reduce"),
+    )
+    body = json.loads(json.dumps(reduction.to_dict()))
+    assert body["kind"] == "reduction" and body["model"] == "reduced" and body["version"] == 1
+    reduction.write(tmp_path / "r")
+    assert read_recipe(tmp_path / "r") == reduction
+    _recipe(tmp_path / "d.npz").write(tmp_path / "t")
+    assert read_recipe(tmp_path / "t") == _recipe(tmp_path / "d.npz")
+    assert recipe_of(tmp_path) is None  # no run.json: a model saved without a run
+    old = {k: v for k, v in body.items() if k != "version"}  # written before the version field
+    assert ReductionRecipe.from_dict(old, where="run.json") == reduction
+    path = tmp_path / "r" / RUN_FILE
+    for change, needle in (
+        ({"version": 2}, "version 2"),
+        ({"latent": 2}, r"unknown run recipe key\(s\) \['latent'\]"),
+        ({"kind": "sweep"}, "unknown run kind 'sweep'"),
+        ({"model": "mlp"}, "model 'mlp'"),
+    ):
+        path.write_text(json.dumps({**body, **change}))
+        with pytest.raises(CheckpointError, match=needle) as caught:
+            read_recipe(tmp_path / "r")
+        assert str(path) in str(caught.value) and "\n" not in str(caught.value)
 
 
 def _contents(run: Path) -> dict[str, object]:

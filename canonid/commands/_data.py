@@ -8,11 +8,18 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from canonid.runfolder import DATA_FLAGS, check_compatible, load, pick_split, run_data
+from canonid.runfolder import (
+    DATA_FLAGS,
+    RUN_FILE,
+    check_compatible,
+    load,
+    pick_split,
+    recipe_of,
+    run_data,
+)
 from datagen.dataset import Dataset
 from datagen.loaders import is_dataset
 from models.errors import DataError
-from models.io import read_json
 
 __all__ = [
     "USER_DATA_SPLIT",
@@ -55,35 +62,36 @@ def data_options(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def scoring_data(
-    recipe_path: Path,
+    run_dir: Path,
     data: str | Path | None,
     given: Mapping[str, Any],
     *,
     split: str | None,
     model: Mapping[str, Any],
 ) -> tuple[Dataset, str, str | None]:
-    """The data that score a run: ``(dataset, data path, split or None for the default)``.
+    """The data that score the run in ``run_dir``: ``(dataset, data path, split or None for the
+    default)``.
 
     Without ``data``, the run's own data split as training split them (default: ``test``, else
     ``val``). With ``data``, that file read with the run's recorded loader options overridden by
     those ``given`` (a canonid dataset takes none), checked against the ``model``'s ``info``.
     """
-    recipe = read_json(recipe_path, what="run recipe") if recipe_path.is_file() else {}
-    if not isinstance(recipe, dict):
-        raise DataError(f"{recipe_path} is not a canonid run recipe (expected a JSON object)")
+    recipe = recipe_of(run_dir)
     if data is None:
-        if "data" not in recipe:
-            raise DataError(f"{recipe_path}: no field 'data'; give --data FILE")
+        if recipe is None:
+            raise DataError(
+                f"{run_dir / RUN_FILE} not found: the run names no data; give --data FILE"
+            )
         if any(value is not None for value in given.values()):
             raise DataError(
                 f"{', '.join(_FLAGS[k] for k, v in given.items() if v is not None)} apply to "
                 "--data FILE; the run's own data are read with the options it recorded"
             )
         dataset, default_split = run_data(recipe)
-        return dataset, str(recipe["data"]), split or default_split
+        return dataset, recipe.data, split or default_split
     options = dict(given)
     if not is_dataset(data):
-        recorded = recipe.get("data_options") or {}
+        recorded = recipe.data_options if recipe is not None else {}
         options = {k: recorded.get(k) if given.get(k) is None else given[k] for k in _FLAGS}
     dataset = user_data_as_test(load(data, options))
     check_compatible(dataset, model, where=str(data))

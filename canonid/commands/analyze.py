@@ -19,6 +19,7 @@ from typing import Any
 from analysis.estimate import Budget
 from analysis.report import AnalysisReport, analyze
 from canonid.commands import _data, _paths
+from canonid.runfolder import recipe_of
 from datagen.dataset import Dataset
 from models.errors import CanonidError, DataError, SetError
 from models.io import atomic_write_json, jsonable
@@ -187,9 +188,7 @@ def _learned_source(
             f"--run {run_dir}: the run has n_u={n_u}, n_y={n_y}; {system.name} has "
             f"{system.n_u}, {system.n_y}"
         )
-    dataset, data_path, split = _data.scoring_data(
-        run_dir / "run.json", data, {}, split=None, model=info
-    )
+    dataset, data_path, split = _data.scoring_data(run_dir, data, {}, split=None, model=info)
     name, test = _data.pick_split(dataset, split, where=data_path)
     if any(tr.y_clean is None for tr in test):
         raise DataError(
@@ -214,7 +213,7 @@ def learned_gamma_record(
     except CanonidError as exc:  # only canonical models export
         return {"available": False, "why": str(exc)}
     # the training hull: the run's own training data when its recipe names them
-    own = (run_dir / "run.json").is_file()
+    own = recipe_of(run_dir) is not None
     system = learned_system(run_dir, data=None if own else data).system
     gamma = learned_gamma(system, budget=budget, tol=tol, seed=seed)
     return {"available": True, "state_dim": system.n_x, **gamma.to_dict()}

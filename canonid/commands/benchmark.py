@@ -32,7 +32,7 @@ from canonid.benchmark import (
     report_table,
     score_parts,
 )
-from canonid.commands import train
+from canonid.commands import _options, train
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from datagen.benchmarks import BENCHMARKS, benchmark, benchmark_names, find_files, load_benchmark
 from datagen.loaders import split_train_val
@@ -72,12 +72,7 @@ def register(sub: Any) -> None:
         metavar="L",
         help=f"window ℓ ≤ n_init (default min({DEFAULT_WINDOW}, n_init)); passed to canonid train",
     )
-    p.add_argument(
-        "--profile",
-        choices=profile_names(),
-        default=DEFAULT_PROFILE,
-        help="training budget (default quick)",
-    )
+    _options.add_profile(p, profile_names(), what="training budget", default=DEFAULT_PROFILE)
     p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/NAME-MODEL)")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data
-from canonid.runfolder import METRICS_FILE, RUN_FILE, eval_defaults, evaluate_run
+from canonid.runfolder import METRICS_FILE, eval_defaults, evaluate_run
 from learning import Model
 from models.errors import DataError
 
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
         raise DataError(f"--n-init must be an integer >= 0, got {args.n_init}")
     model = Model.load(run_dir)
     dataset, data_path, split = _data.scoring_data(
-        run_dir / RUN_FILE, args.data, _data.data_options(args), split=args.split, model=model.info
+        run_dir, args.data, _data.data_options(args), split=args.split, model=model.info
     )
     name, trajs = _data.pick_split(dataset, split, where=data_path)
     horizon = eval_defaults(

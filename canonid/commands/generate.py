@@ -12,7 +12,7 @@ import functools
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _paths
+from canonid.commands import _options, _paths
 from canonid.runner import run_jobs
 from datagen.dataset import Dataset
 from datagen.generate import FlightResult, GenerationConfig, generate_dataset
@@ -54,15 +54,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--steps", type=int, metavar="T", help="samples per flight (default: the system's)"
     )
-    where = p.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=int,
-        default=0,
-        metavar="N",
-        help="start a local Dask cluster of N workers",
-    )
-    where.add_argument("--scheduler", metavar="ADDRESS", help="use the Dask scheduler at ADDRESS")
+    _options.add_where(p, jobs="simulate the flights", sees="--out")
     p.add_argument(
         "--resume", action="store_true", help="keep finished flights of an interrupted run"
     )

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _paths, _progress
+from canonid.commands import _options, _paths, _progress
 from canonid.commands.evaluate import table
 from canonid.profiles import DEFAULT_PROFILE, profile_names, reduce_options
 from canonid.reduction import (
@@ -58,9 +58,7 @@ def register(sub: Any) -> None:
         "--compression", type=_rate, metavar="R", help="compression rate in (0, 1), e.g. 0.6"
     )
     mode.add_argument("--sweep", action="store_true", help="the compression study")
-    p.add_argument(
-        "--profile", choices=profile_names(), default=DEFAULT_PROFILE, help="budget (default quick)"
-    )
+    _options.add_profile(p, profile_names(), what="budget", default=DEFAULT_PROFILE)
     p.add_argument(
         "--out",
         type=_paths.folder,
@@ -78,7 +76,7 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("--seed", type=int, default=0, help="seed (--sweep: the first of --seeds)")
-    p.add_argument("--device", choices=("auto", "cpu", "cuda"), default="auto")
+    _options.add_device(p, what="torch device (default auto: CUDA when present)")
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads (per job)")
     p.add_argument(
         "--resume", action="store_true", help="continue the interrupted reduction in --out"
@@ -93,11 +91,7 @@ def register(sub: Any) -> None:
         help="rates (default 0.15 0.30 … 0.90)",
     )
     g.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per rate (default 3)")
-    workers = g.add_mutually_exclusive_group()
-    workers.add_argument(
-        "--workers", type=int, default=0, metavar="N", help="local worker processes (0: serial)"
-    )
-    workers.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler, tcp://host:port")
+    _options.add_where(g, jobs="run the reductions", sees="RUN and --out")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 

@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _paths
+from canonid.commands import _options, _paths
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.reproduce import reproduce, settings_from_profile
 from models.errors import ShapeError
@@ -45,11 +45,11 @@ def register(sub: Any) -> None:
             "(--scheduler); --resume keeps every finished job."
         ),
     )
-    p.add_argument(
-        "--profile",
-        choices=profile_names(),
+    _options.add_profile(
+        p,
+        profile_names(),
+        what="budgets and defaults of every stage (paper: the paper's sizes)",
         default=DEFAULT_PROFILE,
-        help="budgets and defaults of every stage (default quick; paper = the paper's sizes)",
     )
     p.add_argument("--systems", type=_names, metavar="S,...", help="e.g. tank,drone2d,quadrotor")
     p.add_argument("--windows", type=_ints, metavar="L,...", help="windows ℓ, e.g. 5,10,15")
@@ -61,20 +61,10 @@ def register(sub: Any) -> None:
         default=Path("runs/reproduce"),
         help="output folder (default runs/reproduce)",
     )
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=int, default=0, metavar="N", help="local Dask workers")
-    where.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="Dask scheduler, e.g. tcp://host:8786 (its "
-        "workers must have canonid installed and see OUT)",
-    )
+    _options.add_where(p, jobs="run the jobs", sees="OUT")
     p.add_argument("--resume", action="store_true", help="continue the reproduction in OUT")
-    p.add_argument(
-        "--device",
-        choices=("auto", "cpu", "cuda"),
-        default="auto",
-        help="torch device of the training jobs (default auto: CUDA when present)",
+    _options.add_device(
+        p, what="torch device of the training jobs (default auto: CUDA when present)"
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _data, _paths, _progress
+from canonid.commands import _data, _options, _paths, _progress
 from canonid.commands.evaluate import table
 from canonid.profiles import DEFAULT_PROFILE, profile_names, train_options
 from canonid.runfolder import DEFAULT_VAL_FRACTION, METRICS_FILE, RunRecipe, train_run
@@ -62,10 +62,8 @@ def register(sub: Any) -> None:
         f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) and keep the "
         "best on validation",
     )
-    p.add_argument(
-        "--profile",
-        choices=profile_names(),
-        help="training budget (default quick)",
+    _options.add_profile(
+        p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
     )
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
     p.add_argument("--lr", type=float, help="override the profile's learning rate")
@@ -84,10 +82,10 @@ def register(sub: Any) -> None:
         "an epoch is ⌈N / batch⌉ optimiser steps however the data are cut)",
     )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
-    p.add_argument(
-        "--device",
-        choices=("auto", "cpu", "cuda"),
-        help="training device (default auto; a resumed run keeps its recorded device)",
+    _options.add_device(
+        p,
+        what="training device (default auto; a resumed run keeps its recorded device)",
+        default=None,
     )
     p.add_argument(
         "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/MODEL-lL)"
@@ -147,19 +145,11 @@ def register(sub: Any) -> None:
         "rollout length when that is shorter, or what the scored records hold)",
     )
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument(
-        "--workers",
-        type=int,
-        metavar="N",
-        help="with --window/--hidden auto: train the candidates on N local Dask processes "
-        "(default: one after the other in this process)",
-    )
-    where.add_argument(
-        "--scheduler",
-        metavar="ADDRESS",
-        help="with --window/--hidden auto: train the candidates on a Dask cluster, e.g. "
-        "tcp://host:8786 (its workers must have canonid installed and see DATA and RUN)",
+    _options.add_where(
+        p,
+        jobs="with --window/--hidden auto: train the candidates",
+        sees="DATA and RUN",
+        workers=None,
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     _data.add_data_options(p)

@@ -1,0 +1,51 @@
+"""Command-line options that several commands share, each written once: where the jobs run,
+the profile and the torch device (no import of torch: ``canonid generate`` uses it)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+__all__ = ["add_device", "add_profile", "add_where"]
+
+DEVICES = ("auto", "cpu", "cuda")
+
+
+def add_where(parser: Any, *, jobs: str, sees: str, workers: int | None = 0) -> None:
+    """``--workers N`` or ``--scheduler ADDRESS`` on ``parser`` (a parser or an argument
+    group): where ``jobs`` run; the cluster's workers must see ``sees``. ``workers`` is the
+    default of ``--workers`` (``None`` tells a command that it was not given)."""
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=int,
+        default=workers,
+        metavar="N",
+        help=f"{jobs} on N local Dask worker processes (default: one after the other in this "
+        "process)",
+    )
+    where.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help=f"{jobs} on the Dask cluster at ADDRESS, e.g. tcp://host:8786 (its workers must "
+        f"have canonid installed and see {sees})",
+    )
+
+
+def add_profile(
+    parser: Any, names: Sequence[str], *, what: str, default: str, keep_none: bool = False
+) -> None:
+    """``--profile NAME``: one of the profiles ``names``, ``what`` they set, ``default``
+    (:data:`canonid.profiles.DEFAULT_PROFILE`) when not given; ``keep_none`` leaves the
+    argument ``None`` then, for a command that must tell whether it was given."""
+    parser.add_argument(
+        "--profile",
+        choices=names,
+        default=None if keep_none else default,
+        help=f"{what} (default {default})",
+    )
+
+
+def add_device(parser: Any, *, what: str, default: str | None = "auto") -> None:
+    """``--device {auto,cpu,cuda}``: the torch device of ``what``."""
+    parser.add_argument("--device", choices=DEVICES, default=default, help=what)
