@@ -255,6 +255,8 @@ def load_npz(
                 raise DataError(
                     f"{p}: 'u' {u.shape} and 'y' {y.shape} must both be (N, T, n) with equal N"
                 )
+            if yc is not None and (yc.ndim != 3 or yc.shape[0] != u.shape[0]):
+                raise DataError(f"{p}: 'y_clean' {yc.shape} must be (N, T, n) like 'y' {y.shape}")
             for i in range(u.shape[0]):
                 trajs.append(
                     _trajectory(u[i], y[i], f"{p}, experiment {i}", None if yc is None else yc[i])

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import torch
 from cli_helpers import one_line_error
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
@@ -401,6 +401,9 @@ ARRAYS = st.dictionaries(
 
 @FUZZ
 @given(arrays=ARRAYS, dt=st.sampled_from([None, 1.0, 0.5]))
+@example(  # stacked experiments with a y_clean of another shape (found by this test)
+    arrays={"u": np.zeros((2, 0, 1)), "y": np.zeros((2, 0, 1)), "y_clean": np.array([])}, dt=1.0
+)
 def test_random_npz_arrays_give_a_clean_error_or_valid_data(arrays, dt, tmp_path_factory):
     path = tmp_path_factory.mktemp("fuzz") / "f.npz"
     np.savez(path, **arrays)
