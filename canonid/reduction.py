@@ -173,7 +173,7 @@ class ReductionResult:
     Attributes:
         reconstruction_mse: auto-encoder error, normalised units.
         rollout_mse, full_rollout_mse: 100-step rollout MSE of the reduced and the full model,
-            physical units (against the measured outputs).
+            physical units (against the measured outputs), on the split ``split``.
         rollout_mse_clean, full_rollout_mse_clean: the same against the noise-free outputs
             (``None`` when the data have none).
     """
@@ -197,6 +197,7 @@ class ReductionResult:
     stopped: str
     seconds: float
     recipe: dict[str, Any]
+    split: str = "test"
 
     @property
     def ratio(self) -> float:
@@ -208,10 +209,11 @@ class ReductionResult:
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str) -> ReductionResult:
-        fields = {f.name for f in dataclasses.fields(cls)}
-        if data.get("format") != "canonid-reduction" or not fields <= set(data):
+        fields = dataclasses.fields(cls)
+        required = {f.name for f in fields if f.default is dataclasses.MISSING}
+        if data.get("format") != "canonid-reduction" or not required <= set(data):
             raise CheckpointError(f"{where} is not a canonid reduction result")
-        return cls(**{k: data[k] for k in fields})
+        return cls(**{f.name: data[f.name] for f in fields if f.name in data})
 
 
 def _load_source(source: Path) -> tuple[Model, Recipe]:
@@ -321,6 +323,7 @@ def reduce_run(
         stopped=fit.stopped,
         seconds=seconds,
         recipe=job.recipe_key(),
+        split=test_name,
     )
     atomic_write_json(out / REDUCTION_FILE, result.to_dict())
     return result

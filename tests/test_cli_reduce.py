@@ -63,6 +63,9 @@ def test_reduce_writes_a_run_folder_that_evaluate_reads(runs, tmp_path, capsys):
         assert (out / name).is_file(), name
     result = json.loads((out / "reduction.json").read_text())
     assert (result["latent_dim"], result["state_dim"], result["compression"]) == (4, 6, 0.5)
+    # the printed line names the split the scores come from
+    assert f"rollout MSE on the {result['split']} split" in printed
+    assert result["split"] == json.loads((out / "metrics.json").read_text())["data"]["split"]
     recipe = json.loads((out / "run.json").read_text())
     assert recipe["reduction_options"]["linear_skip"] is True  # the quick profile's
     assert Model.load(out).net.linear_skip
