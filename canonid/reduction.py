@@ -46,6 +46,7 @@ from canonid.profiles import reduce_options
 from canonid.runfolder import (
     Recipe,
     ReductionRecipe,
+    eval_defaults,
     evaluate_run,
     load_splits,
     pick_split,
@@ -172,7 +173,8 @@ class ReductionResult:
 
     Attributes:
         reconstruction_mse: auto-encoder error, normalised units.
-        rollout_mse, full_rollout_mse: 100-step rollout MSE of the reduced and the full model,
+        rollout_mse, full_rollout_mse: rollout MSE of the reduced and the full model (100 steps,
+            fewer when the scored records are shorter: ``rollout_horizon``),
             physical units (against the measured outputs), on the split ``split``.
         rollout_mse_clean, full_rollout_mse_clean: the same against the noise-free outputs
             (``None`` when the data have none).
@@ -247,6 +249,14 @@ def reduce_run(
             else f"{out} already holds a training run; choose another output folder"
         )
     dataset, train, val, test_name, data_path = load_splits(recipe)
+    # records too short to score are refused before anything is trained or written
+    horizon = eval_defaults(
+        dataset.split(test_name),
+        model.window,
+        EVAL_HORIZON,
+        where=f"{data_path} [{test_name}]",
+        fit=True,
+    )
     out.mkdir(parents=True, exist_ok=True)
     ReductionRecipe(
         **recipe.source(),
@@ -287,13 +297,13 @@ def reduce_run(
         dataset,
         data_path=data_path,
         split=test_name,
-        horizon=EVAL_HORIZON,
+        horizon=horizon,
         stride=1,
         n_init=None,
     )
     _, trajs = pick_split(dataset, test_name, where=data_path)
     n_init = evaluation.scores.n_init
-    full = evaluate(model, trajs, horizon=EVAL_HORIZON, stride=1, n_init=n_init)
+    full = evaluate(model, trajs, horizon=horizon, stride=1, n_init=n_init)
     _plot_reduced_vs_full(
         model,
         reduced,
@@ -317,7 +327,7 @@ def reduce_run(
         full_rollout_mse=full.measured.rollout_mse,
         rollout_mse_clean=evaluation.rollout_mse_clean,
         full_rollout_mse_clean=full.clean.rollout_mse if full.clean else None,
-        rollout_horizon=EVAL_HORIZON,
+        rollout_horizon=horizon,
         best_epoch=fit.best_epoch,
         epochs_run=fit.epochs_run,
         stopped=fit.stopped,

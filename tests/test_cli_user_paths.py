@@ -209,3 +209,17 @@ def test_validation_data_of_another_sampling_time_or_shape_are_refused(csv_files
     code = main([*argv, "--val", str(two_outputs)])
     one_line_error(capsys, code, "wide.npz: 2 output(s) ['y1', 'y2'],", "train.csv's are ['level']")
     assert not (tmp_path / "run").exists()
+
+
+def test_reduce_scores_records_shorter_than_the_paper_horizon_as_train_does(tmp_path, capsys):
+    # 150 samples: the validation tail holds 30, so both score 27-step rollouts (ℓ = 3)
+    data = _write_tank_csv(tmp_path / "short.csv", [9], T=150)
+    run, red = tmp_path / "run", tmp_path / "red"
+    argv = ["train", str(data), "--inputs", "pump", "--outputs", "level", "--dt", str(DT)]
+    assert main([*argv, "--model", "mlp", "--window", "3", *QUICK, "--out", str(run)]) == 0
+    assert json.loads((run / "metrics.json").read_text())["rollout_horizon"] == 27
+    reduce = ["reduce", str(run), "--compression", "0.5", "--epochs", "1", "--device", "cpu"]
+    assert main([*reduce, "--no-progress", "--out", str(red)]) == 0
+    result = json.loads((red / "reduction.json").read_text())
+    assert (result["rollout_horizon"], result["split"]) == (27, "val")
+    assert "27-step rollout MSE on the val split" in capsys.readouterr().out

@@ -141,7 +141,8 @@ def _one(args: argparse.Namespace) -> int:
         f"{result.epochs_run} epochs (best at {result.best_epoch})"
     )
     print(
-        f"100-step rollout MSE on the {result.split} split: reduced {result.rollout_mse:.4g}, full "
+        f"{result.rollout_horizon}-step rollout MSE on the {result.split} split: reduced "
+        f"{result.rollout_mse:.4g}, full "
         f"{result.full_rollout_mse:.4g} (ratio {result.ratio:.3g}); reconstruction MSE "
         f"{result.reconstruction_mse:.3g} (normalised)"
     )
