@@ -70,6 +70,7 @@ class Case:
     scored: list[int]  # output columns in the RMSE
     note: str
     envelope: bool  # count the loops whose true state leaves the system's X (its flight box)
+    probes: dict[str, list[float]]  # input steps of the response check, added to recorded inputs
 
 
 def cases() -> dict[str, Case]:
@@ -84,6 +85,7 @@ def cases() -> dict[str, Case]:
             [0],
             f"Q = 1 on the level, R = 1e-3 on u − u_eq(level {LEVEL_EQ}), U = [0, 6]",
             False,  # the tank's X is the analysis box, which the test flights leave
+            {"pump +0.5 V": [0.5]},
         ),
         "drone2d": Case(
             "drone2d",
@@ -95,6 +97,10 @@ def cases() -> dict[str, Case]:
             "Q = (5, 5, 0) on (px, pz, θ) (the data's NMPC weights on the pose), R = 1e-3 on "
             "each rotor's deviation from hover, U = [0, 250]² rad/s",
             True,
+            {
+                "rotor difference Ω2 − Ω1 = +1 rad/s": [-0.5, 0.5],
+                "both rotors +1 rad/s": [1.0, 1.0],
+            },
         ),
     }
 
@@ -109,6 +115,8 @@ class Row:
     left_X: list[int] = field(default_factory=list)  # the step each reference's loop left X
     build: float = 0.0
     solver: str = ""
+    ahead_1: list[np.ndarray] = field(default_factory=list)  # open_loop_errors, per reference
+    ahead_n: list[np.ndarray] = field(default_factory=list)
 
     def summary(self) -> dict[str, Any]:
         return {
@@ -123,7 +131,17 @@ class Row:
             "solves": len(self.wall),
             "build_s": self.build,
             "solver": self.solver,
+            "prediction_rms_1": _rms(self.ahead_1),
+            "prediction_rms_N": _rms(self.ahead_n),
+            "prediction_starts": int(sum(len(e) for e in self.ahead_1)),
         }
+
+
+def _rms(errors: list[np.ndarray]) -> list[float] | None:
+    """Per-output RMS of the stacked error rows (``None`` when there are none)."""
+    if not errors:
+        return None
+    return np.sqrt(np.mean(np.concatenate(errors) ** 2, axis=0)).tolist()
 
 
 def controller(system: System, case: Case, solver: str, hessian: str) -> NMPC:
@@ -142,7 +160,8 @@ def controller(system: System, case: Case, solver: str, hessian: str) -> NMPC:
 
 def closed_loop(nmpc: NMPC, case: Case, flight, ell: int, steps: int, *, learned, noise, rng):
     """Track the reference's first ``n_y`` columns from sample ℓ for ``steps`` samples; returns
-    the clean outputs ``(steps, n_y)``, the applied inputs and the per-solve records."""
+    the clean outputs ``(steps, n_y)``, the applied inputs, the per-solve records and the
+    measured outputs ``(ℓ + steps, n_y)`` (the recorded first ℓ, then the loop's, with noise)."""
     true = case.system
     ref = flight.reference[ell : ell + steps, : true.n_y]
     u_hist = list(flight.u[:ell])
@@ -167,7 +186,53 @@ def closed_loop(nmpc: NMPC, case: Case, flight, ell: int, steps: int, *, learned
         if case.envelope and left is None and not true.X.contains(x):
             left = k + 1
     infos[-1]["left_X"] = left
-    return np.array(ys), np.array(us), infos
+    return np.array(ys), np.array(us), infos, np.array(y_hist)
+
+
+def open_loop_errors(
+    learned: LearnedSystem, u: np.ndarray, y_meas: np.ndarray, y_clean: np.ndarray, stop: int
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The learned model's prediction errors along a closed loop: from every loop sample ``t``
+    whose next ``HORIZON`` samples end by loop step ``stop``, ``z_t`` from the measured window
+    and the applied inputs ``u[t …]`` (``u``: ``(ℓ + steps, n_u)``, ``y_meas`` likewise), the
+    errors against the clean outputs ``y_clean`` ``(steps, n_y)`` one sample ahead and
+    ``HORIZON`` samples ahead (the NMPC's whole prediction), each ``(starts, n_y)``."""
+    ell = learned.regressor.window
+    starts = np.arange(ell, ell + stop - HORIZON + 1)
+    if starts.size == 0:
+        return None
+    z = np.stack([np.concatenate([u[t - ell : t], y_meas[t - ell : t]], 1).ravel() for t in starts])
+    f, h = learned.f.map(starts.size), learned.h.map(starts.size)
+    zs, errors = z.T, []
+    for i in range(HORIZON):
+        ui = u[starts + i].T
+        errors.append(np.asarray(h(zs, ui)).T - y_clean[starts + i - ell])
+        zs = f(zs, ui)
+    return errors[0], errors[-1]
+
+
+def input_response(learned: LearnedSystem, case: Case, flights, step: list[float]):
+    """How the learned and the true model answer an input step added to recorded inputs: from
+    the recorded state of test flights at five samples each, the change of the outputs after
+    ``HORIZON`` samples (the NMPC's horizon) between the recorded inputs plus ``step`` and the
+    recorded inputs alone; returns the true and the learned changes ``(starts, n_y)``."""
+    ell, true = learned.regressor.window, case.system
+    du = np.asarray(step)
+    out: dict[str, list[np.ndarray]] = {"true": [], "learned": []}
+    for flight in flights[:5]:
+        for t in np.linspace(2 * ell, flight.T - HORIZON, 5).astype(int):
+            u = flight.u[t : t + HORIZON]
+            z = np.concatenate([flight.u[t - ell : t], flight.y[t - ell : t]], 1).ravel()
+            ends = {}
+            for key, system, x0 in (("true", true, flight.x[t]), ("learned", learned, z)):
+                for sign, inputs in (("step", u + du), ("base", u)):
+                    x = np.asarray(x0, dtype=np.float64)
+                    for uk in inputs[:-1]:
+                        x = np.asarray(system.step(x, uk)).ravel()
+                    ends[key, sign] = np.asarray(system.output(x, inputs[-1])).ravel()
+            for key in out:
+                out[key].append(ends[key, "step"] - ends[key, "base"])
+    return np.array(out["true"]), np.array(out["learned"])
 
 
 def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
@@ -208,9 +273,14 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
         for i, flight in enumerate(flights):
             steps = min(flight.T - ell, limit or flight.T)
             rng = np.random.default_rng(1000 + i)
-            y, _, infos = closed_loop(
+            y, u, infos, y_meas = closed_loop(
                 nmpc, case, flight, ell, steps, learned=system is learned, noise=learned.W, rng=rng
             )
+            u_all = np.vstack([flight.u[:ell], u])
+            errors = open_loop_errors(learned, u_all, y_meas, y, infos[-1]["left_X"] or steps)
+            if errors is not None:
+                row.ahead_1.append(errors[0])
+                row.ahead_n.append(errors[1])
             row.rmses.append(rmse(case, y, flight, ell))
             row.wall += [info["solve_time"] for info in infos]
             row.cpu += [info["solve_cpu"] for info in infos]
@@ -219,6 +289,17 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
             if infos[-1]["left_X"] is not None:
                 row.left_X.append(infos[-1]["left_X"])
             print(f"{case.name} {name} ref {i}: RMSE {row.rmses[-1]:.4f}", flush=True)
+    responses = {}
+    for probe, step in case.probes.items():
+        true_change, learned_change = input_response(learned, case, flights, step)
+        responses[probe] = {
+            "true_mean": true_change.mean(axis=0).tolist(),
+            "true_std": true_change.std(axis=0).tolist(),
+            "learned_mean": learned_change.mean(axis=0).tolist(),
+            "learned_std": learned_change.std(axis=0).tolist(),
+            "starts": len(true_change),
+            "flights": min(5, len(flights)),
+        }
     net = learned.regressor
     recipe = json.loads((run_dir / "run.json").read_text())
     return {
@@ -234,6 +315,8 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
         "samples": f"{ell} … {ell + min(flights[0].T - ell, limit or flights[0].T) - 1}",
         "references": len(flights),
         "rows": {name: {**row.summary(), "envelope": case.envelope} for name, row in rows.items()},
+        "outputs": list(case.system.output_names),
+        "responses": responses,
     }
 
 
@@ -249,7 +332,7 @@ def exact_against_gauss_newton(case: Case, run_dir: Path, args) -> dict[str, Any
         nmpc = controller(learned, case, args.solver, hessian)
         build = time.perf_counter() - t0
         rng = np.random.default_rng(1000)
-        y, u, infos = closed_loop(
+        y, u, infos, _ = closed_loop(
             nmpc, case, flight, ell, args.exact_steps, learned=True, noise=learned.W, rng=rng
         )
         inputs[hessian] = u
@@ -285,6 +368,38 @@ def table(results: dict[str, Any]) -> list[str]:
                 f"{r['median_wall_ms']:.1f} | {r['median_cpu_ms']:.1f} | {r['p95_wall_ms']:.1f} "
                 f"| {r['failures']} of {r['solves']}{limit} | {envelope} |"
             )
+    return lines
+
+
+def _vec(values: list[float] | None) -> str:
+    return "–" if values is None else "(" + ", ".join(f"{v:.3g}" for v in values) + ")"
+
+
+def model_check(key: str, res: dict[str, Any]) -> list[str]:
+    """The lines on the learned model's predictions along the loops and its input responses."""
+    names = ", ".join(res["outputs"])
+    rows = res["rows"]
+    loops = "; ".join(
+        f"along the {name.split()[0]}-model NMPC's loops ({r['prediction_starts']} starts): "
+        f"{_vec(r['prediction_rms_1'])} one sample ahead, {_vec(r['prediction_rms_N'])} "
+        f"{HORIZON} samples ahead"
+        for name, r in rows.items()
+    )
+    lines = [
+        f"{key}, the learned model's open-loop prediction error from the measured window z_t "
+        f"under the applied inputs, against the true clean outputs (RMS per output ({names}); "
+        f"starts whose {HORIZON}-sample prediction ends before the loop left X): {loops}.",
+        "",
+    ]
+    for probe, r in res["responses"].items():
+        lines += [
+            f"{key}, response to an input step ({probe}) added to the recorded inputs, change "
+            f"of ({names}) after {HORIZON} samples from the recorded state (mean ± std over "
+            f"{r['starts']} starts: {r['flights']} test flights × 5 samples): true model "
+            f"{_vec(r['true_mean'])} ± {_vec(r['true_std'])}, learned model "
+            f"{_vec(r['learned_mean'])} ± {_vec(r['learned_std'])}.",
+            "",
+        ]
     return lines
 
 
@@ -354,6 +469,8 @@ def main() -> int:
             ),
             "",
         ]
+    for key, res in results.items():
+        lines += model_check(key, res)
     if exact is not None:
         e, g = exact["exact"], exact["gauss-newton"]
         lines += [
