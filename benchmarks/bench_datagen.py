@@ -45,7 +45,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from _results import write_section  # noqa: E402
+from _results import load_line, publish  # noqa: E402
 
 import datagen.generate as generate  # noqa: E402
 from canonid.runner import run_jobs  # noqa: E402
@@ -393,16 +393,13 @@ def main() -> int:
     took = time.perf_counter() - began
 
     base, mine = rows[base_label], rows[ours_label]
-    loads = " / ".join(f"{v:.2f}" for v in load)
-    loaded = max(load) > 1.0
+    sentence, loaded = load_line(
+        load,
+        "a loaded machine: wall times are not idle times; the CPU times per flight are the "
+        "comparable figures",
+    )
     lines = [
-        f"Load average (1 min) at the start and after each part: {loads}, on 2 cores "
-        + (
-            "**shared with other jobs (a loaded machine: wall times are not idle times; the "
-            "CPU times per flight are the comparable figures)**."
-            if loaded
-            else "(idle)."
-        ),
+        sentence,
         "",
         f"**Controllers.** Planar drone, horizon {HORIZON}, {flights} flights of {T} steps with "
         "σ = 1 rad/s excitation, every controller on the same flights, taking turns flight by "
@@ -473,13 +470,8 @@ def main() -> int:
         + (" (extrapolated)" if n != 540 else "")
         + " — "
         + ("met" if wall <= 45 else "NOT met" + (" under this load" if loaded else "")),
-        "",
-        f"This benchmark took {took / 60:.1f} min.",
     ]
-    body = "\n".join(lines)
-    write_section("Data engine", body)
-    print(body)
-    return 0
+    return publish("Data engine", lines, took / 60)
 
 
 if __name__ == "__main__":
