@@ -15,7 +15,7 @@ from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 
-__all__ = ["machine_description", "write_section"]
+__all__ = ["load_line", "machine_description", "publish", "write_section"]
 
 
 def machine_description() -> str:
@@ -62,3 +62,24 @@ def write_section(name: str, body: str, *, command: str | None = None) -> None:
     tmp = RESULTS.with_suffix(".md.tmp")
     tmp.write_text(text, encoding="utf-8")
     os.replace(tmp, RESULTS)
+
+
+def publish(name: str, lines: list[str], minutes: float) -> int:
+    """Write ``lines`` and how long the benchmark took as section ``name``, print them; 0."""
+    body = "\n".join([*lines, "", f"This benchmark took {minutes:.1f} min."])
+    write_section(name, body)
+    print(body)
+    return 0
+
+
+def load_line(load: list[float], caveat: str) -> tuple[str, bool]:
+    """The sentence giving the 1-minute load averages ``load`` (at the start and after each
+    part) and whether the machine was loaded (above 1): then ``caveat`` says in bold what the
+    load means for the figures."""
+    loaded = max(load) > 1.0
+    values = " / ".join(f"{v:.2f}" for v in load)
+    return (
+        f"Load average (1 min) at the start and after each part: {values}, on 2 cores "
+        + (f"**shared with other jobs ({caveat})**." if loaded else "(idle)."),
+        loaded,
+    )

@@ -8,7 +8,9 @@ API::
 
 * ``workers=0`` and no ``scheduler``: the jobs run one after the other in this process.
 * ``workers=N`` (N ≥ 1): a Dask ``LocalCluster`` of N single-threaded workers (processes, or
-  threads with ``processes=False``) is started for the call and closed after it.
+  threads with ``processes=False``) is started for the call and closed after it, with Dask's
+  dashboard bookkeeping (:data:`LOCAL_CLUSTER_CONFIG`) turned down: with no dashboard to show
+  them, the task profiler and the fast monitors only took CPU from the jobs.
 * ``scheduler="tcp://host:8786"``: an existing Dask cluster; its workers must be able to import
   ``fn`` (install canonid there). An address that does not answer within ``connect_timeout``
   seconds raises :class:`RunnerError` before any job runs.
@@ -45,9 +47,20 @@ from tqdm.auto import tqdm
 
 from models.errors import CanonidError
 
-__all__ = ["FailedJob", "JobsFailedError", "RunnerError", "run_jobs"]
+__all__ = ["LOCAL_CLUSTER_CONFIG", "FailedJob", "JobsFailedError", "RunnerError", "run_jobs"]
 
 log = logging.getLogger(__name__)
+
+#: Dask settings of the local clusters: no statistical profiler of the running tasks (it
+#: samples their stacks every 10 ms for the dashboard), event-loop health ticks every second
+#: (not 20 ms), system and memory monitors every 2 s and 1 s (not 0.5 s and 0.1 s); what
+#: that saves is measured in benchmarks/RESULTS.md, "Dask overhead".
+LOCAL_CLUSTER_CONFIG: dict[str, Any] = {
+    "distributed.worker.profile.enabled": False,
+    "distributed.admin.tick.interval": "1s",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.worker.memory.monitor-interval": "1s",
+}
 
 J = TypeVar("J")
 R = TypeVar("R")
@@ -200,20 +213,23 @@ def _executor(
         else:
             with _ctrl_c_deferred() as pressed, warnings.catch_warnings():
                 # imported here: the threads Dask starts at import inherit the blocked SIGINT
+                import dask
                 from dask.distributed import Client, LocalCluster
 
                 _dask_at_warning()  # the first import sets Dask's configured levels
                 # the scheduler's HTTP server moves to a free port when 8787 is taken: not news
                 warnings.filterwarnings("ignore", message="Port .* is already in use")
-                cluster = LocalCluster(
-                    n_workers=workers,
-                    threads_per_worker=1,
-                    processes=processes,
-                    dashboard_address=None,
-                    silence_logs=logging.CRITICAL,  # job errors come back through futures
-                    preload=[__name__] if processes else [],
-                )
-                client = Client(cluster, set_as_default=False)
+                # read when the scheduler, nannies and workers are built (workers get a copy)
+                with dask.config.set(LOCAL_CLUSTER_CONFIG):
+                    cluster = LocalCluster(
+                        n_workers=workers,
+                        threads_per_worker=1,
+                        processes=processes,
+                        dashboard_address=None,
+                        silence_logs=logging.CRITICAL,  # job errors come back through futures
+                        preload=[__name__] if processes else [],
+                    )
+                    client = Client(cluster, set_as_default=False)
             if pressed:
                 client.close()
                 cluster.close()

@@ -8,7 +8,7 @@ import math
 
 import pytest
 
-from canonid.runner import JobsFailedError, RunnerError, run_jobs
+from canonid.runner import LOCAL_CLUSTER_CONFIG, JobsFailedError, RunnerError, run_jobs
 from datagen.generate import GenerationConfig, generate_dataset
 
 
@@ -82,6 +82,18 @@ def test_local_cluster_and_scheduler_address_give_the_same_results():
     assert out == [math.factorial(j) for j in jobs]
     with pytest.raises(JobsFailedError, match="math domain error"):
         run_jobs(math.sqrt, [4.0, -1.0], workers=1, progress=False)
+
+
+def test_local_workers_run_without_the_dashboard_bookkeeping():
+    import dask
+
+    keys = list(LOCAL_CLUSTER_CONFIG)
+    before = [dask.config.get(key) for key in keys]  # each is a Dask setting (a typo raises)
+    # each job returns the worker process's value of one setting
+    assert run_jobs(dask.config.get, keys, workers=1, progress=False) == [
+        LOCAL_CLUSTER_CONFIG[key] for key in keys
+    ]
+    assert [dask.config.get(key) for key in keys] == before  # this process keeps its own
 
 
 @pytest.mark.parametrize(
