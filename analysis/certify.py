@@ -7,7 +7,7 @@ of the training windows and the training inputs U:
 * ``lower`` — **lower bound**: sampled and locally maximised ``‖∂f/∂z‖₂`` (:func:`lipschitz_lower`);
 * ``upper`` — **certified upper bound**: interval branch-and-bound (:func:`lipschitz_upper`),
   valid whenever it stops, on the network's layers for Ours (MLP)
-  (:mod:`analysis.network_enclosure`, milliseconds per box) and on the SX graph otherwise (a
+  (:mod:`analysis.network_enclosure`, 1–30 ms per box) and on the SX graph otherwise (a
   reduced or GRU model); in ℓ(n_u+n_y) dimensions the budget usually ends long before the
   bracket closes;
 * ``layer_norms`` — **certified upper bound, loose**: the product of the layer norms (below), a

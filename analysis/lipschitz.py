@@ -93,12 +93,14 @@ JacobianRows = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def _norms(
-    jac: ca.Function, pts: np.ndarray, n_x: int, rows: JacobianRows | None = None
+    jac: ca.Function | None, pts: np.ndarray, n_x: int, rows: JacobianRows | None = None
 ) -> np.ndarray:
-    if rows is None:
-        _, j = batched(jac, pts[:, :n_x], pts[:, n_x:])
-    else:
+    """``‖∂f/∂x‖₂`` at the rows of ``pts``: from ``rows`` when given, else from CasADi's ``jac``."""
+    if rows is not None:
         j = np.asarray(rows(pts[:, :n_x], pts[:, n_x:]), dtype=np.float64)
+    else:
+        assert jac is not None
+        _, j = batched(jac, pts[:, :n_x], pts[:, n_x:])
     if j.ndim == 2:
         j = j[:, :, None] if n_x == 1 else j[:, None, :]
     with np.errstate(invalid="ignore"):
@@ -139,7 +141,7 @@ def lipschitz_lower(
     budget = budget or Budget()
     t0 = time.perf_counter()
     n_x = fun.nnz_in(0)
-    jac = jacobian_function(fun)
+    jac = jacobian_function(fun) if jacobian is None else None  # the SX Jacobian only if used
     lo = np.concatenate([X.lo, U.lo])
     hi = np.concatenate([X.hi, U.hi])
     rng = np.random.default_rng(seed)
@@ -157,11 +159,11 @@ def lipschitz_lower(
     jd = ca.jtimes(fun(x, u), x, d)
     starts = []
     for i in np.argsort(-norms)[: budget.starts]:
-        j = np.asarray(
-            jacobian(pts[i : i + 1, :n_x], pts[i : i + 1, n_x:])[0]
-            if jacobian is not None
-            else jac(pts[i, :n_x], pts[i, n_x:])[1]
-        ).reshape(-1, n_x)
+        if jacobian is not None:
+            j = np.asarray(jacobian(pts[i : i + 1, :n_x], pts[i : i + 1, n_x:])[0])
+        else:
+            assert jac is not None
+            j = np.asarray(jac(pts[i, :n_x], pts[i, n_x:])[1]).reshape(-1, n_x)
         starts.append(np.concatenate([pts[i], np.linalg.svd(j)[2][0]]))
     ends = local_minima(
         -ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
@@ -248,7 +250,7 @@ def lipschitz_upper(
         enclosure, "method", "certified: interval Jacobian branch-and-bound (outward rounding, arb)"
     )
     enclosure = enclosure or Enclosure(fun, wrt=0)
-    jac = jacobian_function(fun)
+    jac = jacobian_function(fun) if jacobian is None else None  # the SX Jacobian only if used
     dx, du = varying_dims(fun)
     lo0 = np.concatenate([X.lo, U.lo])
     hi0 = np.concatenate([X.hi, U.hi])

@@ -122,9 +122,11 @@ def test_analyze_run_without_a_system_bounds_the_learned_model_alone(trained, tm
     quick = ["--boxes", "20", "--quiet", "--out", str(out)]
     capsys.readouterr()
     assert main(["analyze", "--run", str(trained), *quick]) == 0
-    assert "no registered system, so no α_ℓ" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "no registered system, so no α_ℓ" in printed
     body = json.loads((out / "learned_analysis.json").read_text())
     gamma = body["gamma_f"]
+    assert f"so γ_f ≤ {gamma['best_upper']:.4g}" in printed  # the better certified bound
     assert body["window"] == 3 and gamma["available"] and gamma["state_dim"] == 6
     assert gamma["lower"]["kind"] == "lower" and gamma["branch_and_bound"]["kind"] == "upper"
     assert gamma["branch_and_bound"]["details"]["boxes"] <= 20 + 64  # the last round's children

@@ -246,7 +246,8 @@ def learned_gamma_line(gamma: Mapping[str, Any]) -> str:
         f"hull): sampled lower bound {_value(gamma['lower'])}, certified upper bound "
         f"{_value(gamma['branch_and_bound'])} (interval branch-and-bound, "
         f"{gamma['branch_and_bound']['details'].get('stop', '')}), "
-        f"{_value(gamma['layer_norms'])} (product of layer norms, loose)"
+        f"{_value(gamma['layer_norms'])} (product of layer norms, loose); so γ_f ≤ "
+        f"{_value({'value': gamma.get('best_upper')})}"
     )
 
 
