@@ -70,3 +70,16 @@ def test_a_reader_that_stops_ends_the_command_quietly(argv):
 
 def test_parser_builds():
     assert build_parser().prog == "canonid"
+
+
+@pytest.mark.parametrize("option", ["residual", "feedthrough", "linear"])
+def test_train_help_states_the_default_a_run_gets(option, capsys):
+    """The help's default for Ours (MLP) is the preset's (it once said the affine path was on)."""
+    from learning.presets import DEFAULT_NET_OPTIONS
+
+    with pytest.raises(SystemExit):
+        main(["train", "--help"])
+    help_text = " ".join(capsys.readouterr().out.split())
+    word = "on" if DEFAULT_NET_OPTIONS["mlp"][option] else "off"
+    start = help_text.index(f"--{option}, --no-{option}")
+    assert f"default: {word} for Ours (MLP)" in help_text[start : start + 300]

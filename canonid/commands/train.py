@@ -39,6 +39,12 @@ __all__ = ["register", "run"]
 AUTO = "auto"
 
 
+def _on_off(model: str, option: str) -> str:
+    """``on`` / ``off``: the default of a boolean network option, read from the presets so
+    that the help cannot drift from what a run gets."""
+    return "on" if presets.DEFAULT_NET_OPTIONS[model][option] else "off"
+
+
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "train",
@@ -113,23 +119,27 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--activation",
         choices=sorted(ACTIVATIONS),
-        help="hidden-layer nonlinearity of Ours (MLP) (default silu; the paper's is relu)",
+        help=f"hidden-layer nonlinearity of Ours (MLP) (default "
+        f"{presets.DEFAULT_NET_OPTIONS['mlp']['activation']}; the paper's is "
+        f"{presets.PAPER_NET_OPTIONS['mlp']['activation']})",
     )
     p.add_argument(
         "--residual",
         action=argparse.BooleanOptionalAction,
-        help="predict y_t − y_{t−1} (default: on for Ours (MLP), off for the others)",
+        help=f"predict y_t − y_{{t−1}} (default: {_on_off('mlp', 'residual')} for Ours (MLP), "
+        "off for the others)",
     )
     p.add_argument(
         "--feedthrough",
         action=argparse.BooleanOptionalAction,
-        help="the output map sees u_t (default: off for Ours (MLP) and ARX, on for the others)",
+        help=f"the output map sees u_t (default: {_on_off('mlp', 'feedthrough')} for Ours (MLP), "
+        f"{_on_off('arx', 'feedthrough')} for ARX, on for the others)",
     )
     p.add_argument(
         "--linear",
         action=argparse.BooleanOptionalAction,
         help="canonical models: an affine path started from the least-squares ARX fit "
-        "(default: on for Ours (MLP))",
+        f"(default: {_on_off('mlp', 'linear')} for Ours (MLP); ARX is the affine path alone)",
     )
     p.add_argument(
         "--paper-options",
