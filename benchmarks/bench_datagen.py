@@ -323,7 +323,9 @@ def dataset_wall_time(size: str, out: Path) -> tuple[float, int, str]:
             if on_result is not None:
                 on_result(position, result)
 
-        return run_jobs(fn, jobs, workers=2, progress=False, on_result=timed)
+        return run_jobs(
+            fn, jobs, workers=2, progress=False, on_result=timed, batch=generate.FLIGHTS_PER_TASK
+        )  # as `canonid generate --workers 2` runs them
 
     start, main_cpu, workers_cpu = time.perf_counter(), time.process_time(), _children_cpu()
     result = generate_dataset(config, out, run_jobs=runner)

@@ -73,7 +73,7 @@ from canonid.reproduce_jobs import (
 from canonid.reproduce_report import write_report
 from canonid.runner import JobsFailedError, run_jobs
 from datagen.dataset import Dataset
-from datagen.generate import GenerationConfig, generate_dataset
+from datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
 from datagen.scenarios import scenario_names
 from learning import Model, model_names
 from learning.presets import net_options
@@ -265,7 +265,7 @@ def prepare_datasets(
         reused = dataset is not None
         log.info("%s dataset in %s: %s", system, target, "reused" if reused else "generating")
         if dataset is None:
-            run = functools.partial(runner, description=f"{system} flights")
+            run = functools.partial(runner, description=f"{system} flights", batch=FLIGHTS_PER_TASK)
             generate_dataset(config, target, run_jobs=run, resume=True)
             dataset = Dataset.load(target)
         header = read_json(target / "dataset.json", what="dataset metadata")

@@ -4,7 +4,7 @@ API::
 
     run_jobs(fn, jobs, *, workers=0, scheduler=None, progress=True, description="jobs",
              on_result=None, tally=None, tally_name="failures", retries=1,
-             connect_timeout=5.0, processes=True) -> list
+             connect_timeout=5.0, processes=True, batch=1) -> list
 
 * ``workers=0`` and no ``scheduler``: the jobs run one after the other in this process.
 * ``workers=N`` (N ≥ 1): a Dask ``LocalCluster`` of N single-threaded workers (processes, or
@@ -26,6 +26,13 @@ never dropped silently. The progress bar (tqdm, on stderr) shows jobs done, the 
 ``tally(result)`` over finished jobs as ``tally_name`` (e.g. solver failures), failed attempts
 and the ETA; ``progress=False`` switches it off. ``fn`` and the jobs must be picklable for the
 Dask paths.
+
+``batch=k`` (k > 1) sends up to k jobs in one Dask task, for many short jobs (dataset flights of
+~0.15 s, where each task cost the main process ~3 ms of scheduler and client time): a task runs
+its jobs one after the other and returns each job's result or error, which are then handled
+job by job as above (``on_result``, retries, failures). Tasks are ``min(k, remaining jobs //
+(2 · jobs in flight))`` jobs long, so that they shrink to single jobs towards the end and no
+worker waits on a long last task. Serially, jobs always run one by one.
 """
 
 from __future__ import annotations
@@ -33,6 +40,7 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures as cf
 import logging
+import pickle
 import signal
 import socket
 import threading
@@ -90,6 +98,32 @@ class JobsFailedError(CanonidError, RuntimeError):
             f"{len(self.failures)} of {total} jobs failed after retrying; first: job "
             f"{first.position} ({first.job}): {first.error}"
         )
+
+
+def _run_batch(
+    fn: Callable[[Any], Any], jobs: Sequence[Any], travels: bool
+) -> list[tuple[bool, Any, str]]:
+    """The task of a batch: ``(True, result, "")`` or ``(False, error, traceback text)`` per
+    job, in order; the traceback is formatted here because it does not survive pickling, and an
+    error that must ``travel`` back from a worker but does not pickle is replaced by its text."""
+    outcomes: list[tuple[bool, Any, str]] = []
+    for job in jobs:
+        try:
+            outcomes.append((True, fn(job), ""))
+        except Exception as exc:  # handled job by job in run_jobs, like a future's exception
+            text = "".join(traceback.format_exception(exc))
+            try:
+                if travels:
+                    pickle.loads(pickle.dumps(exc))
+            except Exception:  # an error that cannot travel back: its type and text do
+                exc = RuntimeError(f"{type(exc).__name__}: {exc}")
+            outcomes.append((False, exc, text))
+    return outcomes
+
+
+def _batch_size(remaining: int, window: int, batch: int) -> int:
+    """Jobs in the next task: up to ``batch``, fewer as the queue runs out (module docs)."""
+    return max(1, min(batch, remaining // (2 * window)))
 
 
 class _InlineExecutor(cf.Executor):
@@ -261,6 +295,7 @@ def run_jobs(
     retries: int = 1,
     connect_timeout: float = 5.0,
     processes: bool = True,
+    batch: int = 1,
 ) -> list[R]:
     """Run ``fn(job)`` for every job; see the module docstring for the three ways and the
     failure rules. Returns the results in job order."""
@@ -270,6 +305,8 @@ def run_jobs(
         raise RunnerError("give either workers (a local cluster) or a scheduler address, not both")
     if retries < 0:
         raise RunnerError(f"retries must be >= 0, got {retries}")
+    if batch < 1 or int(batch) != batch:
+        raise RunnerError(f"batch must be an integer >= 1, got {batch!r}")
     if scheduler is not None and not scheduler.strip():
         raise RunnerError("the scheduler address is empty (expected e.g. tcp://host:8786)")
 
@@ -288,33 +325,45 @@ def run_jobs(
         ) as (executor, window):
             bar = tqdm(total=total, desc=description, unit="job", disable=not progress, leave=True)
             queue = list(range(total - 1, -1, -1))  # pop() from the end: job order
-            running: dict[cf.Future[Any], int] = {}
+            inline = isinstance(executor, _InlineExecutor)
+            most = 1 if inline else int(batch)
+            running: dict[cf.Future[Any], list[int]] = {}
             while queue or running:
                 while queue and len(running) < window:
-                    position = queue.pop()
-                    attempts[position] += 1
-                    running[executor.submit(fn, jobs[position])] = position
+                    size = _batch_size(len(queue), window, most)
+                    positions = [queue.pop() for _ in range(size)]
+                    for position in positions:
+                        attempts[position] += 1
+                    task = executor.submit(_run_batch, fn, [jobs[p] for p in positions], not inline)
+                    running[task] = positions
                 done, _ = cf.wait(running, return_when=cf.FIRST_COMPLETED)
-                for future in sorted(done, key=running.__getitem__):
-                    position = running.pop(future)
+                for future in sorted(done, key=lambda f: running[f][0]):
+                    positions = running.pop(future)
                     exc = future.exception()
-                    if exc is not None:
-                        # canonid's own errors are deterministic: a retry would fail the same way
-                        if attempts[position] <= retries and not isinstance(exc, CanonidError):
-                            retried += 1
-                            log.warning("job %d failed (%s); retrying", position, exc)
-                            queue.append(position)
+                    if exc is None:
+                        outcomes = future.result()
+                    else:  # the task itself failed (e.g. its worker died): each of its jobs did
+                        text = "".join(traceback.format_exception(exc))
+                        outcomes = [(False, exc, text)] * len(positions)
+                    for position, (ok, value, text) in zip(positions, outcomes, strict=True):
+                        if not ok:
+                            # canonid's own errors are deterministic: a retry would fail the same
+                            if attempts[position] <= retries and not isinstance(
+                                value, CanonidError
+                            ):
+                                retried += 1
+                                log.warning("job %d failed (%s); retrying", position, value)
+                                queue.append(position)
+                            else:
+                                failed.append(_failure(position, jobs[position], value, text))
+                                bar.update(1)
                         else:
-                            failed.append(_failure(position, jobs[position], exc))
+                            results[position] = value
+                            if on_result is not None:
+                                on_result(position, value)
+                            if tally is not None:
+                                tallied += int(tally(value))
                             bar.update(1)
-                    else:
-                        result = future.result()
-                        results[position] = result
-                        if on_result is not None:
-                            on_result(position, result)
-                        if tally is not None:
-                            tallied += int(tally(result))
-                        bar.update(1)
                     bar.set_postfix(
                         {tally_name: tallied, "retried": retried, "failed": len(failed)},
                         refresh=False,
@@ -327,11 +376,8 @@ def run_jobs(
     return results
 
 
-def _failure(position: int, job: Any, exc: BaseException) -> FailedJob:
+def _failure(position: int, job: Any, exc: BaseException, text: str) -> FailedJob:
     name = getattr(job, "name", None) or repr(job)[:80]
     return FailedJob(
-        position=position,
-        job=str(name),
-        error=f"{type(exc).__name__}: {exc}",
-        traceback="".join(traceback.format_exception(exc)),
+        position=position, job=str(name), error=f"{type(exc).__name__}: {exc}", traceback=text
     )

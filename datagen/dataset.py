@@ -263,8 +263,10 @@ class Dataset:
         )
 
     # ------------------------------------------------------------------ storage
-    def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write ``path`` (``.npz``) and its ``.json`` sidecar atomically; return ``path``."""
+    def save(self, path: str | os.PathLike[str], *, durable: bool = True) -> Path:
+        """Write ``path`` (``.npz``) and its ``.json`` sidecar atomically; return ``path``.
+        ``durable=False`` skips the fsyncs (see :mod:`models.io`): for files that a power
+        failure may cost, such as generation parts (a damaged part is regenerated)."""
         p = Path(path)
         if p.suffix != ".npz":
             raise DataError(f"dataset path must end in .npz, got {p}")
@@ -278,7 +280,7 @@ class Dataset:
                 for key, arr in tr.arrays().items():
                     arrays[f"{split}/{i:05d}/{key}"] = arr
                 infos[split].append(dict(tr.info))
-        checksum = write_npz(p, arrays)
+        checksum = write_npz(p, arrays, durable=durable)
         header = {
             "format": "canonid-dataset",
             "format_version": FORMAT_VERSION,
@@ -292,7 +294,7 @@ class Dataset:
             "trajectory_info": infos,
             "metadata": self.metadata,
         }
-        atomic_write_json(p.with_suffix(".json"), header)
+        atomic_write_json(p.with_suffix(".json"), header, durable=durable)
         return p
 
     @classmethod

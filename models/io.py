@@ -3,7 +3,9 @@
 They live in ``models`` because it is the root of the dependency graph; they need only numpy.
 
 * Atomic: content is written to a temporary file in the target folder, flushed, fsynced and
-  renamed over the target, so a reader never sees a half-written file.
+  renamed over the target, so a reader never sees a half-written file. ``durable=False`` skips
+  the fsync (a killed process still leaves the old file or the new one; a power failure may
+  lose or damage the file): for caches that are checked when read, such as generation parts.
 * Deterministic: :func:`write_npz` fixes every zip timestamp and writes arrays in sorted key
   order, so the same arrays always give the same bytes (``np.savez`` stamps the current time).
 * No pickle: arrays are written and read with ``allow_pickle=False``.
@@ -44,8 +46,9 @@ __all__ = [
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
-    """Write ``data`` to ``path`` atomically (temporary file + rename); return the path."""
+def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bool = True) -> Path:
+    """Write ``data`` to ``path`` atomically (temporary file + rename, fsynced when
+    ``durable``); return the path."""
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -58,7 +61,8 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes) -> Path:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
             fh.flush()
-            os.fsync(fh.fileno())
+            if durable:
+                os.fsync(fh.fileno())
         os.replace(tmp, target)
     except OSError as exc:
         Path(tmp).unlink(missing_ok=True)
@@ -75,14 +79,14 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str) -> Path:
-    return atomic_write_bytes(path, text.encode("utf-8"))
+def atomic_write_text(path: str | os.PathLike[str], text: str, *, durable: bool = True) -> Path:
+    return atomic_write_bytes(path, text.encode("utf-8"), durable=durable)
 
 
-def atomic_write_json(path: str | os.PathLike[str], obj: Any) -> Path:
+def atomic_write_json(path: str | os.PathLike[str], obj: Any, *, durable: bool = True) -> Path:
     """Write ``obj`` as indented, key-sorted JSON (deterministic bytes), atomically."""
     text = json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n"
-    return atomic_write_text(path, text)
+    return atomic_write_text(path, text, durable=durable)
 
 
 def jsonable(value: Any) -> Any:
@@ -134,10 +138,12 @@ def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
     return buf.getvalue()
 
 
-def write_npz(path: str | os.PathLike[str], arrays: Mapping[str, np.ndarray]) -> str:
+def write_npz(
+    path: str | os.PathLike[str], arrays: Mapping[str, np.ndarray], *, durable: bool = True
+) -> str:
     """Write ``arrays`` to ``path`` atomically and deterministically; return the SHA-256."""
     data = npz_bytes(arrays)
-    atomic_write_bytes(path, data)
+    atomic_write_bytes(path, data, durable=durable)
     return sha256_bytes(data)
 
 

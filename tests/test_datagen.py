@@ -296,11 +296,13 @@ def test_same_seed_same_bytes_and_interrupted_run_resumes(tmp_path, monkeypatch)
     parts = sorted(p.name for p in (tmp_path / "b" / "parts").glob("*.json"))
     assert parts == ["config.json", "train-00000.json", "train-00001.json", "train-00002.json"]
     assert not (tmp_path / "b" / "dataset.json").exists()
-    # a part damaged by the interruption is regenerated, not trusted
+    # parts damaged by the interruption (or, not being fsynced, by a power failure) are
+    # regenerated, not trusted
     (tmp_path / "b" / "parts" / "train-00002.npz").write_bytes(b"garbage")
+    (tmp_path / "b" / "parts" / "train-00001.json").write_bytes(b"")
     monkeypatch.setattr(gen, "run_flight", real)
     resumed = _small(tmp_path, "b", resume=True)
-    assert (resumed.resumed, resumed.generated) == (2, 6)
+    assert (resumed.resumed, resumed.generated) == (1, 7)
     assert resumed.path.read_bytes() == first.read_bytes()
     assert resumed.path.with_suffix(".json").read_bytes() == first.with_suffix(".json").read_bytes()
 

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+import models.io as io
 from datagen.dataset import Dataset, Trajectory
 from models.errors import DataError, ShapeError
 from models.io import npz_bytes
@@ -57,6 +58,20 @@ def test_same_content_same_bytes(tmp_path, rng):
     assert p1.with_suffix(".json").read_bytes() == p2.with_suffix(".json").read_bytes()
     arrays = {"a": np.arange(3.0)}
     assert npz_bytes(arrays) == npz_bytes(arrays)
+
+
+def test_durable_false_skips_only_the_fsync(tmp_path, rng, monkeypatch):
+    """Generation parts are written without fsync: the same bytes, no fsync call."""
+    ds = _dataset(rng)
+    durable = ds.save(tmp_path / "a" / "d.npz")
+    synced = []
+    monkeypatch.setattr(io.os, "fsync", synced.append)
+    quick = ds.save(tmp_path / "b" / "d.npz", durable=False)
+    assert synced == []
+    assert quick.read_bytes() == durable.read_bytes()
+    assert quick.with_suffix(".json").read_bytes() == durable.with_suffix(".json").read_bytes()
+    ds.save(tmp_path / "c" / "d.npz")
+    assert len(synced) == 2  # the default: the arrays and the sidecar
 
 
 def test_truncated_file_is_refused_naming_it(tmp_path, rng):

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 
+import casadi as ca
 import numpy as np
 import pytest
 
 import datagen.controllers._compiled as compiled
+from datagen.controllers._buffered import BufferedFunction
 from datagen.controllers.nmpc import NMPC
 from datagen.references import drone2d_reference
 from datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS
@@ -180,3 +182,18 @@ def test_a_damaged_cached_library_is_rebuilt_not_loaded(damage, tmp_path, caplog
     assert "does not match its checksum: rebuilding it" in caplog.text
     assert compiled.sha256_file(library) == compiled._checksum_file(library).read_text().strip()
     assert len(library.read_bytes()) == len(intact)
+
+
+def test_buffered_calls_give_the_plain_call_bits(drone, plugin):
+    """The step's solver through numpy buffers (what NMPC.__call__ uses) and through a plain
+    CasADi call: the same plan, bit for bit; matrices as inputs are refused."""
+    ref = drone2d_reference(np.random.default_rng(4), T=40, dt=drone.dt)
+    plugin.reset(ref, ref[0])
+    params = np.concatenate([ref[0], plugin._windows[: (HORIZON + 1) * 6]])
+    plain = np.asarray(plugin._solve(plugin._guess, params), dtype=np.float64).ravel()
+    buffered = BufferedFunction(plugin._solve)
+    np.testing.assert_array_equal(buffered(plugin._guess, params), plain)
+    np.testing.assert_array_equal(buffered(plugin._guess, params), plain)  # bound arrays reused
+    x = ca.SX.sym("x", 2, 2)
+    with pytest.raises(ValueError, match="not a dense column vector"):
+        BufferedFunction(ca.Function("matrix", [x], [x]))

@@ -8,7 +8,13 @@ import math
 
 import pytest
 
-from canonid.runner import LOCAL_CLUSTER_CONFIG, JobsFailedError, RunnerError, run_jobs
+from canonid.runner import (
+    LOCAL_CLUSTER_CONFIG,
+    JobsFailedError,
+    RunnerError,
+    _batch_size,
+    run_jobs,
+)
 from datagen.generate import GenerationConfig, generate_dataset
 
 
@@ -84,6 +90,49 @@ def test_local_cluster_and_scheduler_address_give_the_same_results():
         run_jobs(math.sqrt, [4.0, -1.0], workers=1, progress=False)
 
 
+_ATTEMPTED: set[int] = set()  # jobs of _flaky_square tried before (threaded workers share it)
+
+
+def _flaky_square(x):
+    """Fails for 7 on its first attempt only, for 13 always."""
+    first = x not in _ATTEMPTED
+    _ATTEMPTED.add(x)
+    if x == 13 or (x == 7 and first):
+        raise ValueError(f"job {x} failed")
+    return x * x
+
+
+def test_batched_tasks_deliver_job_by_job_with_the_same_rules():
+    """Up to 8 jobs per task on 2 threaded workers: results in order, on_result once per job,
+    a failed job retried alone and reported with its worker-side traceback."""
+    delivered: dict[int, int] = {}
+    with pytest.raises(JobsFailedError, match="1 of 60 jobs failed") as info:
+        run_jobs(
+            _flaky_square,
+            list(range(60)),
+            workers=2,
+            processes=False,
+            progress=False,
+            batch=8,
+            on_result=delivered.__setitem__,
+        )
+    assert delivered == {x: x * x for x in range(60) if x != 13}
+    (failure,) = info.value.failures
+    assert failure.position == 13 and "_flaky_square" in failure.traceback
+    assert run_jobs(math.factorial, [3, 4], workers=1, processes=False, batch=8) == [6, 24]
+    with pytest.raises(RunnerError, match="batch must be"):
+        run_jobs(abs, [1], batch=0, progress=False)
+
+
+def test_batches_shrink_to_single_jobs_at_the_end():
+    # 2 workers: 4 tasks in flight; a task takes at most remaining // 8 jobs
+    sizes, remaining = [], 540
+    while remaining:
+        sizes.append(_batch_size(remaining, 4, 8))
+        remaining -= sizes[-1]
+    assert sizes[0] == 8 and sizes[-12:] == [1] * 12 and sorted(sizes, reverse=True) == sizes
+
+
 def test_local_workers_run_without_the_dashboard_bookkeeping():
     import dask
 
@@ -117,7 +166,8 @@ def test_same_seed_same_bytes_serially_and_on_two_dask_workers(config, tmp_path,
     """Dask LocalCluster with 1 and with 2 worker processes (processes=True)."""
     monkeypatch.setenv("CANONID_CACHE_DIR", str(tmp_path / "cache"))  # inherited by the workers
     serial = generate_dataset(config, tmp_path / "serial").path
-    one = functools.partial(run_jobs, workers=1, progress=False)
+    # batches of flights per task (1 worker: tasks of 2, 2, 1, … jobs) give the same bytes
+    one = functools.partial(run_jobs, workers=1, progress=False, batch=4)
     two = functools.partial(run_jobs, workers=2, progress=False)
     paths = [
         generate_dataset(config, tmp_path / n, run_jobs=r).path for n, r in (("1", one), ("2", two))

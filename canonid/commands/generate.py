@@ -15,7 +15,12 @@ from typing import Any
 from canonid.commands import _options, _paths
 from canonid.runner import run_jobs
 from datagen.dataset import Dataset
-from datagen.generate import FlightResult, GenerationConfig, generate_dataset
+from datagen.generate import (
+    FLIGHTS_PER_TASK,
+    FlightResult,
+    GenerationConfig,
+    generate_dataset,
+)
 from datagen.scenarios import get_scenario, scenario_names
 from models.errors import ShapeError
 from models.registry import get_system
@@ -108,6 +113,7 @@ def run(args: argparse.Namespace) -> int:
         description=f"{args.system} flights",
         tally=_tally,
         tally_name="solver failures",
+        batch=FLIGHTS_PER_TASK,
     )
     result = generate_dataset(config, out, run_jobs=runner, resume=args.resume)
     counts_text = ", ".join(f"{k} {v}" for k, v in result.counts.items())
