@@ -72,14 +72,22 @@ def publish(name: str, lines: list[str], minutes: float) -> int:
     return 0
 
 
-def load_line(load: list[float], caveat: str) -> tuple[str, bool]:
+def load_line(load: list[float], caveat: str, own: list[int] | None = None) -> tuple[str, bool]:
     """The sentence giving the 1-minute load averages ``load`` (at the start and after each
-    part) and whether the machine was loaded (above 1): then ``caveat`` says in bold what the
-    load means for the figures."""
-    loaded = max(load) > 1.0
+    part) and whether other jobs loaded the machine: a reading more than 1 above ``own``, the
+    benchmark's own busy processes in the part it follows (default none), since a part run on
+    2 workers raises the load to about 2 by itself; then ``caveat`` says in bold what the load
+    means for the figures."""
+    own = own or [0] * len(load)
+    loaded = max(v - o for v, o in zip(load, own, strict=True)) > 1.0
     values = " / ".join(f"{v:.2f}" for v in load)
+    mine = (
+        ""
+        if not any(own)
+        else f" (this benchmark's own busy processes: {' / '.join(map(str, own))})"
+    )
     return (
-        f"Load average (1 min) at the start and after each part: {values}, on 2 cores "
+        f"Load average (1 min) at the start and after each part: {values}{mine}, on 2 cores "
         + (f"**shared with other jobs ({caveat})**." if loaded else "(idle)."),
         loaded,
     )

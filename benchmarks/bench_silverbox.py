@@ -33,7 +33,7 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._results import write_section
-from canonid.profiles import train_options
+from canonid.profiles import stage_train_options
 from learning import fit
 
 DEFAULT_CSV = Path(__file__).resolve().parents[2] / "shared" / "data" / "silverbox" / "SNLS80mV.csv"
@@ -86,7 +86,9 @@ def run(data: np.ndarray, variant: str, seed: int, window: int) -> Row:
     n_val = int(np.ceil(0.2 * len(train_val)))
     train = record(train_val[:-n_val, 0], train_val[:-n_val, 1])
     val = record(train_val[-n_val:, 0], train_val[-n_val:, 1])
-    opts = train_options("quick", seed=seed, device="cpu", checkpoint_every=10**6, **overrides)
+    opts = stage_train_options(  # None in overrides switches an option off
+        "quick", {"seed": seed, "device": "cpu", "checkpoint_every": 10**6, **overrides}
+    )
     c0, w0 = time.process_time(), time.perf_counter()
     result = fit(train, val, model=model, window=window, options=opts, net_options=net_options)
     # the field's rule: whole test input, the n_init first measured outputs, scored after them

@@ -52,6 +52,7 @@ __all__ = [
     "profile",
     "profile_names",
     "reduce_options",
+    "stage_train_options",
     "train_options",
 ]
 
@@ -75,6 +76,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "horizon": 50,
                 # Table 1's budget as measured for the paper comparison (docs: Reproducing)
                 "batch_size": 16,
+                "grad_clip": None,
                 "windows_per_epoch": 240,
                 "val_windows": 1000,
                 "per_model": {"gru": {"epochs": 30}, "mlp": {"epochs": 300}},
@@ -118,6 +120,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "batch_size": 32,
             "lr": 3e-3,
             "lr_final": 1e-5,
+            "grad_clip": 1.0,
             "horizon": 50,
             "curriculum_epochs": 50,
             "windows_per_epoch": 480,
@@ -431,6 +434,15 @@ def train_options(name: str, **overrides: Any) -> TrainOptions:
     (``None`` values are ignored, so CLI defaults pass through)."""
     opts = profile(name)["train"]
     opts.update({k: v for k, v in overrides.items() if v is not None})
+    return TrainOptions.from_dict(opts)
+
+
+def stage_train_options(name: str, overrides: Mapping[str, Any]) -> TrainOptions:
+    """The ``train`` stage of profile ``name`` with ``overrides`` applied as given: unlike
+    :func:`train_options`, where ``None`` means "not given", ``None`` here switches an option
+    off (a reproduce stage's ``grad_clip: None``, a study's column without clipping)."""
+    opts = profile(name)["train"]
+    opts.update(overrides)
     return TrainOptions.from_dict(opts)
 
 

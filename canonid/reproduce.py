@@ -58,7 +58,7 @@ import numpy as np
 
 from analysis.report import AnalysisReport
 from canonid.paper import table1_value
-from canonid.profiles import load_profile, train_options
+from canonid.profiles import load_profile, stage_train_options
 from canonid.profiles import profile as profile_stages
 from canonid.reduction import SweepPlan, compression_sweep
 from canonid.reproduce_jobs import (
@@ -307,11 +307,14 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
         for model in settings.models:
             for window in settings.windows:
                 for seed in range(settings.seeds):
-                    options = train_options(
-                        settings.profile,
-                        **{**overrides, **per_system.get(system, {}), **per_model.get(model, {})},
-                        seed=seed,
-                        device=settings.device,
+                    merged = {
+                        **overrides,
+                        **per_system.get(system, {}),
+                        **per_model.get(model, {}),
+                    }
+                    # an explicit None in the stage switches an option off
+                    options = stage_train_options(
+                        settings.profile, {**merged, "seed": seed, "device": settings.device}
                     )
                     jobs.append(
                         TrainJob(

@@ -232,3 +232,16 @@ def test_the_job_list_depends_on_the_settings_only(tmp_path):
     ]
     assert plans[0] == plans[1]
     assert [type(j).__name__ for j in plans[0]] == ["AnalysisJob", "TrainJob", "TrainJob"]
+
+
+def test_table1_trains_as_measured_without_the_quick_profiles_clipping(tmp_path):
+    """The quick train stage clips gradients; its reproduce stage switches that off with an
+    explicit None (train_options alone skips None), so Table 1 stays as it was measured."""
+    from canonid.profiles import train_options
+
+    assert train_options("quick").grad_clip is not None
+    info = rp.DatasetInfo("tank", tmp_path / "d.npz", {}, "abc", {}, reused=False, seconds=0.0)
+    jobs = rp.plan_jobs(settings_from_profile("quick", out=tmp_path), {"tank": info})
+    trains = [j for j in jobs if type(j).__name__ == "TrainJob"]
+    assert trains and all(j.train_options["grad_clip"] is None for j in trains)
+    assert all(j.train_options["batch_size"] == 16 for j in trains)

@@ -1,0 +1,189 @@
+"""A change of the ``quick`` training profile, measured on the three systems that choose it.
+
+Each call trains Ours (MLP) with canonid's default network options, ℓ = 10, the ``quick``
+profile with the ``--set`` overrides (none: the profile as it is; ``grad_clip=null`` switches
+the clipping off), one torch thread, and appends one JSON row to ``--rows``; ``table`` turns
+the rows into the section "Quick profile: learning rate and clipping" of
+``benchmarks/RESULTS.md``, the variants side by side per system and seed::
+
+    python benchmarks/defaults_study.py run tank --seed 0 --label "3e-3, clip 1 (now)"
+    python benchmarks/defaults_study.py run silverbox --seed 0 --label "5e-3" \
+        --set lr=0.005 grad_clip=null
+    python benchmarks/defaults_study.py table
+
+Systems: ``tank`` (``canonid generate tank``: 60 / 20 / 20 trajectories) and ``drone2d``
+(``canonid generate drone2d --n-train 40 --n-val 10 --n-test 10``, the deepSI contest's data),
+both generated into ``runs/data`` when missing and scored by :func:`learning.evaluate` (100-step
+rollouts from every start of the test split, MSE against ``y_clean``); ``silverbox`` (the real
+record, trained and scored by ``bench_silverbox.run``: multisine-test simulation RMSE after
+n_init = 50, mV). CPU time: this process's, over training (Silverbox: and scoring, ~1 s).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import torch
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _data import ensure_dataset  # noqa: E402
+from _results import write_section  # noqa: E402
+
+WINDOW = 10
+ROWS = ROOT / "runs" / "defaults_study.jsonl"
+GENERATED = {"tank": "tank-s0", "drone2d": "drone2d-small"}
+
+
+def _value(text: str) -> Any:
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError:
+        return text
+
+
+def overrides_of(pairs: Sequence[str]) -> dict[str, Any]:
+    """``["lr=0.005", "epochs=900"]`` → ``{"lr": 0.005, "epochs": 900}``."""
+    out: dict[str, Any] = {}
+    for pair in pairs:
+        key, sep, text = pair.partition("=")
+        if not sep:
+            raise SystemExit(f"--set {pair!r}: expected KEY=VALUE")
+        out[key] = _value(text)
+    return out
+
+
+def run_generated(system: str, seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
+    from canonid.profiles import stage_train_options
+    from datagen import Dataset
+    from learning import evaluate, fit
+
+    data = Dataset.load(ensure_dataset(GENERATED[system]))
+    train, val, test = (data.split(name) for name in ("train", "val", "test"))
+    opts = stage_train_options(  # None in overrides switches an option off
+        "quick", {"seed": seed, "device": "cpu", "checkpoint_every": 10**6, **overrides}
+    )
+    start = time.process_time()
+    result = fit(train, val, model="mlp", window=WINDOW, options=opts)
+    cpu = time.process_time() - start
+    scores = evaluate(result.model, test, horizon=100)
+    return {
+        "score": scores.clean.rollout_mse,
+        "score_name": "test 100-step MSE vs y_clean",
+        "best_val": result.best_val_loss,
+        "best_epoch": result.best_epoch,
+        "epochs": result.epochs_run,
+        "cpu_s": cpu,
+    }
+
+
+def run_silverbox(seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
+    import bench_silverbox
+
+    bench_silverbox.VARIANTS["study"] = ("mlp", {}, overrides)
+    row = bench_silverbox.run(
+        bench_silverbox.load(bench_silverbox.DEFAULT_CSV), "study", seed, WINDOW
+    )
+    return {
+        "score": row.rmse_mv,
+        "score_name": "multisine test RMSE [mV]",
+        "best_val": row.val_loss,
+        "best_epoch": row.best_epoch,
+        "epochs": row.epochs,
+        "cpu_s": row.cpu_s,
+    }
+
+
+def _number(x: float) -> str:
+    return f"{x:.3g}" if abs(x) >= 0.01 else f"{x:.2e}"
+
+
+def table(rows: list[dict[str, Any]]) -> str:
+    labels = list(dict.fromkeys(r["label"] for r in rows))
+    cases = sorted({(r["system"], r["seed"]) for r in rows})
+    found = {(r["system"], r["seed"], r["label"]): r for r in rows}
+    lines = [
+        "Ours (MLP), canonid's default network options, ℓ = 10, the `quick` profile with the "
+        "overrides of each column, one torch thread; tank and planar drone: test 100-step MSE "
+        "against y_clean (`learning.evaluate`); Silverbox: multisine-test simulation RMSE after "
+        "n_init = 50 (mV). Each cell: score (best validation loss, normalised; CPU seconds of "
+        "training).",
+        "",
+        "| system | seed | " + " | ".join(labels) + " |",
+        "|---|---:|" + "---:|" * len(labels),
+    ]
+    for system, seed in cases:
+        cells = []
+        for label in labels:
+            r = found.get((system, seed, label))
+            cells.append(
+                "—"
+                if r is None
+                else f"{_number(r['score'])} ({_number(r['best_val'])}; {r['cpu_s']:.0f} s)"
+            )
+        lines.append(f"| {system} | {seed} | " + " | ".join(cells) + " |")
+    overrides = {r["label"]: r["overrides"] for r in rows}
+    lines += [
+        "",
+        "Overrides of the profile per column: "
+        + "; ".join(f"{label}: `{json.dumps(overrides[label])}`" for label in labels)
+        + ".",
+    ]
+    loads = [r["load"] for r in rows]
+    lines.append(
+        f"Load average (1 min) at the end of the runs: {min(loads):.1f}–{max(loads):.1f} on "
+        f"{os.cpu_count()} cores."
+    )
+    return "\n".join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    one = sub.add_parser("run", help="train and score one case; append its row")
+    one.add_argument("system", choices=("tank", "drone2d", "silverbox"))
+    one.add_argument("--seed", type=int, default=0)
+    one.add_argument("--label", required=True, help="the variant's column in the table")
+    one.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")
+    one.add_argument("--rows", type=Path, default=ROWS)
+    tab = sub.add_parser("table", help="write the section from the rows")
+    tab.add_argument("--rows", type=Path, default=ROWS)
+    args = parser.parse_args()
+    if args.command == "table":
+        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
+        body = table(rows)
+        write_section("Quick profile: learning rate and clipping", body)
+        print(body)
+        return 0
+    torch.set_num_threads(1)
+    overrides = overrides_of(args.set)
+    if args.system == "silverbox":
+        measured = run_silverbox(args.seed, overrides)
+    else:
+        measured = run_generated(args.system, args.seed, overrides)
+    row = {
+        "system": args.system,
+        "seed": args.seed,
+        "label": args.label,
+        "overrides": overrides,
+        **measured,
+        "load": os.getloadavg()[0],
+    }
+    args.rows.parent.mkdir(parents=True, exist_ok=True)
+    with args.rows.open("a") as f:
+        f.write(json.dumps(row) + "\n")
+    print(json.dumps(row))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
