@@ -76,7 +76,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "horizon": 50,
                 # Table 1's budget as measured for the paper comparison (docs: Reproducing)
                 "batch_size": 16,
-                "grad_clip": None,
+                "grad_clip": None,  # None switches the train stage's clipping off
                 "windows_per_epoch": 240,
                 "val_windows": 1000,
                 "per_model": {"gru": {"epochs": 30}, "mlp": {"epochs": 300}},
@@ -120,6 +120,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "batch_size": 32,
             "lr": 3e-3,
             "lr_final": 1e-5,
+            # bounds the rare large gradients of open-loop rollouts (docs: Identification)
             "grad_clip": 1.0,
             "horizon": 50,
             "curriculum_epochs": 50,
