@@ -433,9 +433,7 @@ def profile(name: str) -> dict[str, dict[str, Any]]:
 def train_options(name: str, **overrides: Any) -> TrainOptions:
     """The ``train`` stage of profile ``name`` as :class:`TrainOptions`, with ``overrides``
     (``None`` values are ignored, so CLI defaults pass through)."""
-    opts = profile(name)["train"]
-    opts.update({k: v for k, v in overrides.items() if v is not None})
-    return TrainOptions.from_dict(opts)
+    return stage_train_options(name, {k: v for k, v in overrides.items() if v is not None})
 
 
 def stage_train_options(name: str, overrides: Mapping[str, Any]) -> TrainOptions:
