@@ -17,6 +17,7 @@ How the indices are cut, for a canonical model of window ℓ on a test part of `
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -31,6 +32,7 @@ from learning import Model
 from learning.data import as_series
 from learning.evaluate import simulate_records
 from learning.training import OptionError
+from models.io import jsonable
 
 __all__ = [
     "BenchmarkReport",
@@ -82,7 +84,9 @@ class BenchmarkReport:
     rule: str
 
     def to_json(self) -> dict[str, Any]:
-        return {"schema": 1, **asdict(self)}
+        """The ``benchmark.json`` body; a score that is not finite (a simulation that blew up)
+        is written ``null``, as JSON has no inf or NaN."""
+        return jsonable({"schema": 1, **asdict(self)})
 
 
 RULE = (
@@ -181,7 +185,8 @@ def report_table(report: BenchmarkReport) -> str:
         published: Sequence[str] = [
             f"{value[(s.test, m)]:.3f}" if (s.test, m) in value else "-" for m in methods
         ]
-        rows.append((s.test, str(s.n_init), f"{s.rmse:.3f}", *published))
+        score = f"{s.rmse:.3f}" if math.isfinite(s.rmse) else "not finite"
+        rows.append((s.test, str(s.n_init), score, *published))
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
     head = (

@@ -24,6 +24,7 @@ the per-output MSE, ``nrmse`` and ``fit_percent`` = means of the per-output valu
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -33,6 +34,7 @@ import numpy as np
 from learning.data import Series, as_series
 from learning.model import Model
 from models.errors import ShapeError
+from models.io import jsonable
 
 __all__ = ["Evaluation", "Scores", "evaluate", "simulate_records"]
 
@@ -81,27 +83,53 @@ class Evaluation:
     model: str
     output_names: list[str]
 
+    @property
+    def finite(self) -> bool:
+        """Whether every score is a finite number (a simulation that blew up scores inf or
+        NaN)."""
+        parts = [self.measured] + ([self.clean] if self.clean else [])
+        return all(
+            v is None or math.isfinite(v)
+            for scores in parts
+            for v in _numbers(scores.to_dict().values())
+        )
+
     def to_json(self) -> dict[str, Any]:
         """The ``metrics.json`` body: top-level scores are against the measured ``y``; the
-        same keys against ``y_clean`` sit under ``"clean"`` (``null`` without it)."""
-        return {
-            "model": self.model,
-            "window": self.window,
-            "targets": {
-                "top_level": "y (measured outputs, with noise)",
-                "clean": "y_clean (noise-free outputs)" if self.clean else None,
-            },
-            **self.measured.to_dict(),
-            "clean": self.clean.to_dict() if self.clean else None,
-            "rollout_horizon": self.rollout_horizon,
-            "rollout_stride": self.rollout_stride,
-            "n_rollouts": self.n_rollouts,
-            "n_init": self.n_init,
-            "n_records": self.n_records,
-            "n_scored_samples": self.n_scored_samples,
-            "output_names": self.output_names,
-            "units": "physical (the data's units); rollout_mse in units², rmse in units",
-        }
+        same keys against ``y_clean`` sit under ``"clean"`` (``null`` without it). JSON has no
+        inf or NaN: a score that is not finite is written ``null`` and ``finite`` says so."""
+        return jsonable(
+            {
+                "model": self.model,
+                "window": self.window,
+                "targets": {
+                    "top_level": "y (measured outputs, with noise)",
+                    "clean": "y_clean (noise-free outputs)" if self.clean else None,
+                },
+                **self.measured.to_dict(),
+                "clean": self.clean.to_dict() if self.clean else None,
+                "rollout_horizon": self.rollout_horizon,
+                "rollout_stride": self.rollout_stride,
+                "n_rollouts": self.n_rollouts,
+                "n_init": self.n_init,
+                "n_records": self.n_records,
+                "n_scored_samples": self.n_scored_samples,
+                "output_names": self.output_names,
+                "units": "physical (the data's units); rollout_mse in units², rmse in units",
+                "finite": self.finite,
+            }
+        )
+
+
+def _numbers(values: Any) -> list[float | None]:
+    """The floats in ``values``, nested lists flattened."""
+    out: list[float | None] = []
+    for v in values:
+        if isinstance(v, (list, tuple)):
+            out.extend(_numbers(v))
+        else:
+            out.append(None if v is None else float(v))
+    return out
 
 
 def _rollouts(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import numpy as np
@@ -123,3 +124,36 @@ def test_bad_requests(records):
         evaluate(EchoModel(3), records, horizon=5, n_init=2)
     with pytest.raises(ShapeError, match="longer than n_init"):
         evaluate(EchoModel(3), records, horizon=5, n_init=70)
+
+
+class BlowUpModel(EchoModel):
+    """The echo model whose open-loop prediction overflows after ``after`` steps."""
+
+    def __init__(self, window: int, after: int) -> None:
+        super().__init__(window)
+        self.after = after
+
+    def predict(self, u: np.ndarray, y_burn_in: np.ndarray) -> np.ndarray:
+        out = super().predict(u, y_burn_in)
+        out[:, self.after :, :] = np.inf
+        return out
+
+
+def test_a_simulation_that_blows_up_is_written_null_and_flagged(records, capsys):
+    """JSON has no inf or NaN: such scores are null, ``finite`` says so, and the table warns."""
+    import json
+
+    from canonid.commands.evaluate import table
+
+    ell = 3
+    fine = evaluate(EchoModel(ell), records, horizon=20, stride=5, n_init=10)
+    assert fine.finite and fine.to_json()["finite"] is True
+    # rollouts of 20 steps stay finite; the long simulation passes step 30 and overflows
+    ev = evaluate(BlowUpModel(ell, after=30), records, horizon=20, stride=5, n_init=10)
+    assert math.isfinite(ev.measured.rollout_mse) and not math.isfinite(ev.measured.rmse)
+    body = ev.to_json()
+    assert body["finite"] is False and body["rmse"] is None and body["clean"]["rmse"] is None
+    assert body["rollout_mse"] == ev.measured.rollout_mse
+    json.dumps(body, allow_nan=False)  # what atomic_write_json demands
+    text = table({**body, "data": {"path": "test.csv", "split": "test"}})
+    assert "not finite" in text and "blew up (inf or NaN)" in text

@@ -69,10 +69,10 @@ def table(metrics: Mapping[str, Any]) -> str:
             rows.append(
                 (
                     label,
-                    f"{scores['rollout_mse']:.4g}",
-                    f"{scores['rmse']:.4g}",
-                    f"{scores['nrmse']:.4g}",
-                    f"{scores['fit_percent']:.2f}",
+                    _number(scores["rollout_mse"], ".4g"),
+                    _number(scores["rmse"], ".4g"),
+                    _number(scores["nrmse"], ".4g"),
+                    _number(scores["fit_percent"], ".2f"),
                 )
             )
     widths = [max(len(r[i]) for r in rows) for i in range(5)]
@@ -82,7 +82,21 @@ def table(metrics: Mapping[str, Any]) -> str:
         f"[{metrics['data']['split']}]: {metrics['n_rollouts']} rollouts of "
         f"{metrics['rollout_horizon']} steps; simulation scores after n_init = {metrics['n_init']}"
     )
-    return "\n".join([head, *lines, *_worst_records(metrics)])
+    diverged = (
+        []
+        if metrics.get("finite", True)
+        else [
+            "warning: the model's open-loop predictions blew up (inf or NaN) on this data: the "
+            "scores marked 'not finite' are written null in metrics.json; train longer or try "
+            "--linear off / --linear arx"
+        ]
+    )
+    return "\n".join([head, *lines, *diverged, *_worst_records(metrics)])
+
+
+def _number(value: float | None, spec: str) -> str:
+    """``value`` formatted, or ``not finite`` for a score written ``null``."""
+    return "not finite" if value is None else format(value, spec)
 
 
 def _worst_records(metrics: Mapping[str, Any], count: int = 3) -> list[str]:
