@@ -127,8 +127,9 @@ class _Constant(Controller):
         return {"type": self.name}
 
 
+# no noise, or noise above the outputs' float resolution (a level of 5e-324 vanishes in y + w)
 @settings(max_examples=15, deadline=None)
-@given(seed=st.integers(0, 2**31), level=st.floats(0.0, 0.01))
+@given(seed=st.integers(0, 2**31), level=st.just(0.0) | st.floats(1e-9, 0.01))
 def test_measurement_noise_stays_in_its_box(seed, level):
     drone = get_system("drone2d")
     box = noise_box(drone, level)

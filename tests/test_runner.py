@@ -180,17 +180,18 @@ def test_same_seed_same_bytes_serially_and_on_two_dask_workers(config, tmp_path,
 def test_ctrl_c_during_cluster_start_up_is_deferred_not_lost():
     """Start-up is not cut in the middle (a half-built cluster cannot be closed), and the key
     is not lost either: the caller sees it once start-up is over."""
-    import os
     import signal
 
     from canonid.runner import _ctrl_c_deferred
 
+    # raise_signal delivers to this thread before it returns; os.kill of the process could land
+    # on another thread (Dask's, from earlier tests) and reach the handler only later
     before = signal.getsignal(signal.SIGINT)
     with _ctrl_c_deferred() as pressed:
-        os.kill(os.getpid(), signal.SIGINT)  # blocked here: noted when the block ends
+        signal.raise_signal(signal.SIGINT)  # blocked here: noted when the block ends
     assert pressed == [True] and signal.getsignal(signal.SIGINT) is before
     with pytest.raises(KeyboardInterrupt), _ctrl_c_deferred():
-        os.kill(os.getpid(), signal.SIGINT)
+        signal.raise_signal(signal.SIGINT)
         raise RuntimeError("a start-up that the key broke")
     with pytest.raises(RuntimeError), _ctrl_c_deferred():
         raise RuntimeError("a start-up failure of its own")
