@@ -46,10 +46,11 @@ BASELINES = {"GRU": 1.490, "LSTM": 1.504, "RNN": 1.640}
 VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
     "default": ("mlp", {}, {}),
     "arx": ("arx", {}, {}),
-    "linear": ("mlp", {"linear": True}, {}),
+    "linear": ("mlp", {"linear": "arx"}, {}),
+    "no-skip": ("mlp", {"linear": "off"}, {}),
     "paper-options": (
         "mlp",
-        {"activation": "relu", "linear": False, "hidden": [256, 256, 256]},
+        {"activation": "relu", "linear": "off", "hidden": [256, 256, 256]},
         {},
     ),
 }

@@ -1,14 +1,16 @@
-"""A change of the ``quick`` training profile, measured on the three systems that choose it.
+"""A change of the defaults (``quick`` profile, Ours (MLP)'s network options), measured on the
+three systems that choose them.
 
-Each call trains Ours (MLP) with canonid's default network options, ℓ = 10, the ``quick``
-profile with the ``--set`` overrides (none: the profile as it is; ``grad_clip=null`` switches
-the clipping off), one torch thread, and appends one JSON row to ``--rows``; ``table`` turns
-the rows into the section "Quick profile: learning rate and clipping" of
-``benchmarks/RESULTS.md``, the variants side by side per system and seed::
+Each call trains Ours (MLP), ℓ = 10, with canonid's default network options updated by the
+``--net`` overrides (``linear=off``: no affine path) and the ``quick`` profile updated by the
+``--set`` overrides (none: the profile as it is; ``grad_clip=null`` switches the clipping off),
+one torch thread, and appends one JSON row to ``--rows``; ``table`` turns the rows into the
+section "Defaults study" of ``benchmarks/RESULTS.md``, the variants side by side per system and
+seed::
 
-    python benchmarks/defaults_study.py run tank --seed 0 --label "3e-3, clip 1 (now)"
-    python benchmarks/defaults_study.py run silverbox --seed 0 --label "5e-3" \
-        --set lr=0.005 grad_clip=null
+    python benchmarks/defaults_study.py run tank --seed 0 --label "now"
+    python benchmarks/defaults_study.py run silverbox --seed 0 --label "5e-3, no skip" \
+        --set lr=0.005 grad_clip=null --net linear=off
     python benchmarks/defaults_study.py table
 
 Systems: ``tank`` (``canonid generate tank``: 60 / 20 / 20 trajectories) and ``drone2d``
@@ -41,6 +43,7 @@ from _results import write_section  # noqa: E402
 
 WINDOW = 10
 ROWS = ROOT / "runs" / "defaults_study.jsonl"
+SECTION = "Defaults study"
 GENERATED = {"tank": "tank-s0", "drone2d": "drone2d-small"}
 
 
@@ -51,18 +54,20 @@ def _value(text: str) -> Any:
         return text
 
 
-def overrides_of(pairs: Sequence[str]) -> dict[str, Any]:
+def overrides_of(pairs: Sequence[str], flag: str = "--set") -> dict[str, Any]:
     """``["lr=0.005", "epochs=900"]`` → ``{"lr": 0.005, "epochs": 900}``."""
     out: dict[str, Any] = {}
     for pair in pairs:
         key, sep, text = pair.partition("=")
         if not sep:
-            raise SystemExit(f"--set {pair!r}: expected KEY=VALUE")
+            raise SystemExit(f"{flag} {pair!r}: expected KEY=VALUE")
         out[key] = _value(text)
     return out
 
 
-def run_generated(system: str, seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
+def run_generated(
+    system: str, seed: int, overrides: dict[str, Any], net: dict[str, Any]
+) -> dict[str, Any]:
     from canonid.profiles import stage_train_options
     from datagen import Dataset
     from learning import evaluate, fit
@@ -73,7 +78,7 @@ def run_generated(system: str, seed: int, overrides: dict[str, Any]) -> dict[str
         "quick", {"seed": seed, "device": "cpu", "checkpoint_every": 10**6, **overrides}
     )
     start = time.process_time()
-    result = fit(train, val, model="mlp", window=WINDOW, options=opts)
+    result = fit(train, val, model="mlp", window=WINDOW, options=opts, net_options=net)
     cpu = time.process_time() - start
     scores = evaluate(result.model, test, horizon=100)
     return {
@@ -86,10 +91,10 @@ def run_generated(system: str, seed: int, overrides: dict[str, Any]) -> dict[str
     }
 
 
-def run_silverbox(seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
+def run_silverbox(seed: int, overrides: dict[str, Any], net: dict[str, Any]) -> dict[str, Any]:
     import bench_silverbox
 
-    bench_silverbox.VARIANTS["study"] = ("mlp", {}, overrides)
+    bench_silverbox.VARIANTS["study"] = ("mlp", net, overrides)
     row = bench_silverbox.run(
         bench_silverbox.load(bench_silverbox.DEFAULT_CSV), "study", seed, WINDOW
     )
@@ -104,7 +109,7 @@ def run_silverbox(seed: int, overrides: dict[str, Any]) -> dict[str, Any]:
 
 
 def _number(x: float) -> str:
-    return f"{x:.3g}" if abs(x) >= 0.01 else f"{x:.2e}"
+    return f"{x:.4g}" if abs(x) >= 0.01 else f"{x:.2e}"
 
 
 def table(rows: list[dict[str, Any]]) -> str:
@@ -112,8 +117,8 @@ def table(rows: list[dict[str, Any]]) -> str:
     cases = sorted({(r["system"], r["seed"]) for r in rows})
     found = {(r["system"], r["seed"], r["label"]): r for r in rows}
     lines = [
-        "Ours (MLP), canonid's default network options, ℓ = 10, the `quick` profile with the "
-        "overrides of each column, one torch thread; tank and planar drone: test 100-step MSE "
+        "Ours (MLP), ℓ = 10, canonid's default network options and the `quick` profile with "
+        "the overrides of each column, one torch thread; tank and planar drone: test 100-step MSE "
         "against y_clean (`learning.evaluate`); Silverbox: multisine-test simulation RMSE after "
         "n_init = 50 (mV). Each cell: score (best validation loss, normalised; CPU seconds of "
         "training).",
@@ -131,11 +136,14 @@ def table(rows: list[dict[str, Any]]) -> str:
                 else f"{_number(r['score'])} ({_number(r['best_val'])}; {r['cpu_s']:.0f} s)"
             )
         lines.append(f"| {system} | {seed} | " + " | ".join(cells) + " |")
-    overrides = {r["label"]: r["overrides"] for r in rows}
+    overrides = {r["label"]: (r["overrides"], r.get("net", {})) for r in rows}
     lines += [
         "",
-        "Overrides of the profile per column: "
-        + "; ".join(f"{label}: `{json.dumps(overrides[label])}`" for label in labels)
+        "Overrides per column (profile; network options): "
+        + "; ".join(
+            f"{label}: `{json.dumps(overrides[label][0])}`; `{json.dumps(overrides[label][1])}`"
+            for label in labels
+        )
         + ".",
     ]
     loads = [r["load"] for r in rows]
@@ -153,7 +161,8 @@ def main() -> int:
     one.add_argument("system", choices=("tank", "drone2d", "silverbox"))
     one.add_argument("--seed", type=int, default=0)
     one.add_argument("--label", required=True, help="the variant's column in the table")
-    one.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE")
+    one.add_argument("--set", nargs="*", default=[], metavar="KEY=VALUE", help="profile")
+    one.add_argument("--net", nargs="*", default=[], metavar="KEY=VALUE", help="network options")
     one.add_argument("--rows", type=Path, default=ROWS)
     tab = sub.add_parser("table", help="write the section from the rows")
     tab.add_argument("--rows", type=Path, default=ROWS)
@@ -161,20 +170,21 @@ def main() -> int:
     if args.command == "table":
         rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
         body = table(rows)
-        write_section("Quick profile: learning rate and clipping", body)
+        write_section(SECTION, body)
         print(body)
         return 0
     torch.set_num_threads(1)
-    overrides = overrides_of(args.set)
+    overrides, net = overrides_of(args.set), overrides_of(args.net, "--net")
     if args.system == "silverbox":
-        measured = run_silverbox(args.seed, overrides)
+        measured = run_silverbox(args.seed, overrides, net)
     else:
-        measured = run_generated(args.system, args.seed, overrides)
+        measured = run_generated(args.system, args.seed, overrides, net)
     row = {
         "system": args.system,
         "seed": args.seed,
         "label": args.label,
         "overrides": overrides,
+        "net": net,
         **measured,
         "load": os.getloadavg()[0],
     }

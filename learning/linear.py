@@ -67,9 +67,9 @@ def least_squares(
 
 def initialise_linear(net: CanonicalModel, series: Sequence[Series], norm: Normalisation) -> None:
     """Set ``net``'s affine path to the least-squares fit and its nonlinear output layer to zero,
-    so that ``net`` starts as the ARX model (``net.linear`` must be on)."""
+    so that ``net`` starts as the ARX model (``net`` must have the affine path)."""
     if net.affine is None:
-        raise ShapeError(f"{net.name}: the model has no affine path (linear=False)")
+        raise ShapeError(f"{net.name}: the model has no affine path (linear='off')")
     scale = net.residual_scale.detach().cpu().numpy().astype(np.float64) if net.residual else None
     L, c = least_squares(
         series, norm, window=net.window, feedthrough=net.feedthrough, residual_scale=scale

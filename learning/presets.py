@@ -16,7 +16,7 @@ from typing import Any
 __all__ = ["DEFAULT_NET_OPTIONS", "PAPER_NET_OPTIONS", "net_options"]
 
 DEFAULT_NET_OPTIONS: dict[str, dict[str, Any]] = {
-    "mlp": {"residual": True, "feedthrough": False, "activation": "silu", "linear": False},
+    "mlp": {"residual": True, "feedthrough": False, "activation": "silu", "linear": "skip"},
     "arx": {"residual": False, "feedthrough": False},
 }
 
@@ -26,7 +26,7 @@ PAPER_NET_OPTIONS: dict[str, dict[str, Any]] = {
         "activation": "relu",
         "residual": True,
         "feedthrough": False,
-        "linear": False,
+        "linear": "off",
     },
 }
 

@@ -40,9 +40,10 @@ on; the network goes back to the best weights so far, the optimiser's moments ar
 learning rate is halved for the rest of the run. After ``MAX_RECOVERIES`` of them the run stops
 as diverged, keeping the best model.
 
-Linear start: a canonical model with the affine path (``linear``) starts from the least-squares
-ARX fit of the training data (:func:`learning.linear.least_squares`) with the nonlinear part's
-output layer at zero; a model that is not ``iterative`` (ARX) takes no gradient step at all.
+Linear start: a canonical model whose affine path is ``linear="arx"`` starts from the
+least-squares ARX fit of the training data (:func:`learning.linear.least_squares`) with the
+nonlinear part's output layer at zero (a ``"skip"`` path starts at zero, the network as built); a
+model that is not ``iterative`` (ARX) takes no gradient step at all.
 
 :func:`fit` trains a registered identification model from scratch; :func:`fit_net` is the loop
 itself, for a network built by the caller (the reduced model of :mod:`learning.reduction` uses it
@@ -70,6 +71,7 @@ from learning.data import Normalisation, Series, WindowBank, as_series
 from learning.linear import initialise_linear
 from learning.model import Model, check_same, load_state
 from learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
+from learning.nets.base import linear_path
 from learning.presets import net_options as preset_net_options
 from models.errors import CanonidError, CheckpointError, ShapeError
 from models.io import atomic_write_bytes
@@ -624,7 +626,7 @@ def fit(
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
         net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
-        if isinstance(net, CanonicalModel) and net.linear:
+        if isinstance(net, CanonicalModel) and net.linear == "arx":
             initialise_linear(net, train_s, norm)
         return net
 
@@ -822,7 +824,10 @@ def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
         {"model": identity["model"], "data": identity["data"]},
         what=f"checkpoint {path} (model / training data)",
     )
-    check_same(found.get("net", {}), identity["net"], what=f"checkpoint {path} (network)")
+    net = dict(found.get("net", {}))
+    if isinstance(net.get("linear"), bool):  # written before the linear skip: True / False
+        net["linear"] = linear_path(net["linear"])
+    check_same(net, identity["net"], what=f"checkpoint {path} (network)")
     check_same(
         found.get("options", {}), identity["options"], what=f"checkpoint {path} (training options)"
     )

@@ -13,9 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
-from learning import TrainOptions, evaluate, fit
+from learning import NETS, TrainOptions, evaluate, fit
 from learning.data import Normalisation, as_series
 from learning.linear import least_squares, regressors
+from learning.nets.base import LINEAR_PATHS, linear_path
 from learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS, net_options
 from learning.training import _draw_windows
 from models.canonical import cut_windows
@@ -188,7 +189,7 @@ def test_validation_is_capped_by_a_seeded_subset():
 def test_option_sets_are_named_once():
     assert net_options("mlp") == DEFAULT_NET_OPTIONS["mlp"]
     assert net_options("mlp", paper=True) == PAPER_NET_OPTIONS["mlp"]
-    assert net_options("mlp", {"linear": False})["linear"] is False
+    assert net_options("mlp", {"linear": "off"})["linear"] == "off"
     assert net_options("classic-gru") == {}
     # the authors' code: increment output, no feedthrough, ReLU, 3 × 256, no affine path
     assert PAPER_NET_OPTIONS["mlp"] == {
@@ -196,8 +197,57 @@ def test_option_sets_are_named_once():
         "activation": "relu",
         "residual": True,
         "feedthrough": False,
-        "linear": False,
+        "linear": "off",
     }
+
+
+@pytest.mark.parametrize("value", [*LINEAR_PATHS, False, True])
+def test_every_linear_path_builds_and_round_trips_its_config(value):
+    """``False`` / ``True`` (configurations written before the skip existed) read as off / arx;
+    the path exists unless it is off, and ``config()`` rebuilds the same network."""
+    net = NETS["mlp"](window=3, n_u=1, n_y=2, hidden=[8], linear=value)
+    name = linear_path(value)
+    assert net.linear == name and name in LINEAR_PATHS
+    assert (net.affine is None) == (name == "off")
+    again = NETS["mlp"](**net.config())
+    assert again.config() == net.config()
+    assert {k for k, _ in again.named_parameters()} == {k for k, _ in net.named_parameters()}
+
+
+def test_an_unknown_linear_path_is_refused_by_name():
+    from models.errors import ShapeError
+
+    with pytest.raises(ShapeError, match="linear must be one of off, skip, arx, got 'lsq'"):
+        NETS["mlp"](window=3, n_u=1, n_y=1, linear="lsq")
+
+
+def test_the_skip_keeps_its_random_start_and_the_arx_path_starts_at_least_squares():
+    """``"arx"`` starts the affine layer at the ARX fit and the network's last layer at zero;
+    ``"skip"`` starts the affine layer at zero and the network as built."""
+    data = trajectories(damped_siso(), 8, 100, noise=0.02, seed=3)
+    train, val = data[:6], data[6:]
+    common = {"residual": False, "feedthrough": False, "hidden": [16]}
+    epoch0 = options(epochs=1, lr=1e-12)  # Adam moves each weight by about lr: the start
+    fitted = {
+        path: fit(
+            train,
+            val,
+            model="mlp",
+            window=3,
+            options=epoch0,
+            net_options={**common, "linear": path},
+        ).model.net
+        for path in ("skip", "arx")
+    }
+    series = as_series(train)
+    L, c = least_squares(series, Normalisation.fit(series), window=3, feedthrough=False)
+    arx, skip = fitted["arx"], fitted["skip"]
+    np.testing.assert_allclose(arx.affine.weight.detach().numpy(), L, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(arx.affine.bias.detach().numpy(), c, rtol=1e-5, atol=1e-6)
+    assert not arx.output_layer().weight.detach().any()
+    assert skip.affine.weight.detach().abs().max() < 1e-9
+    assert skip.affine.bias.detach().abs().max() < 1e-9
+    assert skip.output_layer().weight.detach().abs().min() > 1e-9
 
 
 def test_an_old_run_option_is_refused_by_name():
@@ -238,6 +288,13 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
         main(["train", *common, "--model", "arx", "--no-linear", "--out", str(tmp_path / "x")]) == 1
     )
     assert "ARX is the affine path alone" in capsys.readouterr().err
+    # a bare --linear is the ARX start, --linear skip the skip, --no-linear none
+    forms = ((["--linear"], "arx"), (["--linear", "skip"], "skip"), (["--no-linear"], "off"))
+    for flags, path in forms:
+        out = tmp_path / f"lin-{path}"
+        argv = ["train", *common, "--model", "mlp", *flags, "--out", str(out)]
+        assert main(argv) == 0
+        assert json.loads((out / "config.json").read_text())["net"]["linear"] == path
     resume = ["train", "--resume", str(tmp_path / "d"), "--no-progress", "--device", "cpu"]
     assert main([*resume, "--no-linear"]) == 1
     assert "--linear cannot change when resuming" in capsys.readouterr().err

@@ -20,7 +20,7 @@ TINY = {
     "feedthrough": True,
     "residual": False,
     "activation": "relu",
-    "linear": False,
+    "linear": "off",
 }
 
 
@@ -133,6 +133,27 @@ def test_resume_ends_where_an_uninterrupted_run_ends(name, ema_decay, data, tmp_
     wf, wr = weights(full.model), weights(resumed.model)
     assert all(np.array_equal(wf[k], wr[k]) for k in wf)
     assert [r["val_loss"] for r in full.history] == [r["val_loss"] for r in resumed.history]
+    assert resumed.epochs_run == 6
+
+
+@pytest.mark.parametrize(("old", "path"), [(False, "off"), (True, "arx")])
+def test_a_checkpoint_with_the_old_linear_spelling_resumes(data, tmp_path, old, path):
+    """Checkpoints written before the linear skip said ``"linear": false`` / ``true``."""
+    train, val = data
+    kw = {"net_options": {**TINY, "linear": path}, "options": tiny_options(epochs=6)}
+
+    def stop_at_5(report):
+        if report.epoch == 5:
+            raise _Interrupt
+
+    with pytest.raises(_Interrupt):
+        fit_tiny(train, val, run_dir=tmp_path, callback=stop_at_5, **kw)
+    ckpt = tmp_path / CHECKPOINT_FILE
+    state = torch.load(ckpt, weights_only=True)
+    assert state["identity"]["net"]["linear"] == path
+    state["identity"]["net"]["linear"] = old
+    torch.save(state, ckpt)
+    resumed = fit_tiny(train, val, run_dir=tmp_path, resume=True, **kw)
     assert resumed.epochs_run == 6
 
 

@@ -29,7 +29,7 @@ from canonid.selection import (
     select,
 )
 from learning import NETS, EpochReport, OptionError, TrainOptions, model_names, presets
-from learning.nets.base import ACTIVATIONS, CanonicalModel
+from learning.nets.base import ACTIVATIONS, LINEAR_PATHS, CanonicalModel
 from learning.training import CHECKPOINT_FILE
 from models.errors import CheckpointError, DataError
 from models.io import read_json
@@ -137,9 +137,21 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--linear",
-        action=argparse.BooleanOptionalAction,
-        help="canonical models: an affine path started from the least-squares ARX fit "
-        f"(default: {_on_off('mlp', 'linear')} for Ours (MLP); ARX is the affine path alone)",
+        nargs="?",
+        const="arx",
+        choices=LINEAR_PATHS,
+        help="canonical models' affine path L·[z; u] + c beside the network: skip, a linear "
+        "skip started at zero and trained with the network; arx (also a bare --linear), started "
+        "at the least-squares ARX fit with the network's output layer at zero; off (default: "
+        f"{presets.DEFAULT_NET_OPTIONS['mlp']['linear']} for Ours (MLP), off for the others; "
+        "ARX is the affine path alone)",
+    )
+    p.add_argument(
+        "--no-linear",
+        dest="linear",
+        action="store_const",
+        const="off",
+        help="no affine path (--linear off)",
     )
     p.add_argument(
         "--paper-options",
@@ -202,8 +214,8 @@ def _recipe(args: argparse.Namespace) -> RunRecipe:
             raise OptionError(
                 f"--linear applies to the canonical models (mlp, gru, arx), not {args.model}"
             )
-        if args.model == "arx" and not args.linear:
-            raise OptionError("--no-linear: ARX is the affine path alone")
+        if args.model == "arx" and args.linear != "arx":
+            raise OptionError(f"--linear {args.linear}: ARX is the affine path alone (arx)")
         chosen["linear"] = args.linear
     net_options = presets.net_options(args.model, chosen, paper=args.paper_options)
     return RunRecipe(

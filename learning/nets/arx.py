@@ -21,7 +21,7 @@ class ARX(CanonicalModel):
 
     Args:
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
-            :class:`learning.nets.base.SequenceModel`); ``linear`` is always on.
+            :class:`learning.nets.base.SequenceModel`); ``linear`` is always ``"arx"``.
     """
 
     name = "arx"
@@ -30,7 +30,7 @@ class ARX(CanonicalModel):
 
     def __init__(self, **common: Any) -> None:
         common.pop("linear", None)
-        super().__init__(linear=True, **common)
+        super().__init__(linear="arx", **common)
 
     def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         return z.new_zeros(z.shape[0], self.n_y)

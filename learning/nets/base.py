@@ -29,11 +29,34 @@ from torch import nn
 from learning.canonical import pairs_to_state, shift
 from models.errors import ShapeError
 
-__all__ = ["ACTIVATIONS", "CanonicalModel", "SequenceModel", "mlp", "output_error"]
+__all__ = [
+    "ACTIVATIONS",
+    "LINEAR_PATHS",
+    "CanonicalModel",
+    "SequenceModel",
+    "linear_path",
+    "mlp",
+    "output_error",
+]
 
 
 #: hidden-layer activations of :func:`mlp`, by name
 ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "silu": nn.SiLU}
+
+#: a canonical model's affine path: none; a linear skip started at zero and trained with the
+#: network, like the linear bypass of deepSI's residual networks; or started at the
+#: least-squares ARX fit with the nonlinear part's output layer at zero
+LINEAR_PATHS = ("off", "skip", "arx")
+
+
+def linear_path(value: bool | str) -> str:
+    """The affine path's name in :data:`LINEAR_PATHS`; ``False`` / ``True`` (configurations
+    written before the skip existed) read as ``"off"`` / ``"arx"``."""
+    if isinstance(value, bool):
+        return "arx" if value else "off"
+    if value not in LINEAR_PATHS:
+        raise ShapeError(f"linear must be one of {', '.join(LINEAR_PATHS)}, got {value!r}")
+    return str(value)
 
 
 def mlp(n_in: int, hidden: Sequence[int], n_out: int, *, activation: str = "relu") -> nn.Sequential:
@@ -186,17 +209,23 @@ class CanonicalModel(SequenceModel):
     Subclasses implement :meth:`regress`, the raw network output before the residual option.
 
     Args:
-        linear: add an affine path, ``raw = L·x + c + regress(z, u)`` with ``x`` the head's input
-            (``[z_t; u_t]``, or ``z_t`` without feedthrough). :func:`learning.training.fit` starts
-            ``L, c`` at the least-squares (ARX) fit and the nonlinear part's output layer at zero,
-            so training starts from the best linear model.
+        linear: the affine path, ``raw = L·x + c + regress(z, u)`` with ``x`` the head's input
+            (``[z_t; u_t]``, or ``z_t`` without feedthrough), one of :data:`LINEAR_PATHS`:
+            ``"off"``; ``"skip"``, ``L, c`` started at zero and trained with the network;
+            ``"arx"``, :func:`learning.training.fit` starts ``L, c`` at the least-squares (ARX)
+            fit and the nonlinear part's output layer at zero, so training starts from the best
+            linear model. ``False`` / ``True`` mean ``"off"`` / ``"arx"``.
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``.
     """
 
-    def __init__(self, *, linear: bool = False, **common: Any) -> None:
+    def __init__(self, *, linear: bool | str = "off", **common: Any) -> None:
         super().__init__(**common)
-        self.linear = bool(linear)
-        self.affine = nn.Linear(self._head_width(self.state_dim), self.n_y) if self.linear else None
+        self.linear = linear_path(linear)
+        width = self._head_width(self.state_dim)
+        self.affine = nn.Linear(width, self.n_y) if self.linear != "off" else None
+        if self.affine is not None and self.linear == "skip":  # training starts from the network
+            nn.init.zeros_(self.affine.weight)
+            nn.init.zeros_(self.affine.bias)
 
     def config(self) -> dict[str, Any]:
         return {**super().config(), "linear": self.linear}
