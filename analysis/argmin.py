@@ -7,7 +7,7 @@ call per iteration for every problem and start), the step solves
 points outwards is fixed), the new point is projected onto the box X and accepted if the
 objective decreased. The best of the starts is kept.
 
-The solver gives no global guarantee; :mod:`analysis.bound` therefore compares the objective
+The solver gives no global guarantee; :mod:`canonid.analysis.bound` therefore compares the objective
 found with the objective at the true state and counts a trial whose found objective is larger
 as a **solver failure** (the proof of Proposition 2 needs only
 ``‖ȳ − O(x̂)‖ ≤ ‖ȳ − O(x_{t−ℓ})‖``, so any point at least as good as the truth obeys the bound).
@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.maps import Horizon, batched
-from models.errors import ShapeError
-from models.sets import Box
+from canonid.analysis.maps import Horizon, batched
+from canonid.kernel.errors import ShapeError
+from canonid.models.sets import Box
 
 __all__ = ["ArgminResult", "output_error_argmin"]
 
@@ -56,7 +56,7 @@ def output_error_argmin(
     """Minimise ``½‖ȳ_i − O_ℓ(x, ū_i)‖²`` over ``x ∈ X`` for each row ``i``.
 
     Args:
-        horizon: ``O_ℓ`` of the system (:class:`analysis.maps.Horizon`).
+        horizon: ``O_ℓ`` of the system (:class:`canonid.analysis.maps.Horizon`).
         ybar: ``(N, ℓ·n_y)`` stacked measured outputs ``y_{t−ℓ}, …, y_{t−1}``.
         ubar: ``(N, ℓ·n_u)`` stacked inputs ``u_{t−ℓ}, …, u_{t−1}``.
         X: the box of admissible states.

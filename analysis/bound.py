@@ -9,7 +9,7 @@ where ``w̄_{t−ℓ|t−1} = (w_{t−ℓ}, …, w_{t−1}) ∈ R^{ℓ·n_y}`` i
 the window and every norm is Euclidean. The proof: optimality gives ``‖ȳ − O(x̂)‖ ≤ ‖w̄‖``, so
 ``‖O(x̂) − O(x_{t−ℓ})‖ ≤ 2‖w̄‖`` and ``‖x̂_{t−ℓ} − x_{t−ℓ}‖ ≤ 2 α_ℓ^{−1}‖w̄‖``; ``F_ℓ`` is
 ``γ_f^ℓ``-Lipschitz (Lemma 1). Here γ_f must hold on a convex set containing every state reached
-in ``ℓ − 1`` steps (:mod:`analysis.reach`), which is how the constants are computed.
+in ``ℓ − 1`` steps (:mod:`canonid.analysis.reach`), which is how the constants are computed.
 
 Consequence used for learned models (paper §III-B): ``y_t = h(x̂_t, u_t) + ξ_t`` with
 ``‖ξ_t‖ ≤ ‖w_t‖ + γ_h ‖x̂_t − x_t‖ ≤ ‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{−1}‖w̄‖``. The paper writes this
@@ -27,13 +27,13 @@ from typing import Any
 
 import numpy as np
 
-from analysis.argmin import output_error_argmin
-from analysis.estimate import Estimate
-from analysis.maps import Horizon, batched, check_window
-from analysis.observability import input_box
-from models.base import System
-from models.errors import SetError, ShapeError
-from models.sets import Box
+from canonid.analysis.argmin import output_error_argmin
+from canonid.analysis.estimate import Estimate
+from canonid.analysis.maps import Horizon, batched, check_window
+from canonid.analysis.observability import input_box
+from canonid.kernel.errors import SetError, ShapeError
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["BoundCheck", "BoundConstants", "check_bound"]
 
@@ -212,7 +212,7 @@ def check_bound(
     ``u_{t−ℓ}, …, u_{t−1}`` uniformly in U and noise ``w_{t−ℓ}, …, w_{t−1}`` in W
     (``noise="uniform"``, or ``"vertices"``: each component at ±its bound, the largest norms);
     measures ``ȳ = O_ℓ(x_{t−ℓ}, ū) + w̄``; solves the argmin over X
-    (:func:`analysis.argmin.output_error_argmin`, ``starts`` random starts); and compares
+    (:func:`canonid.analysis.argmin.output_error_argmin`, ``starts`` random starts); and compares
     ``‖F_ℓ(x̂_{t−ℓ}, ū) − F_ℓ(x_{t−ℓ}, ū)‖`` with ``2 γ_f^ℓ α_ℓ^{−1} ‖w̄‖``.
 
     A trial whose objective at ``x̂`` exceeds the objective at ``x_{t−ℓ}`` is a solver failure,

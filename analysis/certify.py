@@ -1,13 +1,13 @@
 """γ_f of a learned model: the Lipschitz constant in its state of ``f = Ā z + B̄ u + S̄ Ĥ(z, u)``.
 
-The learned model is a :class:`models.learned.LearnedSystem` (its SX graph built from the
-weights), so the estimators of :mod:`analysis.lipschitz` run on it unchanged, on the box hull X
-of the training windows and the training inputs U:
+The learned model is a :class:`canonid.models.learned.LearnedSystem` (its SX graph built from the
+weights), so the estimators of :mod:`canonid.analysis.lipschitz` run on it unchanged, on the box
+hull X of the training windows and the training inputs U:
 
 * ``lower`` — **lower bound**: sampled and locally maximised ``‖∂f/∂z‖₂`` (:func:`lipschitz_lower`);
 * ``upper`` — **certified upper bound**: interval branch-and-bound (:func:`lipschitz_upper`),
   valid whenever it stops, on the network's layers for Ours (MLP)
-  (:mod:`analysis.network_enclosure`, 1–30 ms per box) and on the SX graph otherwise (a
+  (:mod:`canonid.analysis.network_enclosure`, 1–30 ms per box) and on the SX graph otherwise (a
   reduced or GRU model); in ℓ(n_u+n_y) dimensions the budget usually ends long before the
   bracket closes;
 * ``layer_norms`` — **certified upper bound, loose**: the product of the layer norms (below), a
@@ -15,7 +15,8 @@ of the training windows and the training inputs U:
   its reduced model (for a GRU regressor it is the trivial ``∞``).
 
 Layer-norm bound. With ``Ĥ = y_mean + D_y ỹ``, ``ỹ = C a + diag(s) MLP(a)``, ``a`` the normalised
-``[z; u]`` (``C``: the residual and affine terms, :meth:`models.network.CanonicalNet.linear_part`),
+``[z; u]`` (``C``: the residual and affine terms,
+:meth:`canonid.kernel.network.CanonicalNet.linear_part`),
 
     ‖∂Ĥ/∂z‖₂ ≤ ‖D_y C_z D_z⁻¹‖₂ + ‖D_y diag(s) W_L‖₂ ∏_{k<L} (σ'_max ‖W_k‖₂) with W_1 → W_1,z D_z⁻¹,
 
@@ -23,7 +24,7 @@ and since the rows of ``∂f/∂z = [Ā_top; 0; ∂Ĥ/∂z]`` split into the shi
 ℓ = 1) and ``∂Ĥ/∂z``, ``γ_f ≤ √(‖Ā‖² + ‖∂Ĥ/∂z‖²)``. For a reduced model ``f = E ∘ g ∘ D`` with
 ``g`` the same map in normalised units, ``γ_f ≤ Lip(E) · √(‖Ā‖² + Lip(g_y)²) · Lip(D)``, each
 auto-encoder half bounded by its layer product plus its skip path's norm. Every matrix norm is a
-verified bound (:func:`analysis.matrix_bounds.spectral_upper`) and every product and sum is
+verified bound (:func:`canonid.analysis.matrix_bounds.spectral_upper`) and every product and sum is
 rounded upwards.
 
 The true system's γ_f on its own X (for the same window ℓ) is a different quantity — its state is
@@ -40,13 +41,13 @@ from typing import Any
 
 import numpy as np
 
-from analysis.estimate import Bracket, Budget, Estimate
-from analysis.interval import Interval
-from analysis.lipschitz import lipschitz_bracket
-from analysis.matrix_bounds import spectral_upper
-from analysis.network_enclosure import network_enclosure
-from models.learned import LearnedSystem
-from models.network import ACTIVATIONS, CanonicalNet, Layer, ReducedNet
+from canonid.analysis.estimate import Bracket, Budget, Estimate
+from canonid.analysis.interval import Interval
+from canonid.analysis.lipschitz import lipschitz_bracket
+from canonid.analysis.matrix_bounds import spectral_upper
+from canonid.analysis.network_enclosure import network_enclosure
+from canonid.kernel.network import ACTIVATIONS, CanonicalNet, Layer, ReducedNet
+from canonid.models.learned import LearnedSystem
 
 __all__ = ["LearnedGamma", "layer_norm_bound", "learned_gamma"]
 

@@ -2,7 +2,7 @@
 
 :class:`Enclosure` walks the algorithm of a ``casadi.Function`` built from SX (``n_instructions``,
 ``instruction_id/input/output/constant``) once, then evaluates it on a batch of boxes in the
-interval arithmetic of :mod:`analysis.interval`. With ``wrt=k`` it also runs forward-mode
+interval arithmetic of :mod:`canonid.analysis.interval`. With ``wrt=k`` it also runs forward-mode
 automatic differentiation in intervals and returns an enclosure of the Jacobian with respect to
 input ``k``.
 
@@ -28,8 +28,8 @@ import casadi as ca
 import numpy as np
 from flint import arb
 
-from analysis.interval import Interval, _sum_lower, _sum_upper, arb_map
-from models.errors import SetError, ShapeError
+from canonid.analysis.interval import Interval, _sum_lower, _sum_upper, arb_map
+from canonid.kernel.errors import SetError, ShapeError
 
 __all__ = [
     "DISCONTINUITY",

@@ -6,8 +6,8 @@ method that produced it, the budget it was given and the wall time it took. A lo
 bound of the same quantity form a :class:`Bracket`.
 
 "Certified" in a method name means the bound is proved by outward-rounded interval arithmetic
-(:mod:`analysis.interval`); sampled bounds are exact evaluations at points (a sampled ‖∂f/∂x‖ is
-a lower bound of the supremum up to float rounding, a sampled ratio an upper bound of the
+(:mod:`canonid.analysis.interval`); sampled bounds are exact evaluations at points (a sampled
+‖∂f/∂x‖ is a lower bound of the supremum up to float rounding, a sampled ratio an upper bound of the
 infimum).
 """
 
@@ -19,8 +19,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
-from models.errors import SetError
-from models.sets import Box
+from canonid.kernel.errors import SetError
+from canonid.models.sets import Box
 
 __all__ = ["KINDS", "QUANTITIES", "Bracket", "Budget", "Estimate", "Kind"]
 

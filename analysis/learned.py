@@ -1,7 +1,7 @@
 """Learned models against the theory, through plain numpy callables (no torch here).
 
 The identification layer exports a regressor ``H(z, u) -> y``: ``z`` of shape
-``(N, ℓ(n_u+n_y))`` in the :mod:`models.canonical` ordering, ``u`` ``(N, n_u)``, ``y``
+``(N, ℓ(n_u+n_y))`` in the :mod:`canonid.kernel.canonical` ordering, ``u`` ``(N, n_u)``, ``y``
 ``(N, n_y)``, physical units. Trajectories are duck-typed: objects with ``u`` ``(T, n_u)``,
 ``y`` ``(T, n_y)`` and, where available, ``y_clean`` (noise-free outputs) and ``x`` (true states),
 following the dataset time convention (sample ``t`` holds ``x[t]``, ``u[t]``, ``y[t]``).
@@ -12,9 +12,9 @@ the start of the window ``x_{t−ℓ}``, the noise ``w_t = y_t − y_clean_t`` a
 ``w̄_{t−ℓ|t−1}``.
 
 * :func:`residual_check` — the one-step residual ``‖y_t − Ĥ(z_t, u_t)‖`` against the
-  noise-induced level ``‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{−1}‖w̄_{t−ℓ|t−1}‖`` (see :mod:`analysis.bound`
-  for the factor 2): the residual an ideal regressor — ``h`` of the output-error estimate —
-  cannot exceed.
+  noise-induced level ``‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{−1}‖w̄_{t−ℓ|t−1}‖`` (see
+  :mod:`canonid.analysis.bound` for the factor 2): the residual an ideal regressor — ``h`` of the
+  output-error estimate — cannot exceed.
 * :func:`state_probe` — a least-squares probe (affine or quadratic features) from ``z_t``, or
   from a reduced state ``x̄_t`` given as arrays, to the true ``x_t``; its error on test data is
   set beside the Proposition 2 bound ``2 γ_f^ℓ α_ℓ^{−1}‖w̄‖`` of the same rows.
@@ -31,11 +31,11 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from analysis.bound import BoundConstants
-from analysis.maps import check_window
-from models.canonical import cut_windows
-from models.errors import DataError, ShapeError
-from models.sets import Box
+from canonid.analysis.bound import BoundConstants
+from canonid.analysis.maps import check_window
+from canonid.kernel.canonical import cut_windows
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.models.sets import Box
 
 __all__ = [
     "ProbeResult",

@@ -1,7 +1,7 @@
 """Where the certified bounds of an analysis are out of reach, and why — in words.
 
-:func:`limitations` reads the brackets of :func:`analysis.report.analyze` and lists, per kind of
-shortfall, the windows it concerns and the reason recorded by the search:
+:func:`limitations` reads the brackets of :func:`canonid.analysis.report.analyze` and lists, per
+kind of shortfall, the windows it concerns and the reason recorded by the search:
 
 * reachable hulls whose enclosure stopped at the budget (rigorous, but loose: how much they
   grow step after step is the interval wrapping the certified γ bounds inherit);
@@ -12,7 +12,7 @@ shortfall, the windows it concerns and the reason recorded by the search:
 * α_ℓ = 0 exactly (Proposition 2's bound is then infinite whatever γ_f is), or no certified
   lower bound of α_ℓ beyond the trivial 0, or a pair search stopped by the budget.
 
-The system's own explanation (:attr:`models.base.System.analysis_note`) follows when any
+The system's own explanation (:attr:`canonid.models.base.System.analysis_note`) follows when any
 certified bound is out of reach. Sampled bounds are always produced; these lines only say how
 far the certified side got.
 """
@@ -25,9 +25,9 @@ from typing import Protocol
 
 import numpy as np
 
-from analysis.estimate import Bracket
-from analysis.reach import ReachableHulls
-from models.base import System
+from canonid.analysis.estimate import Bracket
+from canonid.analysis.reach import ReachableHulls
+from canonid.models.base import System
 
 __all__ = ["limitations"]
 
@@ -36,7 +36,7 @@ LOOSE_FACTOR = 10.0
 
 
 class _Window(Protocol):
-    """One window's brackets (``analysis.report.WindowResult``)."""
+    """One window's brackets (``canonid.analysis.report.WindowResult``)."""
 
     @property
     def window(self) -> int: ...

@@ -20,9 +20,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-from analysis.maps import check_window
-from models.errors import ShapeError
-from models.linear import LinearSystem
+from canonid.analysis.maps import check_window
+from canonid.kernel.errors import ShapeError
+from canonid.models.linear import LinearSystem
 
 __all__ = [
     "alpha_exact",
@@ -79,7 +79,8 @@ def gamma_exact(A: np.ndarray) -> float:
 
 
 def _split_window(z: np.ndarray, window: int, n_u: int, n_y: int) -> tuple[np.ndarray, np.ndarray]:
-    """``(ū, ȳ)`` from rows of ``z`` in the ``models.canonical`` ordering (pairs, oldest first)."""
+    """``(ū, ȳ)`` from rows of ``z`` in the ``canonid.kernel.canonical`` ordering (pairs, oldest
+    first)."""
     pairs = z.reshape(z.shape[0], window, n_u + n_y)
     ubar = pairs[:, :, :n_u].reshape(z.shape[0], window * n_u)
     ybar = pairs[:, :, n_u:].reshape(z.shape[0], window * n_y)
@@ -89,8 +90,8 @@ def _split_window(z: np.ndarray, window: int, n_u: int, n_y: int) -> tuple[np.nd
 def canonical_state_map(system: LinearSystem, window: int) -> Callable[[np.ndarray], np.ndarray]:
     """``z_t ↦ x̂_t = F_ℓ(𝒪_ℓ^+(ȳ − 𝒯_ℓ ū), ū)``: the least-squares state estimate (batched).
 
-    ``z`` has shape ``(N, ℓ(n_u+n_y))`` in the ``models.canonical`` ordering; returns ``(N, n_x)``.
-    Needs ``𝒪_ℓ`` of full column rank.
+    ``z`` has shape ``(N, ℓ(n_u+n_y))`` in the ``canonid.kernel.canonical`` ordering; returns ``(N,
+    n_x)``. Needs ``𝒪_ℓ`` of full column rank.
     """
     ell = check_window(window)
     A, B = system.A, system.B

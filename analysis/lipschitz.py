@@ -9,12 +9,12 @@ Jacobian, which the interval enclosure contains).
   (L-BFGS-B, CasADi gradients).
 * :func:`lipschitz_upper` — a **certified upper bound**: branch-and-bound over sub-boxes of
   ``X × U`` (split only along the coordinates the Jacobian depends on), each box bounded by the
-  verified spectral norm (:func:`analysis.matrix_bounds.spectral_upper`) of its interval Jacobian
-  (:class:`analysis.enclosure.Enclosure`); the boxes with the largest bound are refined first
-  (a batch at a time) until ``upper − lower ≤ tol · lower`` or the budget ends.
+  verified spectral norm (:func:`canonid.analysis.matrix_bounds.spectral_upper`) of its interval
+  Jacobian (:class:`canonid.analysis.enclosure.Enclosure`); the boxes with the largest bound are
+  refined first (a batch at a time) until ``upper − lower ≤ tol · lower`` or the budget ends.
 
 A Jacobian that cannot be bounded near a point — the tank's ``√`` at 0 — raises
-:class:`~models.errors.SetError` saying why: there γ is infinite, not a number to report.
+:class:`~canonid.kernel.errors.SetError` saying why: there γ is infinite, not a number to report.
 """
 
 from __future__ import annotations
@@ -28,14 +28,14 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from analysis._local import local_minima
-from analysis.enclosure import Enclosure, describe_flags
-from analysis.estimate import Bracket, Budget, Estimate
-from analysis.interval import Interval
-from analysis.maps import batched, jacobian_function, varying_dims
-from analysis.matrix_bounds import spectral_upper
-from models.errors import SetError
-from models.sets import Box
+from canonid.analysis._local import local_minima
+from canonid.analysis.enclosure import Enclosure, describe_flags
+from canonid.analysis.estimate import Bracket, Budget, Estimate
+from canonid.analysis.interval import Interval
+from canonid.analysis.maps import batched, jacobian_function, varying_dims
+from canonid.analysis.matrix_bounds import spectral_upper
+from canonid.kernel.errors import SetError
+from canonid.models.sets import Box
 
 __all__ = ["lipschitz_bracket", "lipschitz_lower", "lipschitz_upper"]
 
@@ -133,7 +133,7 @@ def lipschitz_lower(
         seed: random seed (same seed, same result).
         where: words naming the set, for error messages.
         jacobian: the Jacobians at many points at once, in place of CasADi's on ``fun`` (the
-            same numbers, e.g. :meth:`models.learned.LearnedSystem.linearise`).
+            same numbers, e.g. :meth:`canonid.models.learned.LearnedSystem.linearise`).
 
     Raises:
         SetError: the Jacobian is not finite at a sampled point (γ unbounded).
@@ -232,9 +232,9 @@ def lipschitz_upper(
         where: words naming the set, for error messages.
         progress: optional callback ``(message, fraction_done)``.
         enclosure: encloses ``fun`` and its Jacobian in ``x`` on boxes, called as
-            :class:`~analysis.enclosure.Enclosure` is (default: that class on ``fun``'s SX graph;
-            :class:`analysis.network_enclosure.NetworkEnclosure` is the fast one for an MLP
-            model); its ``method`` attribute, if any, describes the bound.
+            :class:`~canonid.analysis.enclosure.Enclosure` is (default: that class on ``fun``'s SX
+            graph; :class:`canonid.analysis.network_enclosure.NetworkEnclosure` is the fast one for
+            an MLP model); its ``method`` attribute, if any, describes the bound.
         jacobian: point Jacobians for the box centres, as in :func:`lipschitz_lower`.
 
     Raises:

@@ -8,8 +8,8 @@ Conventions (paper eq. 4–5). For a window ``ℓ ≥ 1`` and inputs
 * ``O_ℓ(x, ū)`` stacks ``h(x, u_1), h(F_1(x, u_1), u_2), …, h(F_{ℓ−1}(x, ū), u_ℓ)`` — the
   noise-free outputs ``y_{t−ℓ}, …, y_{t−1}`` (length ``ℓ·n_y``, oldest first).
 
-Every function here is an SX ``casadi.Function`` (so :class:`analysis.enclosure.Enclosure` can
-walk it) with inputs ``(x, ubar)``.
+Every function here is an SX ``casadi.Function`` (so :class:`canonid.analysis.enclosure.Enclosure`
+can walk it) with inputs ``(x, ubar)``.
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from functools import cached_property
 import casadi as ca
 import numpy as np
 
-from models.base import System
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
+from canonid.models.base import System
 
 __all__ = ["Horizon", "batched", "check_window", "jacobian_function", "varying_dims"]
 

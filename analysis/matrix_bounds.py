@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from analysis.interval import Interval, _prod_bounds, _sum_lower, _sum_upper, interval_sum
+from canonid.analysis.interval import Interval, _prod_bounds, _sum_lower, _sum_upper, interval_sum
 
 __all__ = ["smin_lower", "spectral_upper"]
 

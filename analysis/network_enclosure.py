@@ -1,24 +1,26 @@
 """Interval enclosures of a learned MLP model's ``f`` and ``∂f/∂z``, computed layer by layer.
 
-:class:`analysis.enclosure.Enclosure` walks a CasADi SX graph one operation at a time: general,
-but the graph of a 3 × 256 network has about 700,000 instructions, so one box takes minutes. For
-a canonical model whose regressor is an MLP (:class:`models.network.CanonicalNet` without GRU
-layers) the same enclosures follow from the layers with matrix products (interval bound
-propagation), in 1–30 ms per box (measured: a 2 × 64 network in 20 dimensions, 3 × 256 in 50):
+:class:`canonid.analysis.enclosure.Enclosure` walks a CasADi SX graph one operation at a time:
+general, but the graph of a 3 × 256 network has about 700,000 instructions, so one box takes
+minutes. For a canonical model whose regressor is an MLP
+(:class:`canonid.kernel.network.CanonicalNet` without GRU layers) the same enclosures follow from
+the layers with matrix products (interval bound propagation), in 1–30 ms per box (measured: a 2 × 64
+network in 20 dimensions, 3 × 256 in 50):
 
 * pre-activations ``h_k = W_k a_{k−1} + b_k`` and activations ``a_k = σ(h_k)`` as intervals,
   from the box of the normalised ``a_0 = [z̃; ũ]`` (``z̃`` alone without feedthrough);
 * slopes ``σ'(h_k)`` as intervals (ReLU's on an interval that reaches 0: ``[0, 1]``, the hull of
-  Clarke's generalised derivative, as :mod:`analysis.enclosure` takes for ``fmax``);
+  Clarke's generalised derivative, as :mod:`canonid.analysis.enclosure` takes for ``fmax``);
 * ``∂raw/∂z̃ ∈ W_L diag(σ'(h_{L−1})) W_{L−1} ⋯ diag(σ'(h_1)) W_{1,z}``, multiplied from the right;
-* ``∂f/∂z = Ā + S̄ D_y (C_z + diag(s) ∂raw/∂z̃) D_z⁻¹`` (notation of :mod:`analysis.certify`).
+* ``∂f/∂z = Ā + S̄ D_y (C_z + diag(s) ∂raw/∂z̃) D_z⁻¹`` (notation of :mod:`canonid.analysis.certify`).
 
 Soundness. Products of a weight matrix and an interval vector or matrix are enclosed by
-:func:`analysis.interval.point_matmul` (midpoint–radius with a rigorous bound of the float
+:func:`canonid.analysis.interval.point_matmul` (midpoint–radius with a rigorous bound of the float
 error). Element-wise steps use the
-outward-rounded :class:`~analysis.interval.Interval` arithmetic. ``σ`` and ``σ'`` are evaluated in
-float64 at the ends of each interval (and at their extrema, when an extremum lies inside) and
-widened by ``1e-13`` relative plus ``1e-300``, hundreds of times the error of libm's ``tanh``.
+outward-rounded :class:`~canonid.analysis.interval.Interval` arithmetic. ``σ`` and ``σ'`` are
+evaluated in float64 at the ends of each interval (and at their extrema, when an extremum lies
+inside) and widened by ``1e-13`` relative plus ``1e-300``, hundreds of times the error of libm's
+``tanh``.
 """
 
 from __future__ import annotations
@@ -27,11 +29,11 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from analysis.enclosure import NONFINITE, EnclosureResult
-from analysis.interval import Interval, point_matmul
-from models.errors import ShapeError
-from models.learned import LearnedSystem
-from models.network import CanonicalNet
+from canonid.analysis.enclosure import NONFINITE, EnclosureResult
+from canonid.analysis.interval import Interval, point_matmul
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.network import CanonicalNet
+from canonid.models.learned import LearnedSystem
 
 __all__ = ["NetworkEnclosure", "network_enclosure"]
 
@@ -109,7 +111,7 @@ def activation_enclosure(name: str, h: Interval) -> tuple[Interval, Interval]:
 
 class NetworkEnclosure:
     """The enclosure of ``f`` and ``∂f/∂z`` of an MLP canonical model, as
-    :class:`analysis.enclosure.Enclosure` gives them (``enclosure([X box, U box])``)."""
+    :class:`canonid.analysis.enclosure.Enclosure` gives them (``enclosure([X box, U box])``)."""
 
     #: how an upper bound found with it is described
     method = (

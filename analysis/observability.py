@@ -3,7 +3,7 @@
     α_ℓ = inf over ū ∈ U^ℓ and x ≠ x' in X of ‖O_ℓ(x, ū) − O_ℓ(x', ū)‖ / ‖x − x'‖,
 
 with ``O_ℓ(x, ū)`` stacking ``h(x, u_1), h(F_1(x, u_1), u_2), …, h(F_{ℓ−1}(x, ū), u_ℓ)`` (see
-:mod:`analysis.maps`). Estimators:
+:mod:`canonid.analysis.maps`). Estimators:
 
 * :func:`alpha_upper` — two **upper bounds** of the infimum: the smallest sampled and locally
   minimised pair ratio, and the smallest ``σ_min(∂O_ℓ/∂x)`` (letting ``x' → x`` along the weakest
@@ -40,14 +40,14 @@ from typing import Any, NamedTuple
 import casadi as ca
 import numpy as np
 
-from analysis._local import local_minima
-from analysis.enclosure import Enclosure, RangeEnclosure, describe_flags
-from analysis.estimate import Bracket, Budget, Estimate
-from analysis.interval import Interval, _sum_upper, norm_lower, norm_upper, quotient_lower
-from analysis.maps import Horizon, batched, check_window, varying_dims
-from analysis.matrix_bounds import smin_lower
-from models.base import System
-from models.sets import Box
+from canonid.analysis._local import local_minima
+from canonid.analysis.enclosure import Enclosure, RangeEnclosure, describe_flags
+from canonid.analysis.estimate import Bracket, Budget, Estimate
+from canonid.analysis.interval import Interval, _sum_upper, norm_lower, norm_upper, quotient_lower
+from canonid.analysis.maps import Horizon, batched, check_window, varying_dims
+from canonid.analysis.matrix_bounds import smin_lower
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["alpha_bracket", "alpha_lower", "alpha_upper", "input_box"]
 

@@ -23,12 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from analysis.enclosure import RangeEnclosure, describe_flags
-from analysis.estimate import Budget
-from analysis.maps import varying_dims
-from models.base import System
-from models.errors import SetError
-from models.sets import Box
+from canonid.analysis.enclosure import RangeEnclosure, describe_flags
+from canonid.analysis.estimate import Budget
+from canonid.analysis.maps import varying_dims
+from canonid.kernel.errors import SetError
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["ImageEnclosure", "ReachableHulls", "enclose_image", "reach", "reachable_hulls"]
 
@@ -225,7 +225,7 @@ def reach(
         X, U: the sets (default: the system's).
         tol: relative tolerance of each step's enclosure (:func:`enclose_image`).
         budget: ``boxes`` and ``seconds`` of **each** step's enclosure (default
-            :class:`~analysis.estimate.Budget()`: 20,000 boxes, no time limit).
+            :class:`~canonid.analysis.estimate.Budget()`: 20,000 boxes, no time limit).
 
     Raises:
         SetError: ``f`` is undefined or singular on a reachable box (not a matter of budget).

@@ -2,7 +2,7 @@
 
 :func:`analyze` computes, for each window ``ℓ``:
 
-* the certified hull ``H_{ℓ−1}`` of the states reachable from X (:mod:`analysis.reach`);
+* the certified hull ``H_{ℓ−1}`` of the states reachable from X (:mod:`canonid.analysis.reach`);
 * γ_f on ``H_{ℓ−1} × U`` and γ_h on ``H_ℓ × U`` (sampled lower bound, certified upper bound;
   where a hull has no finite certified box within the budget, the upper bound is the trivial
   ``∞`` and the lower bound is sampled on ``X ⊆ H``);
@@ -11,7 +11,7 @@
 * the Monte-Carlo check of Proposition 2 with the certified constants (γ_f upper, α_ℓ lower);
 
 and :class:`AnalysisReport` writes ``analysis.json`` (schema in :data:`SCHEMA`), a text table,
-the list of certified bounds that are out of reach and why (:mod:`analysis.limits`) and the
+the list of certified bounds that are out of reach and why (:mod:`canonid.analysis.limits`) and the
 figure "bound and observed error versus ℓ". Every certified search (each hull step, each γ
 search, each α pair search) stops at the budget's boxes or seconds and returns what it has;
 the sampled bounds and the Monte-Carlo check are always computed.
@@ -31,19 +31,19 @@ from typing import Any, Protocol
 import casadi as ca
 import numpy as np
 
-from analysis.bound import BoundCheck, BoundConstants, check_bound
-from analysis.estimate import Bracket, Budget, Estimate
-from analysis.learned import ProbeResult, ResidualCheck, residual_check, state_probe
-from analysis.limits import limitations
-from analysis.lipschitz import lipschitz_bracket, lipschitz_lower
-from analysis.maps import check_window
-from analysis.observability import alpha_bracket
-from analysis.reach import ReachableHulls, reach
-from models.base import System
-from models.errors import DataError, SetError
-from models.io import atomic_write_bytes, atomic_write_json, jsonable, read_json
-from models.registry import get_system
-from models.sets import Box
+from canonid.analysis.bound import BoundCheck, BoundConstants, check_bound
+from canonid.analysis.estimate import Bracket, Budget, Estimate
+from canonid.analysis.learned import ProbeResult, ResidualCheck, residual_check, state_probe
+from canonid.analysis.limits import limitations
+from canonid.analysis.lipschitz import lipschitz_bracket, lipschitz_lower
+from canonid.analysis.maps import check_window
+from canonid.analysis.observability import alpha_bracket
+from canonid.analysis.reach import ReachableHulls, reach
+from canonid.kernel.errors import DataError, SetError
+from canonid.kernel.io import atomic_write_bytes, atomic_write_json, jsonable, read_json
+from canonid.models.base import System
+from canonid.models.registry import get_system
+from canonid.models.sets import Box
 
 __all__ = ["SCHEMA", "AnalysisReport", "Exported", "LearnedChecks", "analyze"]
 
@@ -54,7 +54,7 @@ SCHEMA: dict[str, Any] = {
     "name": "canonid.analysis",
     "version": 1,
     "fields": {
-        "system": "the system description (models.System.describe())",
+        "system": "the system description (canonid.models.System.describe())",
         "sets": "boxes X, U, W used (lower/upper per component)",
         "windows": "the windows ℓ analysed",
         "hulls": (
@@ -102,7 +102,7 @@ class WindowResult:
 
 class Exported(Protocol):
     """A learned model as the checks see it: ``H(z, u) -> y`` in numpy and its window ℓ
-    (what ``learning.Model.export()`` returns)."""
+    (what ``canonid.learning.Model.export()`` returns)."""
 
     window: int
 
@@ -142,7 +142,7 @@ class AnalysisReport:
 
     @property
     def limitations(self) -> list[str]:
-        """Which certified bounds are out of reach, and why (:mod:`analysis.limits`)."""
+        """Which certified bounds are out of reach, and why (:mod:`canonid.analysis.limits`)."""
         return limitations(self.system, self.results, reach=self.reach)
 
     @property
@@ -252,9 +252,9 @@ class AnalysisReport:
     ) -> LearnedChecks:
         """Checks of learned models with this report's certified constants and X: for each
         model (numpy ``H(z, u)`` and ``window``) its one-step residual on ``test`` against the
-        noise-induced level (:func:`analysis.learned.residual_check`); for each of their windows,
-        when ``train`` is given and every trajectory carries its states, an affine probe
-        z_t → x_t against Proposition 2's bound (:func:`analysis.learned.state_probe`)."""
+        noise-induced level (:func:`canonid.analysis.learned.residual_check`); for each of their
+        windows, when ``train`` is given and every trajectory carries its states, an affine probe
+        z_t → x_t against Proposition 2's bound (:func:`canonid.analysis.learned.state_probe`)."""
         residuals = [
             residual_check(m.H, test, self.constants(int(m.window)), X=self.X) for m in models
         ]

@@ -34,8 +34,8 @@ import inspect, json, resource, sys, tempfile, time
 from pathlib import Path
 import numpy as np
 import canonid.runner as runner
-from datagen.generate import GenerationConfig, _controller_for, _system, generate_dataset
-from datagen.references import drone2d_reference
+from canonid.datagen.generate import GenerationConfig, _controller_for, _system, generate_dataset
+from canonid.datagen.references import drone2d_reference
 
 def children():
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -55,7 +55,7 @@ def main():
         x = np.asarray(drone.f(x, step.u), dtype=np.float64).ravel()
     batch = {}
     if "batch" in inspect.signature(runner.run_jobs).parameters:
-        from datagen.generate import FLIGHTS_PER_TASK
+        from canonid.datagen.generate import FLIGHTS_PER_TASK
         batch = {"batch": FLIGHTS_PER_TASK}
 
     def run(fn, jobs, *, on_result=None):

@@ -29,13 +29,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's 
 
 from _results import write_section
 
-from analysis.bound import BoundConstants, check_bound
-from analysis.estimate import Budget
-from analysis.lipschitz import lipschitz_lower, lipschitz_upper
-from analysis.observability import alpha_lower, alpha_upper
-from analysis.reach import reachable_hulls
-from models.registry import get_system
-from models.sets import Box
+from canonid.analysis.bound import BoundConstants, check_bound
+from canonid.analysis.estimate import Budget
+from canonid.analysis.lipschitz import lipschitz_lower, lipschitz_upper
+from canonid.analysis.observability import alpha_lower, alpha_upper
+from canonid.analysis.reach import reachable_hulls
+from canonid.models.registry import get_system
+from canonid.models.sets import Box
 
 T = TypeVar("T")
 X = Box([0.05, 0.05], [5.0, 5.0])

@@ -72,7 +72,7 @@ def idle_cpu(config: dict[str, Any], seconds: float = 10.0) -> tuple[float, floa
 def _generate(label: str, flights: int) -> None:
     """Child process: generate ``flights`` drone flights on 2 workers with setting ``label``;
     prints wall, main-process CPU and workers' CPU seconds."""
-    from datagen.generate import GenerationConfig, _controller_for, generate_dataset
+    from canonid.datagen.generate import GenerationConfig, _controller_for, generate_dataset
 
     runner.LOCAL_CLUSTER_CONFIG = SETTINGS[label]
     config = GenerationConfig("drone2d", seed=0, counts={"train": flights, "val": 0, "test": 0})

@@ -12,8 +12,8 @@ Parts, in order, with the 1-minute load average recorded after each:
    flight, called step by step; step time is the wall time of one controller call (solver +
    Python overhead), tracking RMSE the position error ‖(px, pz) − reference‖.
 2. CPU per flight job of the paper-size dataset, in one process: the step loop against the
-   compiled loop (the default; :mod:`datagen.compiled_loop`), alternating flight by flight, and
-   the flight's solves alone; whether both loops gave the same flights.
+   compiled loop (the default; :mod:`canonid.datagen.compiled_loop`), alternating flight by flight,
+   and the flight's solves alone; whether both loops gave the same flights.
 3. Start-up: a fresh process importing the data engine and loading the cached solver (what
    each Dask worker does), and ``canonid generate drone2d`` with 20 flights, serially.
 4. The paper-size dataset (540 flights × 600 steps) on 2 local Dask workers: wall time, the
@@ -48,21 +48,21 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _results import load_line, publish  # noqa: E402
 
-import datagen.generate as generate  # noqa: E402
-from canonid.runner import run_jobs  # noqa: E402
-from datagen.controllers.base import Controller, ControlStep  # noqa: E402
-from datagen.controllers.nmpc import NMPC  # noqa: E402
-from datagen.generate import (  # noqa: E402
+import canonid.datagen.generate as generate  # noqa: E402
+from canonid.datagen.controllers.base import Controller, ControlStep  # noqa: E402
+from canonid.datagen.controllers.nmpc import NMPC  # noqa: E402
+from canonid.datagen.generate import (  # noqa: E402
     FlightJob,
     FlightResult,
     GenerationConfig,
     generate_dataset,
     run_flight,
 )
-from datagen.references import drone2d_reference  # noqa: E402
-from datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS  # noqa: E402
-from datagen.simulate import Excitation, simulate_closed_loop  # noqa: E402
-from models.drone2d import Drone2D  # noqa: E402
+from canonid.datagen.references import drone2d_reference  # noqa: E402
+from canonid.datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS  # noqa: E402
+from canonid.datagen.simulate import Excitation, simulate_closed_loop  # noqa: E402
+from canonid.models.drone2d import Drone2D  # noqa: E402
+from canonid.runner import run_jobs  # noqa: E402
 
 HORIZON = 20
 T = 600
@@ -238,7 +238,7 @@ def flight_cpu(flights: int) -> FlightCpu:
 _STARTUP = """
 import time
 start = time.perf_counter(), time.process_time()
-from datagen.generate import GenerationConfig, _controller_for
+from canonid.datagen.generate import GenerationConfig, _controller_for
 imported = time.perf_counter(), time.process_time()
 _controller_for(GenerationConfig("drone2d"))
 built = time.perf_counter(), time.process_time()

@@ -5,7 +5,7 @@ Writes the section "Identification versus deepSI" of benchmarks/RESULTS.md.
 
 * Contestants. **Ours (MLP)**: ``learning.fit`` with the ``quick`` profile (what ``canonid train
   --profile quick`` runs), ℓ = 10, with canonid's default options on both systems
-  (:data:`learning.presets.DEFAULT_NET_OPTIONS`: what ``canonid train --model mlp`` gets).
+  (:data:`canonid.learning.presets.DEFAULT_NET_OPTIONS`: what ``canonid train --model mlp`` gets).
   **deepSI SUBNET** (deepSI 0.4.4, ``deepSI.models.SUBNET`` trained by ``deepSI.fit``) with
   deepSI's defaults (state dimension 10, its residual MLPs, Adam at 1e-3, batch 256, rollout T =
   50) but for the encoder's past window, set to na = nb = ℓ so that both models start every
@@ -24,7 +24,7 @@ Writes the section "Identification versus deepSI" of benchmarks/RESULTS.md.
 * What the clock counts, alike for both: everything from the call of the trainer's ``fit`` on
   (its own data preparation — our window bank, deepSI's ``create_arrays`` — and every
   optimiser step) but the validation passes, whose CPU time is recorded apart. The clock stops
-  when a validation starts (our ``learning.training.validation_loss``, wrapped; deepSI's
+  when a validation starts (our ``canonid.learning.training.validation_loss``, wrapped; deepSI's
   ``val_fun``) and runs again when it ends (ours) or at deepSI's next loss evaluation (its
   ``loss_fun``): deepSI also keeps a copy of the best model and pickles a checkpoint file after
   every validation, which at our validation frequency (ten times its default) would cost it
@@ -42,7 +42,8 @@ Writes the section "Identification versus deepSI" of benchmarks/RESULTS.md.
   to target: the training clock at the first validation at or below a level — fixed multiples
   of the noise floor (noise variance / output variance, averaged over outputs) and the level
   both reached (the larger of the two best validation MSEs).
-* Test scores: :func:`learning.evaluate` on the test split for both (deepSI's SUBNET wrapped as
+* Test scores: :func:`canonid.learning.evaluate` on the test split for both (deepSI's SUBNET wrapped
+as
   a model with the same ``predict``): the paper metric (MSE of 100-step rollouts from every
   start, stride 1) and the simulation RMSE after n_init = 50 samples, against the measured and
   the noise-free outputs.
@@ -83,10 +84,10 @@ from _data import ensure_dataset  # noqa: E402
 from _results import write_section  # noqa: E402
 from nonlinear_benchmarks import Input_output_data  # noqa: E402
 
-import learning.training  # noqa: E402
+import canonid.learning.training  # noqa: E402
+from canonid.datagen.dataset import Dataset  # noqa: E402
+from canonid.learning import Model, Normalisation, as_series, evaluate, fit  # noqa: E402
 from canonid.profiles import train_options  # noqa: E402
-from datagen.dataset import Dataset  # noqa: E402
-from learning import Model, Normalisation, as_series, evaluate, fit  # noqa: E402
 
 WINDOW, HORIZON, VAL_STRIDE = 10, 100, 5
 #: time-to-target levels, in multiples of the noise floor
@@ -182,8 +183,8 @@ class Clock:
 
 
 class SubnetModel:
-    """deepSI's SUBNET behind the ``predict`` of :class:`learning.Model`, so that
-    :func:`learning.evaluate` scores it with the same code: ``u`` ``(N, T, n_u)`` and the
+    """deepSI's SUBNET behind the ``predict`` of :class:`canonid.learning.Model`, so that
+    :func:`canonid.learning.evaluate` scores it with the same code: ``u`` ``(N, T, n_u)`` and the
     measured burn-in ``y`` ``(N, ℓ, n_y)`` → predicted ``y`` ``(N, T − ℓ, n_y)`` (the encoder
     reads the ℓ past inputs and outputs, the state then runs in open loop on ``u[:, ℓ:]``)."""
 
@@ -250,7 +251,7 @@ def validations_recorded(curve: Curve, turns: TakeTurns) -> Iterator[None]:
     """While active, every validation pass of our trainer (``fit`` looks ``validation_loss`` up
     in its module at each call; only the ``ours`` thread calls it) stops ``curve.clock`` and is
     added to ``curve``."""
-    original, clock = learning.training.validation_loss, curve.clock
+    original, clock = canonid.learning.training.validation_loss, curve.clock
 
     def validation_loss(*args: Any, **kwargs: Any) -> float:
         clock.pause()
@@ -259,11 +260,11 @@ def validations_recorded(curve: Curve, turns: TakeTurns) -> Iterator[None]:
         clock.resume()
         return v
 
-    learning.training.validation_loss = validation_loss
+    canonid.learning.training.validation_loss = validation_loss
     try:
         yield
     finally:
-        learning.training.validation_loss = original
+        canonid.learning.training.validation_loss = original
 
 
 def train_ours(
@@ -483,8 +484,9 @@ def compare(name: str, ds: Dataset, budget: float, slice_s: float) -> str:
             f"process used {process_cpu:.0f} s of CPU for both trainings (the two clocks and "
             f"validations above account for "
             f"{sum(c.seconds[-1] + c.clock.val_cpu for c in curves.values()):.0f} s). Noise floor "
-            f"(normalised) {floor:.3g}; test scores by `learning.evaluate` ({ev.n_rollouts} "
-            f"rollouts of {HORIZON} steps; RMSE over {ev.n_scored_samples} samples after "
+            f"(normalised) {floor:.3g}; test scores by `canonid.learning.evaluate` "
+            f"({ev.n_rollouts} rollouts of {HORIZON} steps; RMSE over {ev.n_scored_samples} "
+            "samples after "
             f"n_init = {ev.n_init}).",
             "\n".join(rows),
             "Training CPU time to reach a validation MSE (normalised):",
@@ -510,9 +512,10 @@ def main() -> int:
     torch.set_num_threads(1)
     cases = {"tank": ("tank-s0", args.tank), "drone2d": ("drone2d-small", args.drone)}
     parts = [
-        "Ours (MLP) (`learning.fit`, quick profile, ℓ = 10, canonid's default options) "
+        "Ours (MLP) (`canonid.learning.fit`, quick profile, ℓ = 10, canonid's default options) "
         "against deepSI 0.4.4's SUBNET (`deepSI.fit`, its defaults, na = nb = ℓ), seed 0, one "
-        "torch thread each, taking turns in one process; both scored by `learning.evaluate`. "
+        "torch thread each, taking turns in one process; both scored by "
+        "`canonid.learning.evaluate`. "
         "**The budget is CPU time**: each one's training clock is the CPU time of its own "
         "thread, validation passes excluded for both; the wall time of its turns is recorded "
         "beside it. The issue asks for the same wall-clock budget; on a dedicated machine with "

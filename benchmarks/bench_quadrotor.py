@@ -31,14 +31,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._results import write_section
+from canonid.datagen.controllers.nmpc import NMPC
+from canonid.datagen.controllers.quadrotor_cascade import QuadrotorCascade
+from canonid.datagen.generate import GenerationConfig, generate_dataset
+from canonid.datagen.quadrotor_reference import quadrotor_initial_state, quadrotor_reference
+from canonid.datagen.scenarios import get_scenario
+from canonid.models.quadrotor import Quadrotor
+from canonid.models.registry import get_system
 from canonid.runner import run_jobs
-from datagen.controllers.nmpc import NMPC
-from datagen.controllers.quadrotor_cascade import QuadrotorCascade
-from datagen.generate import GenerationConfig, generate_dataset
-from datagen.quadrotor_reference import quadrotor_initial_state, quadrotor_reference
-from datagen.scenarios import get_scenario
-from models.quadrotor import Quadrotor
-from models.registry import get_system
 
 PAPER_FLIGHTS = 146 + 20 + 10
 
@@ -59,8 +59,8 @@ def full_state_reference(reference: np.ndarray) -> np.ndarray:
 def compare_nmpc(
     solver: str, flights: int, steps: int, horizon: int, seed: int
 ) -> dict[str, float | str]:
-    """The data engine's NMPC (``datagen.controllers.nmpc.NMPC``, LQR terminal cost at hover)
-    and the cascade on the same references and start states, no excitation or noise."""
+    """The data engine's NMPC (``canonid.datagen.controllers.nmpc.NMPC``, LQR terminal cost at
+    hover) and the cascade on the same references and start states, no excitation or noise."""
     system = get_system("quadrotor")
     assert isinstance(system, Quadrotor)
     t0 = time.perf_counter()
@@ -207,7 +207,7 @@ def main() -> int:
     body = (
         "Simulated quadrotor (Blackbird stand-in). Cascaded controller on scenario flights of "
         "1000 samples at 50 Hz with the generation's excitation. The data engine's NMPC "
-        "(`datagen.controllers.nmpc.NMPC`: multiple shooting, fatrop, LQR terminal cost at "
+        "(`canonid.datagen.controllers.nmpc.NMPC`: multiple shooting, fatrop, LQR terminal cost at "
         "hover; weights `NMPC_STATE_WEIGHTS`, `NMPC_INPUT_WEIGHTS` here; full-state targets: "
         "the reference's position and velocity, level attitude with its yaw, no rotation) "
         "against the cascade on the same references. Load average when started: "

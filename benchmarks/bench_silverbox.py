@@ -33,8 +33,8 @@ import torch
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks._results import write_section
+from canonid.learning import fit
 from canonid.profiles import stage_train_options
-from learning import fit
 
 DEFAULT_CSV = Path(__file__).resolve().parents[2] / "shared" / "data" / "silverbox" / "SNLS80mV.csv"
 MULTISINE = slice(40650, 127400)

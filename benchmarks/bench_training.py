@@ -35,10 +35,10 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _results import write_section  # noqa: E402
 
+from canonid.datagen.dataset import Dataset  # noqa: E402
+from canonid.learning import build_net, fit, model_names  # noqa: E402
+from canonid.learning.data import Normalisation, WindowBank, as_series  # noqa: E402
 from canonid.profiles import train_options  # noqa: E402
-from datagen.dataset import Dataset  # noqa: E402
-from learning import build_net, fit, model_names  # noqa: E402
-from learning.data import Normalisation, WindowBank, as_series  # noqa: E402
 
 WINDOW, HORIZON = 10, 50
 
@@ -134,7 +134,7 @@ def accelerations(bank, seconds: float, rounds: int) -> str:
 
 def batched_rollouts(ds: Dataset) -> str:
     """Open-loop rollouts of the paper metric (100 steps), all at once vs one at a time."""
-    from learning import Model
+    from canonid.learning import Model
 
     torch.set_num_threads(1)
     train = as_series(ds.split("train"))

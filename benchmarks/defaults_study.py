@@ -15,9 +15,9 @@ seed::
 
 Systems: ``tank`` (``canonid generate tank``: 60 / 20 / 20 trajectories) and ``drone2d``
 (``canonid generate drone2d --n-train 40 --n-val 10 --n-test 10``, the deepSI contest's data),
-both generated into ``runs/data`` when missing and scored by :func:`learning.evaluate` (100-step
-rollouts from every start of the test split, MSE against ``y_clean``); ``silverbox`` (the real
-record, trained and scored by ``bench_silverbox.run``: multisine-test simulation RMSE after
+both generated into ``runs/data`` when missing and scored by :func:`canonid.learning.evaluate`
+(100-step rollouts from every start of the test split, MSE against ``y_clean``); ``silverbox`` (the
+real record, trained and scored by ``bench_silverbox.run``: multisine-test simulation RMSE after
 n_init = 50, mV). CPU time: this process's, over training (Silverbox: and scoring, ~1 s).
 """
 
@@ -68,9 +68,9 @@ def overrides_of(pairs: Sequence[str], flag: str = "--set") -> dict[str, Any]:
 def run_generated(
     system: str, seed: int, overrides: dict[str, Any], net: dict[str, Any]
 ) -> dict[str, Any]:
+    from canonid.datagen import Dataset
+    from canonid.learning import evaluate, fit
     from canonid.profiles import stage_train_options
-    from datagen import Dataset
-    from learning import evaluate, fit
 
     data = Dataset.load(ensure_dataset(GENERATED[system]))
     train, val, test = (data.split(name) for name in ("train", "val", "test"))
@@ -119,8 +119,9 @@ def table(rows: list[dict[str, Any]]) -> str:
     lines = [
         "Ours (MLP), ℓ = 10, canonid's default network options and the `quick` profile with "
         "the overrides of each column, one torch thread; tank and planar drone: test 100-step MSE "
-        "against y_clean (`learning.evaluate`); Silverbox: multisine-test simulation RMSE after "
-        "n_init = 50 (mV). Each cell: score (best validation loss, normalised; CPU seconds of "
+        "against y_clean (`canonid.learning.evaluate`); Silverbox: multisine-test simulation "
+        "RMSE after n_init = 50 (mV). Each cell: score (best validation loss, normalised; CPU "
+        "seconds of "
         "training).",
         "",
         "| system | seed | " + " | ".join(labels) + " |",

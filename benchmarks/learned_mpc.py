@@ -3,8 +3,8 @@
 The learned models are trained Ours (MLP) runs (``--run`` on tank data, ``--drone-run`` on
 planar-drone data), built as CasADi systems from their weights
 (:func:`canonid.learned.learned_system`). Per system both controllers are the same
-:class:`datagen.controllers.nmpc.NMPC` with an output reference (``track="output"``), the same
-horizon, weights, input bounds (the true system's U) and solver; they differ in the prediction
+:class:`canonid.datagen.controllers.nmpc.NMPC` with an output reference (``track="output"``), the
+same horizon, weights, input bounds (the true system's U) and solver; they differ in the prediction
 model, in what they are fed and (``--hessian``) in how the learned model's NLP is solved:
 
 * NMPC on the true model: the true state ``x[t]`` (state feedback, no noise), exact Hessian;
@@ -21,8 +21,8 @@ px and pz — θ has weight 0), the median solve time (wall clock and the proces
 machine is shared), the 95th percentile of the wall time and the failed solves. With
 ``--exact-steps`` the learned tank NMPC also runs with the exact Hessian on the first reference
 for that many steps, beside the Gauss-Newton one (the cost before the option existed). Also the
-learned tank model's γ_f bracket on its training hull (:mod:`analysis.certify`) beside the true
-tank's on its X.
+learned tank model's γ_f bracket on its training hull (:mod:`canonid.analysis.certify`) beside the
+true tank's on its X.
 
 Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md.
 """
@@ -44,15 +44,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's 
 import numpy as np
 from _results import write_section
 
-from analysis.certify import learned_gamma
-from analysis.estimate import Budget
-from analysis.lipschitz import lipschitz_bracket
+from canonid.analysis.certify import learned_gamma
+from canonid.analysis.estimate import Budget
+from canonid.analysis.lipschitz import lipschitz_bracket
+from canonid.datagen.controllers.nmpc import NMPC
 from canonid.learned import learned_system
-from datagen.controllers.nmpc import NMPC
-from models.base import System
-from models.drone2d import Drone2D
-from models.learned import LearnedSystem
-from models.tank import Tank
+from canonid.models.base import System
+from canonid.models.drone2d import Drone2D
+from canonid.models.learned import LearnedSystem
+from canonid.models.tank import Tank
 
 HORIZON = 20
 LEVEL_EQ = 2.5  # tank: the input term pulls towards the input that holds this level

@@ -4,7 +4,7 @@ The paper trains its MLP regressor with two hidden layers of 2048 units on the r
 flights ("3D Drone" column of Table 1). This script trains the same architecture on a dataset
 generated here from the simulated quadrotor and reports the paper metric (MSE of 100-step
 open-loop rollouts after an ℓ-step burn-in, physical units, averaged over the 6 IMU outputs and
-the steps; ``learning.evaluate``), beside the paper's figures for the real data. The two are
+the steps; ``canonid.learning.evaluate``), beside the paper's figures for the real data. The two are
 NOT comparable as results: different data (simulation vs real flights), a CPU budget of minutes
 instead of the paper's 10,000 epochs, and outputs whose scale depends on the stand-in's noise
 and excitation. The table says so.
@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np
 
 from benchmarks._results import write_section
-from datagen.dataset import Dataset
+from canonid.datagen.dataset import Dataset
 
 #: paper, Table 1, 3D Drone, Ours (MLP), ×1e-2, for ℓ = 5, 10, 15, 20, 25, 30 (real data)
 PAPER_3D_DRONE_MLP = {5: 15.2, 10: 14.2, 15: 13.6, 20: 13.5, 25: 13.6, 30: 13.1}
@@ -94,9 +94,9 @@ def main() -> int:
     try:
         import torch
 
+        from canonid.learning import fit
+        from canonid.learning.evaluate import evaluate
         from canonid.profiles import train_options
-        from learning import fit
-        from learning.evaluate import evaluate
     except ImportError as exc:
         print(f"this script needs the identification layer (issue 4): {exc}", file=sys.stderr)
         return 2

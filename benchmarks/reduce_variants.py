@@ -7,7 +7,7 @@ script trains the reduced model on the run's training data (seed 0, one torch th
 one Markdown row per variant: 100-step rollout MSE on the test split (physical units), its
 ratio to the full model's, the auto-encoder's reconstruction MSE (normalised) and the time. The
 first row is not trained: the linear PCA reduction of the training windows (``E``, ``D`` affine,
-from :func:`learning.reduction.principal_directions`) around the full model's ``Ĥ``.
+from :func:`canonid.learning.reduction.principal_directions`) around the full model's ``Ĥ``.
 Not a speed benchmark (``run_all.py`` skips it): each variant is a few CPU minutes.
 """
 
@@ -59,17 +59,17 @@ VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
 def main() -> int:
     import torch
 
-    from canonid.profiles import reduce_options
-    from canonid.runfolder import load_splits
-    from learning import Model, evaluate
-    from learning.nets import ReducedNet
-    from learning.reduction import (
+    from canonid.kernel.io import read_json
+    from canonid.learning import Model, evaluate
+    from canonid.learning.nets import ReducedNet
+    from canonid.learning.reduction import (
         latent_size,
         principal_directions,
         reconstruction_mse,
         reduce_model,
     )
-    from models.io import read_json
+    from canonid.profiles import reduce_options
+    from canonid.runfolder import load_splits
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("run", type=Path, help="run folder of a trained Ours (MLP/GRU) model")

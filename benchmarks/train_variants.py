@@ -123,8 +123,8 @@ VARIANTS: dict[str, tuple[str, dict[str, Any], dict[str, Any]]] = {
 
 def train_variant(train: Any, val: Any, key: str, *, seed: int, run: Path) -> Any:
     """Train variant ``key`` with ``seed`` on the CPU; the model is saved in ``run``."""
+    from canonid.learning import fit
     from canonid.profiles import train_options
-    from learning import fit
 
     _, overrides, net_opts = VARIANTS[key]
     opts = train_options("quick", **{**BASE, **overrides}, seed=seed, device="cpu")
@@ -136,7 +136,7 @@ def main() -> int:
     import torch
 
     from canonid.commands._data import load
-    from learning import Model, evaluate
+    from canonid.learning import Model, evaluate
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data", type=Path, help="the tank dataset (canonid generate tank)")

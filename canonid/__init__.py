@@ -35,33 +35,35 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from models.lazy import lazy_exports
+from canonid.kernel.lazy import lazy_exports
 
 #: the package version (pyproject.toml reads it from here)
 __version__ = "0.1.0"
 
 _EXPORTS = {
-    "get_system": "models.registry",
-    "system_names": "models.registry",
-    "Dataset": "datagen.dataset",
-    "Trajectory": "datagen.dataset",
-    "load_data": "datagen.loaders",
-    "GenerationConfig": "datagen.generate",
-    "generate_dataset": "datagen.generate",
+    "CanonidError": "canonid.kernel.errors",
+    "get_system": "canonid.models.registry",
+    "system_names": "canonid.models.registry",
+    "Dataset": "canonid.datagen.dataset",
+    "Trajectory": "canonid.datagen.dataset",
+    "load_data": "canonid.datagen.loaders",
+    "GenerationConfig": "canonid.datagen.generate",
+    "generate_dataset": "canonid.datagen.generate",
     "fit": "canonid.api",
     "train_options": "canonid.profiles",
-    "TrainOptions": "learning.training",
-    "Model": "learning.model",
-    "evaluate": "learning.evaluate",
-    "reduce_model": "learning.reduction",
-    "ReductionOptions": "learning.reduction",
-    "analyze": "analysis.report",
-    "AnalysisReport": "analysis.report",
-    "Estimate": "analysis.estimate",
+    "TrainOptions": "canonid.learning.training",
+    "Model": "canonid.learning.model",
+    "evaluate": "canonid.learning.evaluate",
+    "reduce_model": "canonid.learning.reduction",
+    "ReductionOptions": "canonid.learning.reduction",
+    "analyze": "canonid.analysis.report",
+    "AnalysisReport": "canonid.analysis.report",
+    "Estimate": "canonid.analysis.estimate",
 }
 
 __all__ = [
     "AnalysisReport",
+    "CanonidError",
     "Dataset",
     "Estimate",
     "GenerationConfig",
@@ -82,18 +84,19 @@ __all__ = [
 ]
 
 if TYPE_CHECKING:  # what the lazy names are, for type checkers and editors
-    from analysis.estimate import Estimate
-    from analysis.report import AnalysisReport, analyze
+    from canonid.analysis.estimate import Estimate
+    from canonid.analysis.report import AnalysisReport, analyze
     from canonid.api import fit
+    from canonid.datagen.dataset import Dataset, Trajectory
+    from canonid.datagen.generate import GenerationConfig, generate_dataset
+    from canonid.datagen.loaders import load_data
+    from canonid.kernel.errors import CanonidError
+    from canonid.learning.evaluate import evaluate
+    from canonid.learning.model import Model
+    from canonid.learning.reduction import ReductionOptions, reduce_model
+    from canonid.learning.training import TrainOptions
+    from canonid.models.registry import get_system, system_names
     from canonid.profiles import train_options
-    from datagen.dataset import Dataset, Trajectory
-    from datagen.generate import GenerationConfig, generate_dataset
-    from datagen.loaders import load_data
-    from learning.evaluate import evaluate
-    from learning.model import Model
-    from learning.reduction import ReductionOptions, reduce_model
-    from learning.training import TrainOptions
-    from models.registry import get_system, system_names
 
 
 __getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

@@ -1,7 +1,7 @@
 """Library functions with the application's defaults, for ``import canonid``.
 
-:func:`learning.fit` is the library's trainer; without ``options`` it uses the bare
-:class:`~learning.training.TrainOptions` defaults, a small budget meant for building blocks.
+:func:`canonid.learning.fit` is the library's trainer; without ``options`` it uses the bare
+:class:`~canonid.learning.training.TrainOptions` defaults, a small budget meant for building blocks.
 ``canonid.fit`` is the same trainer with what ``canonid train`` uses when no flag is given: the
 ``train`` stage of the ``quick`` profile (:mod:`canonid.profiles`), so a first call from Python
 gets the command line's model.
@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any
 from canonid.profiles import DEFAULT_PROFILE, train_options
 
 if TYPE_CHECKING:
-    from learning.training import FitResult, TrainOptions
+    from canonid.learning.training import FitResult, TrainOptions
 
 __all__ = ["fit"]
 
@@ -29,14 +29,14 @@ def fit(
     profile: str = DEFAULT_PROFILE,
     **kwargs: Any,
 ) -> FitResult:
-    """Train ``model`` with window ``window`` by output error (:func:`learning.fit`).
+    """Train ``model`` with window ``window`` by output error (:func:`canonid.learning.fit`).
 
     ``options`` default to the ``train`` stage of ``profile`` (the command line's default,
     ``quick``); ``canonid.train_options(profile, epochs=…)`` changes one value of it. The other
     keyword arguments (``net_options``, ``run_dir``, ``resume``, ``callback``, ``info``) go to
-    :func:`learning.fit` unchanged.
+    :func:`canonid.learning.fit` unchanged.
     """
-    from learning.training import fit as fit_library  # torch, only when training
+    from canonid.learning.training import fit as fit_library  # torch, only when training
 
     if options is None:
         options = train_options(profile)

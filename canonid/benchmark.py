@@ -5,7 +5,7 @@ first ``n_init`` measured outputs; the score is the RMSE of its simulation on th
 samples, in the benchmark's scoring units.
 
 How the indices are cut, for a canonical model of window ℓ on a test part of ``T`` samples
-(requires ℓ ≤ ``n_init``; :func:`learning.evaluate.simulate_records`):
+(requires ℓ ≤ ``n_init``; :func:`canonid.learning.evaluate.simulate_records`):
 
 * burn-in: the measured samples ``n_init−ℓ … n_init−1`` (inputs and outputs) build the first
   state ``z_{n_init}``; these are the last ℓ of the ``n_init`` samples the rule allows;
@@ -26,13 +26,13 @@ from typing import Any
 
 import numpy as np
 
-from datagen.benchmarks import Baseline, Benchmark
-from datagen.dataset import Dataset, Trajectory
-from learning import Model
-from learning.data import as_series
-from learning.evaluate import simulate_records
-from learning.training import OptionError
-from models.io import jsonable
+from canonid.datagen.benchmarks import Baseline, Benchmark
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.io import jsonable
+from canonid.learning import Model
+from canonid.learning.data import as_series
+from canonid.learning.evaluate import simulate_records
+from canonid.learning.training import OptionError
 
 __all__ = [
     "BenchmarkReport",

@@ -3,10 +3,10 @@
 Each subcommand lives in its own module under :mod:`canonid.commands` and exposes
 ``register(subparsers)``, which adds its parser and sets ``func(args) -> int``. Only the module of
 the command being run is imported: ``canonid --help`` and ``canonid systems`` load neither torch
-nor CasADi. Errors raised on purpose (:class:`models.errors.CanonidError`) and errors of the file
-system (``OSError``: a full disk, a read-only folder) print as one line on stderr with a non-zero
-exit; ``--debug`` shows the traceback instead. A reader that closes the pipe (``canonid systems |
-head -1``) ends the command quietly. Any other exception is a bug and keeps its traceback.
+nor CasADi. Errors raised on purpose (:class:`canonid.kernel.errors.CanonidError`) and errors of the
+file system (``OSError``: a full disk, a read-only folder) print as one line on stderr with a
+non-zero exit; ``--debug`` shows the traceback instead. A reader that closes the pipe (``canonid
+systems | head -1``) ends the command quietly. Any other exception is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from collections.abc import Sequence
 
 from canonid import __version__
 from canonid.commands import COMMANDS
-from models.errors import CanonidError
+from canonid.kernel.errors import CanonidError
 
 __all__ = ["build_parser", "main"]
 

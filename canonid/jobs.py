@@ -21,8 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
-from models.errors import CheckpointError
-from models.io import atomic_write_json, jsonable, read_json
+from canonid.kernel.errors import CheckpointError
+from canonid.kernel.io import atomic_write_json, jsonable, read_json
 
 __all__ = [
     "RESULT_FILE",

@@ -1,8 +1,8 @@
 """A run folder's trained model as a CasADi system, with its sets from the run's training data.
 
-``learned_system(RUN)`` reads the model of ``RUN`` (``learning.Model.load``), exports its weights
-(``NumpyModel.network()``: Ours (MLP), Ours (GRU) and their reduced models) and builds a
-:class:`models.learned.LearnedSystem` with
+``learned_system(RUN)`` reads the model of ``RUN`` (``canonid.learning.Model.load``), exports its
+weights (``NumpyModel.network()``: Ours (MLP), Ours (GRU) and their reduced models) and builds a
+:class:`canonid.models.learned.LearnedSystem` with
 
 * ``dt``, input and output names from the data the run was trained on (``RUN/run.json``), units
   from the dataset's metadata where it has them;
@@ -18,12 +18,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from canonid.datagen.loaders import is_dataset
+from canonid.kernel.errors import DataError
+from canonid.learning import Model
+from canonid.models.learned import LearnedSystem
+from canonid.models.sets import Box
 from canonid.runfolder import RUN_FILE, load, load_splits, recipe_of
-from datagen.loaders import is_dataset
-from learning import Model
-from models.errors import DataError
-from models.learned import LearnedSystem
-from models.sets import Box
 
 __all__ = ["LearnedRun", "learned_system"]
 

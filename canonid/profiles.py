@@ -6,15 +6,15 @@ which uses the paper's numbers (10,000 regressor epochs, Adam at 1e-4) and is me
 cluster; ``tiny`` exists for the tests (the same code path in seconds). How each ``quick`` value
 was chosen, with the commands and figures, is in the docs ("Identification", "Model reduction").
 
-``train`` holds :class:`learning.training.TrainOptions`. An epoch is ``windows_per_epoch``
+``train`` holds :class:`canonid.learning.training.TrainOptions`. An epoch is ``windows_per_epoch``
 sub-windows drawn over all training trajectories, so a budget means the same number of optimiser
 steps however the data are cut.
 
-``reduce`` holds the auto-encoder's :class:`~learning.training.TrainOptions` and the
-:class:`learning.reduction.ReductionOptions` (sizes of E and D, the share of epochs with Ĥ frozen,
-loss weights, ``linear_skip``) in one mapping.
+``reduce`` holds the auto-encoder's :class:`~canonid.learning.training.TrainOptions` and the
+:class:`canonid.learning.reduction.ReductionOptions` (sizes of E and D, the share of epochs with Ĥ
+frozen, loss weights, ``linear_skip``) in one mapping.
 
-:func:`load_profile` gives a profile typed (:class:`Profile`: :class:`~learning.training.
+:func:`load_profile` gives a profile typed (:class:`Profile`: :class:`~canonid.learning.training.
 TrainOptions`, :class:`ReduceStage`, :class:`ReproduceStage`), validated when it is built: a
 misspelt key at any level is an error naming it.
 
@@ -23,7 +23,7 @@ systems, windows, models and number of seeds of Table 1 (jobs start in the liste
 longest first); per system the dataset (``data``: seed, flights per split, samples per flight);
 ``train``: overrides of the ``train`` stage for every Table-1 job (``per_system`` and
 ``per_model``: further overrides for one system or model); ``networks``: per system and model,
-constructor options over the paper's network (:data:`learning.presets.PAPER_NET_OPTIONS`);
+constructor options over the paper's network (:data:`canonid.learning.presets.PAPER_NET_OPTIONS`);
 ``evaluation``: the paper metric's rollout length and start stride; ``analysis``: per system,
 the windows, sets, Monte-Carlo trials and the budget of every certified search (systems not
 listed are not analysed); ``compression``: which trained runs the compression study reduces, at
@@ -39,8 +39,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from learning.reduction import ReductionOptions
-from learning.training import OptionError, TrainOptions
+from canonid.learning.reduction import ReductionOptions
+from canonid.learning.training import OptionError, TrainOptions
 
 __all__ = [
     "DEFAULT_PROFILE",

@@ -2,14 +2,14 @@
 
 **One reduction** (:func:`reduce_run`, ``canonid reduce RUN --compression R``) reads the trained
 canonical model of run folder ``RUN`` and the data it was trained on (``RUN/run.json``: same
-training and validation trajectories), trains the reduced model of :mod:`learning.reduction`
+training and validation trajectories), trains the reduced model of :mod:`canonid.learning.reduction`
 and writes a run folder of the same format as ``canonid train`` (so ``canonid evaluate`` works
 on it unchanged): ``run.json``, the model (``config.json``, ``weights.pt``,
 ``normalisation.json``), ``checkpoint.pt``, ``history.csv``, ``training_curve.png``,
 ``metrics.json`` and ``rollouts.png`` (the reduced model on the test split), plus
 
 * ``reduction.json`` — :class:`ReductionResult`: ``n̄``, ``dim z``, the auto-encoder's
-  reconstruction MSE on the test split (normalised units, :func:`learning.reduction.
+  reconstruction MSE on the test split (normalised units, :func:`canonid.learning.reduction.
   reconstruction_mse`) and the 100-step rollout MSE (paper metric, physical units, every start
   of every test trajectory) of the reduced *and* the full model;
 * ``reduced_vs_full.png`` — open-loop simulations of both models on three test records.
@@ -42,6 +42,20 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
 from canonid.jobs import Job
+from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.io import atomic_write_json, read_json
+from canonid.learning import EpochReport, Model, evaluate
+from canonid.learning.data import as_series
+from canonid.learning.evaluate import simulate_records
+from canonid.learning.model import check_same
+from canonid.learning.nets import ReducedNet, check_reducible
+from canonid.learning.reduction import (
+    ReductionOptions,
+    latent_size,
+    reconstruction_mse,
+    reduce_model,
+)
+from canonid.learning.training import CHECKPOINT_FILE, TrainOptions
 from canonid.profiles import reduce_options
 from canonid.runfolder import (
     Recipe,
@@ -55,15 +69,6 @@ from canonid.runfolder import (
     write_history,
 )
 from canonid.runner import run_jobs
-from learning import EpochReport, Model, evaluate
-from learning.data import as_series
-from learning.evaluate import simulate_records
-from learning.model import check_same
-from learning.nets import ReducedNet, check_reducible
-from learning.reduction import ReductionOptions, latent_size, reconstruction_mse, reduce_model
-from learning.training import CHECKPOINT_FILE, TrainOptions
-from models.errors import CheckpointError, DataError
-from models.io import atomic_write_json, read_json
 
 __all__ = [
     "DEFAULT_RATES",

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from models.io import atomic_write_text
+from canonid.kernel.io import atomic_write_text
 
 __all__ = ["Report"]
 

@@ -3,9 +3,9 @@
 :func:`reproduce` runs, for the systems, windows, models and seeds of a profile's
 ``reproduce`` stage (:mod:`canonid.profiles`, overridable per call):
 
-1. **Datasets** — one per system, generated with :func:`datagen.generate.generate_dataset`
+1. **Datasets** — one per system, generated with :func:`canonid.datagen.generate.generate_dataset`
    into ``OUT/data/SYSTEM`` or reused when the dataset there was made from the same
-   :class:`~datagen.generate.GenerationConfig` (its checksum is validated on loading).
+   :class:`~canonid.datagen.generate.GenerationConfig` (its checksum is validated on loading).
 2. **Jobs** — one :class:`TrainJob` per (system, model, window, seed) for Table 1 and one
    :class:`AnalysisJob` per analysed system, all independent, run through
    :func:`canonid.runner.run_jobs` serially, on ``workers`` local Dask processes or on a Dask
@@ -16,7 +16,7 @@
    is retried once; one that still fails is named in the report and the error, never dropped.
 3. **Learned-model checks** — the one-step residual and a state probe of the trained canonical
    models (Ours MLP/GRU, seed 0) against the analysis's certified constants
-   (:mod:`analysis.learned`), for the windows both stages cover.
+   (:mod:`canonid.analysis.learned`), for the windows both stages cover.
 4. **Compression study** — :func:`canonid.reduction.compression_sweep` on the profile's trained
    canonical runs of seed 0 (heat-map and reduced-model figure); its jobs go through the same
    runner and are resumable too.
@@ -24,7 +24,7 @@
    as a figure and tables, one rollout figure per system, and ``report.md`` + ``report.html``
    (:mod:`canonid.report`) linking every artefact; ``reproduction.json`` holds every number.
 
-Table 1's metric is :func:`learning.evaluate.evaluate`'s ``rollout_mse``: from every
+Table 1's metric is :func:`canonid.learning.evaluate.evaluate`'s ``rollout_mse``: from every
 ``stride``-th start of every test trajectory, ℓ measured samples burn in and the model predicts
 the next ``H`` (paper: 100) outputs in open loop; the mean squared error over rollouts, steps and
 outputs, in physical units. The tables give it against the measured outputs ``y`` (noisy, as the
@@ -56,7 +56,15 @@ from typing import Any
 
 import numpy as np
 
-from analysis.report import AnalysisReport
+from canonid.analysis.report import AnalysisReport
+from canonid.datagen.dataset import Dataset
+from canonid.datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
+from canonid.datagen.scenarios import scenario_names
+from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.io import atomic_write_json, jsonable, read_json
+from canonid.learning import Model, model_names
+from canonid.learning.presets import net_options
+from canonid.learning.training import OptionError
 from canonid.paper import table1_value
 from canonid.profiles import load_profile, stage_train_options
 from canonid.profiles import profile as profile_stages
@@ -72,14 +80,6 @@ from canonid.reproduce_jobs import (
 )
 from canonid.reproduce_report import write_report
 from canonid.runner import JobsFailedError, run_jobs
-from datagen.dataset import Dataset
-from datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
-from datagen.scenarios import scenario_names
-from learning import Model, model_names
-from learning.presets import net_options
-from learning.training import OptionError
-from models.errors import CheckpointError, DataError
-from models.io import atomic_write_json, jsonable, read_json
 
 __all__ = [
     "RESULT_FILE",
@@ -561,8 +561,8 @@ def _run_all(
 def learned_checks(
     outcomes: Sequence[JobOutcome], datasets: Mapping[str, DatasetInfo]
 ) -> dict[str, dict[str, list[dict[str, Any]]]]:
-    """Checks of :mod:`analysis.learned` on the test split with the certified constants, for
-    each analysed system (:meth:`analysis.report.AnalysisReport.learned_checks`):
+    """Checks of :mod:`canonid.analysis.learned` on the test split with the certified constants, for
+    each analysed system (:meth:`canonid.analysis.report.AnalysisReport.learned_checks`):
     ``"residual"`` — one record per trained canonical model of seed 0 whose window the analysis
     covers (its one-step residual against the noise-induced level); ``"probe"`` — one record
     per such window (an affine probe z_t → x_t against Proposition 2's bound; it depends on the

@@ -4,7 +4,7 @@ the same recipe is finished and never runs again).
 
 * :class:`TrainJob` — one cell of Table 1 for one seed: a ``canonid train`` run folder, trained
   (or continued from its checkpoint) and scored on the test split.
-* :class:`AnalysisJob` — the analysis of one system (:func:`analysis.report.analyze`).
+* :class:`AnalysisJob` — the analysis of one system (:func:`canonid.analysis.report.analyze`).
 """
 
 from __future__ import annotations
@@ -15,13 +15,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar
 
-from analysis.estimate import Budget
-from analysis.report import analyze
+from canonid.analysis.estimate import Budget
+from canonid.analysis.report import analyze
 from canonid.jobs import RESULT_FILE, JobOutcome, StoredJob, finished, run_job, store
+from canonid.learning.training import CHECKPOINT_FILE, OptionError
+from canonid.models.registry import get_system
+from canonid.models.sets import Box
 from canonid.runfolder import RunRecipe, train_run
-from learning.training import CHECKPOINT_FILE, OptionError
-from models.registry import get_system
-from models.sets import Box
 
 __all__ = [
     "ANALYSIS_KEYS",
@@ -124,8 +124,8 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class AnalysisJob(StoredJob):
-    """The analysis of one system (:func:`analysis.report.analyze`): γ_f, γ_h, α_ℓ brackets and
-    the Monte-Carlo check of Proposition 2 for each window, with the profile's budget; writes
+    """The analysis of one system (:func:`canonid.analysis.report.analyze`): γ_f, γ_h, α_ℓ brackets
+    and the Monte-Carlo check of Proposition 2 for each window, with the profile's budget; writes
     ``analysis.json`` and ``bound_vs_window.png`` into ``folder``."""
 
     system: str

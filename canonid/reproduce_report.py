@@ -19,12 +19,12 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from canonid.datagen.dataset import Dataset
+from canonid.kernel.io import atomic_write_bytes
+from canonid.learning import Model
+from canonid.learning.evaluate import simulate_records
 from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
 from canonid.report import Report
-from datagen.dataset import Dataset
-from learning import Model
-from learning.evaluate import simulate_records
-from models.io import atomic_write_bytes
 
 __all__ = ["QUADROTOR_NOTE", "plot_rollouts", "plot_table1", "system_label", "write_report"]
 
@@ -280,8 +280,9 @@ def write_report(
 
     report.heading("Table 1: 100-step open-loop MSE")
     report.paragraph(
-        "The paper metric (learning.evaluate): from every start of every test trajectory, ℓ "
-        "measured samples burn in and the model predicts the next H outputs in open loop; MSE "
+        "The paper metric (canonid.learning.evaluate): from every start of every test "
+        "trajectory, ℓ measured samples burn in and the model predicts the next H outputs in "
+        "open loop; MSE "
         "over rollouts, steps and outputs, in physical units, shown in the paper's scale per "
         "system. Table 1 of the paper is against its noisy data, so the first table of each "
         "system is the one to compare; the second, against the noise-free outputs, shows what "
@@ -452,7 +453,7 @@ def _analysis_blocks(
                 caption=(
                     "one-step residual ‖y_t − Ĥ(z_t, u_t)‖ of the learned regressor against the "
                     "noise-induced level ‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{-1}‖w̄‖ (certified constants), "
-                    "test rows whose window starts in X (analysis.learned.residual_check)"
+                    "test rows whose window starts in X (canonid.analysis.learned.residual_check)"
                 ),
             )
         else:
@@ -475,7 +476,7 @@ def _analysis_blocks(
                 caption=(
                     "affine least-squares probe from the canonical state z_t to the true state "
                     "x_t (fitted on the training split) against Proposition 2's bound 2 γ_f^ℓ "
-                    "α_ℓ^{-1}‖w̄‖ (analysis.learned.state_probe)"
+                    "α_ℓ^{-1}‖w̄‖ (canonid.analysis.learned.state_probe)"
                 ),
             )
 

@@ -27,13 +27,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, TypeAlias
 
-from datagen.dataset import Dataset, Trajectory
-from datagen.loaders import is_dataset, load_data, split_train_val
-from learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, evaluate, fit
-from learning.plots import plot_rollouts, plot_training_curve
-from learning.training import CHECKPOINT_FILE
-from models.errors import CheckpointError, DataError
-from models.io import atomic_write_json, atomic_write_text, read_json
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.datagen.loaders import is_dataset, load_data, split_train_val
+from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
+from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, evaluate, fit
+from canonid.learning.plots import plot_rollouts, plot_training_curve
+from canonid.learning.training import CHECKPOINT_FILE
 
 __all__ = [
     "DATA_FLAGS",
@@ -112,8 +112,8 @@ class RunRecipe(RunSource):
 
     Attributes (and those of :class:`RunSource`):
         model, window: the model's registry name and its window ℓ.
-        train_options: :class:`learning.TrainOptions` as a mapping (resolved, profile applied).
-        net_options: the network's constructor options.
+        train_options: :class:`canonid.learning.TrainOptions` as a mapping (resolved, profile
+        applied). net_options: the network's constructor options.
     """
 
     model: str

@@ -20,7 +20,7 @@ inline one, or ``dask.distributed.Client.get_executor``), a bounded number at a 
 collected as they complete. ``on_result(position, result)`` is called in this process as each
 job finishes (generation writes its resumable parts there); the return value is the list of
 results in job order. A job that raises is retried ``retries`` times (not for a
-:class:`~models.errors.CanonidError`, which is deterministic); if it still fails, the
+:class:`~canonid.kernel.errors.CanonidError`, which is deterministic); if it still fails, the
 other jobs finish and :class:`JobsFailedError` lists every failed job with its error — a job is
 never dropped silently. The progress bar (tqdm, on stderr) shows jobs done, the sum of
 ``tally(result)`` over finished jobs as ``tally_name`` (e.g. solver failures), failed attempts
@@ -53,7 +53,7 @@ from typing import Any, TypeVar
 
 from tqdm.auto import tqdm
 
-from models.errors import CanonidError
+from canonid.kernel.errors import CanonidError
 
 __all__ = ["LOCAL_CLUSTER_CONFIG", "FailedJob", "JobsFailedError", "RunnerError", "run_jobs"]
 

@@ -25,7 +25,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar
 
+from canonid.datagen.loaders import data_checksum
 from canonid.jobs import StoredJob, run_job
+from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
+from canonid.learning import NETS
+from canonid.learning.training import CHECKPOINT_FILE, OptionError
 from canonid.runfolder import (
     HISTORY_FILE,
     METRICS_FILE,
@@ -35,11 +40,6 @@ from canonid.runfolder import (
     train_run,
 )
 from canonid.runner import run_jobs
-from datagen.loaders import data_checksum
-from learning import NETS
-from learning.training import CHECKPOINT_FILE, OptionError
-from models.errors import CheckpointError, DataError
-from models.io import atomic_write_json, atomic_write_text, read_json
 
 __all__ = [
     "CANDIDATES_DIR",
@@ -89,8 +89,8 @@ def candidate_name(window: int, hidden: Sequence[int] | None) -> str:
 class CandidateJob(StoredJob):
     """One candidate: train ``run_recipe`` into ``folder`` and score it (:func:`train_run`).
     ``data_sha256`` and ``val_sha256`` are the checksums of its data and validation file
-    (:func:`datagen.loaders.data_checksum`): a stored result is reused for the same contents,
-    wherever the files lie, and never for other contents at the same path."""
+    (:func:`canonid.datagen.loaders.data_checksum`): a stored result is reused for the same
+    contents, wherever the files lie, and never for other contents at the same path."""
 
     folder: str
     run_recipe: RunRecipe

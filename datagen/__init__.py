@@ -1,11 +1,11 @@
 """Datasets: references, controllers, closed-loop simulation, storage and loaders.
 
-See :mod:`datagen.dataset` for the time-alignment convention shared by every layer.
+See :mod:`canonid.datagen.dataset` for the time-alignment convention shared by every layer.
 """
 
-from datagen.dataset import Dataset, Trajectory
-from datagen.generate import GenerationConfig, GenerationResult, generate_dataset
-from datagen.scenarios import get_scenario, scenario_names
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.datagen.generate import GenerationConfig, GenerationResult, generate_dataset
+from canonid.datagen.scenarios import get_scenario, scenario_names
 
 __all__ = [
     "Dataset",

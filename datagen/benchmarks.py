@@ -1,4 +1,5 @@
-"""The field's standard benchmarks (nonlinearbenchmark.org) as :class:`datagen.dataset.Dataset`.
+"""The field's standard benchmarks (nonlinearbenchmark.org) as
+:class:`canonid.datagen.dataset.Dataset`.
 
 Each entry of :data:`BENCHMARKS` reads the benchmark's own files, offline, and cuts the official
 split as the ``nonlinear_benchmarks`` package (version 1.0.1, ``benchmarks.py``) defines it: the
@@ -43,9 +44,9 @@ from typing import Any
 
 import numpy as np
 
-from datagen.dataset import Dataset, Trajectory
-from datagen.loaders import load_csv
-from models.errors import DataError
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.datagen.loaders import load_csv
+from canonid.kernel.errors import DataError
 
 __all__ = [
     "BENCHMARKS",

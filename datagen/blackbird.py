@@ -89,10 +89,10 @@ from typing import Any, Literal
 import numpy as np
 import scipy
 
-from datagen.chunks import cut_chunks
-from datagen.dataset import Dataset, Trajectory
-from models.errors import DataError
-from models.io import sha256_file
+from canonid.datagen.chunks import cut_chunks
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.errors import DataError
+from canonid.kernel.io import sha256_file
 
 __all__ = [
     "IMU_FILE",
@@ -263,7 +263,7 @@ def read_imu_csv(
         if len(row) != len(header):
             raise DataError(
                 f"{p}, line {line}: {len(row)} fields but the header has {len(header)}; this is "
-                "not the Blackbird IMU layout the loader expects (see datagen.blackbird)"
+                "not the Blackbird IMU layout the loader expects (see canonid.datagen.blackbird)"
             )
         t_ns[r] = _timestamp(row[i_t], p, line)
         for j, col in enumerate(acc + gyro):
@@ -493,9 +493,9 @@ def load_blackbird(
     seed: int = 0,
     gyro_units: Literal["rad/s", "deg/s"] = "rad/s",
 ) -> Dataset:
-    """Load every Blackbird flight below ``root`` into a :class:`~datagen.dataset.Dataset`.
+    """Load every Blackbird flight below ``root`` into a :class:`~canonid.datagen.dataset.Dataset`.
 
-    Each chunk becomes one :class:`~datagen.dataset.Trajectory` (``info``: ``flight`` id,
+    Each chunk becomes one :class:`~canonid.datagen.dataset.Trajectory` (``info``: ``flight`` id,
     ``chunk`` index, ``chunk_start`` sample of the flight's 50 Hz record, ``t0_ns`` start of the
     record on the bag clock, ``max_gap_s``); all chunks of a flight land in the same split.
     The metadata marks the data as real (``real_data: True``, ``simulated: False``) and records

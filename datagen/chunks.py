@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from datagen.dataset import Trajectory
-from models.errors import DataError
+from canonid.datagen.dataset import Trajectory
+from canonid.kernel.errors import DataError
 
 __all__ = ["chunk_bounds", "cut_chunks"]
 

@@ -1,4 +1,4 @@
-"""The closed loop of :func:`datagen.simulate.simulate_closed_loop` as CasADi functions, for
+"""The closed loop of :func:`canonid.datagen.simulate.simulate_closed_loop` as CasADi functions, for
 controllers whose decision is itself a CasADi function (the NMPC).
 
 A *policy* is a CasADi function ``(memory, x, window) -> (c, memory⁺, ok)``: ``memory`` is what
@@ -7,8 +7,8 @@ the controller carries from step to step (the NMPC's warm start), ``x`` the true
 flattened row by row, ``c`` the controller's command and ``ok`` 1 when the decision is
 trustworthy (0 sends the flight back to the step loop). A solver failure may also raise.
 
-One closed-loop step repeats the step loop of :mod:`datagen.simulate` operation for operation,
-so that both give the same bits::
+One closed-loop step repeats the step loop of :mod:`canonid.datagen.simulate` operation for
+operation, so that both give the same bits::
 
     c[t], memory⁺, ok = policy(memory, x[t], window[t])
     c[t] = (u[t−1] if t > 0 else c[t]) + kick[t]     on a loose step
@@ -34,8 +34,8 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from models.base import System
-from models.sets import Box
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["CHUNK", "CompiledLoop", "loop_functions"]
 
@@ -122,7 +122,7 @@ class CompiledLoop:
     ) -> tuple[np.ndarray, np.ndarray] | None:
         """States ``(T, n_x)`` and applied inputs ``(T, n_u)`` of a flight, or ``None`` when a
         step failed (the caller then runs the step loop). Arguments as drawn by
-        :func:`datagen.simulate.simulate_closed_loop`, one row per sample."""
+        :func:`canonid.datagen.simulate.simulate_closed_loop`, one row per sample."""
         T, nu = reference.shape[0], self.system.n_u
         rows = np.minimum(np.arange(T)[:, None] + np.arange(self.window), T - 1)
         windows = reference[rows].reshape(T, -1).T  # column t: rows t … t+W−1, row by row

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from models._validate import as_matrix
-from models.errors import DataError, ShapeError
-from models.io import atomic_write_json, read_json, read_npz, sha256_file, write_npz
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.io import atomic_write_json, read_json, read_npz, sha256_file, write_npz
+from canonid.kernel.validate import as_matrix
 
 __all__ = ["FORMAT_VERSION", "Dataset", "Trajectory"]
 
@@ -265,7 +265,7 @@ class Dataset:
     # ------------------------------------------------------------------ storage
     def save(self, path: str | os.PathLike[str], *, durable: bool = True) -> Path:
         """Write ``path`` (``.npz``) and its ``.json`` sidecar atomically; return ``path``.
-        ``durable=False`` skips the fsyncs (see :mod:`models.io`): for files that a power
+        ``durable=False`` skips the fsyncs (see :mod:`canonid.kernel.io`): for files that a power
         failure may cost, such as generation parts (a damaged part is regenerated)."""
         p = Path(path)
         if p.suffix != ".npz":

@@ -7,7 +7,8 @@ the flight had to be regenerated), so no random stream is shared between flights
 does not depend on which process ran which flight, nor in what order.
 
 Within a flight the seed sequence spawns two children: the first draws the reference, the second
-the simulation's random numbers (noise, excitation, loose steps; see :mod:`datagen.simulate`).
+the simulation's random numbers (noise, excitation, loose steps; see
+:mod:`canonid.datagen.simulate`).
 
 Training flight ``i`` is *loose* when ``⌊(i+1)·f⌋ > ⌊i·f⌋`` with ``f`` the scenario's loose
 fraction: exactly ``⌊n·f⌋`` of ``n`` flights, spread evenly (every fifth for ``f = 0.2``).
@@ -15,7 +16,7 @@ fraction: exactly ``⌊n·f⌋`` of ``n`` flights, spread evenly (every fifth fo
 A flight whose controller failed on more than ``max_failure_fraction · T`` steps, or whose state
 diverged, is regenerated with the next ``attempt``; the replaced seeds and their failure counts
 are recorded in the kept flight's ``info["replaced"]``. A flight that fails ``max_attempts`` times
-stops the generation with a :class:`~models.errors.DataError`.
+stops the generation with a :class:`~canonid.kernel.errors.DataError`.
 
 On disk (``out`` is the folder the caller names)::
 
@@ -25,8 +26,8 @@ On disk (``out`` is the folder the caller names)::
                                            unless keep_parts)
 
 When the scenario has a ``chunk_length`` (the quadrotor's 200), the assembled dataset holds each
-flight's consecutive chunks (:func:`datagen.chunks.cut_chunks`) in flight order; parts stay whole
-flights.
+flight's consecutive chunks (:func:`canonid.datagen.chunks.cut_chunks`) in flight order; parts stay
+whole flights.
 
 Re-running with ``resume=True`` keeps the finished parts of the same configuration and runs
 only the missing flights; the assembled dataset has the same bytes as an uninterrupted run.
@@ -53,15 +54,15 @@ from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
-from datagen.chunks import cut_chunks
-from datagen.controllers.base import Controller
-from datagen.dataset import Dataset, Trajectory
-from datagen.scenarios import Scenario, get_scenario
-from datagen.simulate import Excitation, noise_box, simulate_closed_loop
-from models.base import System
-from models.errors import DataError, ShapeError
-from models.io import atomic_write_json, read_json
-from models.registry import get_system
+from canonid.datagen.chunks import cut_chunks
+from canonid.datagen.controllers.base import Controller
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.datagen.scenarios import Scenario, get_scenario
+from canonid.datagen.simulate import Excitation, noise_box, simulate_closed_loop
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.io import atomic_write_json, read_json
+from canonid.models.base import System
+from canonid.models.registry import get_system
 
 __all__ = [
     "FLIGHTS_PER_TASK",
@@ -128,10 +129,10 @@ class GenerationConfig:
     """What to generate; validated on construction.
 
     Attributes:
-        system: a system with a scenario (:func:`datagen.scenarios.scenario_names`).
+        system: a system with a scenario (:func:`canonid.datagen.scenarios.scenario_names`).
         seed: the root seed (integer >= 0).
         counts: flights per split; splits left out get the scenario's default size.
-        noise: measurement-noise half-width(s), see :func:`datagen.simulate.noise_box`;
+        noise: measurement-noise half-width(s), see :func:`canonid.datagen.simulate.noise_box`;
             ``None`` uses the system's W.
         controller_options: overrides passed to the scenario's controller factory (only the
             names the scenario lists, e.g. ``{"horizon": 20}``).

@@ -1,8 +1,8 @@
-"""User data → :class:`datagen.dataset.Dataset`: CSV files, ``.npz`` arrays and objects shaped like
-``nonlinear_benchmarks.Input_output_data``.
+"""User data → :class:`canonid.datagen.dataset.Dataset`: CSV files, ``.npz`` arrays and objects
+shaped like ``nonlinear_benchmarks.Input_output_data``.
 
-Every loader reads the project's time convention (see :mod:`datagen.dataset`): row ``t`` holds
-``u[t]`` and ``y[t]``, where ``u[t]`` acts after ``y[t]`` is measured. Loaded data go into one
+Every loader reads the project's time convention (see :mod:`canonid.datagen.dataset`): row ``t``
+holds ``u[t]`` and ``y[t]``, where ``u[t]`` acts after ``y[t]`` is measured. Loaded data go into one
 split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
 
 * :func:`load_csv` — one file or several. Columns are named; ``inputs`` and ``outputs`` pick
@@ -32,9 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from datagen.dataset import Dataset, Trajectory
-from models.errors import DataError, ShapeError
-from models.io import read_json, read_npz, sha256_file
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.io import read_json, read_npz, sha256_file
 
 __all__ = [
     "data_checksum",

@@ -12,7 +12,7 @@ system's rate. The construction mirrors the planar drone's (paper appendix) lift
   velocity is the spline's derivative.
 
 Row ``t`` of the result, ``(px, py, pz, vx, vy, vz, yaw)`` [m, m/s, rad], is the target at time
-``t · dt`` (sample ``t``), the layout :class:`~datagen.controllers.quadrotor_cascade.
+``t · dt`` (sample ``t``), the layout :class:`~canonid.datagen.controllers.quadrotor_cascade.
 QuadrotorCascade` reads. A spline that leaves ``position_limit`` or ``speed_limit`` (the
 overshoot of a cubic between close waypoints) is redrawn, at most ``max_draws`` times.
 """
@@ -24,7 +24,7 @@ import math
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
 
 __all__ = ["QUADROTOR_REFERENCE_NAMES", "quadrotor_initial_state", "quadrotor_reference"]
 
@@ -91,7 +91,7 @@ def quadrotor_reference(
 def quadrotor_initial_state(reference: np.ndarray) -> np.ndarray:
     """Where a flight starts: on the reference's first position and velocity, level, with the
     reference's first yaw, body rates zero (the 13-state layout of
-    :class:`models.quadrotor.Quadrotor`)."""
+    :class:`canonid.models.quadrotor.Quadrotor`)."""
     px, py, pz, vx, vy, vz, yaw = np.asarray(reference, dtype=np.float64)[0, :7]
     half = 0.5 * yaw
     return np.array([px, py, pz, vx, vy, vz, math.cos(half), 0.0, 0.0, math.sin(half), 0, 0, 0.0])

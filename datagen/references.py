@@ -5,7 +5,7 @@ gives the same reference, so a flight's reference is fixed by its seed alone.
 
 Time convention: row ``t`` of a reference is the target for sample ``t`` (time ``t · dt``),
 ``t = 0 … T−1``, the same indexing as the trajectory it is tracked in (see
-:mod:`datagen.dataset`).
+:mod:`canonid.datagen.dataset`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
 
 __all__ = [
     "DRONE2D_REFERENCE_NAMES",

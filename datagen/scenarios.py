@@ -1,9 +1,9 @@
 """The scenario registry: how each system's closed-loop dataset is generated.
 
-One :class:`Scenario` per system name (the name of :func:`models.registry.get_system`) gives the
-reference sampler, the initial state, the controller factory, the flight length, the default
+One :class:`Scenario` per system name (the name of :func:`canonid.models.registry.get_system`) gives
+the reference sampler, the initial state, the controller factory, the flight length, the default
 split sizes and the excitation. A new system joins generation with one :func:`register_scenario`
-call (or one entry in ``_SCENARIOS``); :mod:`datagen.generate` needs nothing else.
+call (or one entry in ``_SCENARIOS``); :mod:`canonid.datagen.generate` needs nothing else.
 """
 
 from __future__ import annotations
@@ -15,25 +15,25 @@ from typing import Any, cast
 
 import numpy as np
 
-from datagen.controllers.base import Controller
-from datagen.controllers.nmpc import NMPC
-from datagen.controllers.pid import PID
-from datagen.controllers.quadrotor_cascade import QuadrotorCascade
-from datagen.quadrotor_reference import (
+from canonid.datagen.controllers.base import Controller
+from canonid.datagen.controllers.nmpc import NMPC
+from canonid.datagen.controllers.pid import PID
+from canonid.datagen.controllers.quadrotor_cascade import QuadrotorCascade
+from canonid.datagen.quadrotor_reference import (
     QUADROTOR_REFERENCE_NAMES,
     quadrotor_initial_state,
     quadrotor_reference,
 )
-from datagen.references import (
+from canonid.datagen.references import (
     DRONE2D_REFERENCE_NAMES,
     TANK_REFERENCE_NAMES,
     drone2d_reference,
     tank_reference,
 )
-from models.base import System
-from models.drone2d import Drone2D
-from models.errors import ShapeError, UnknownSystemError
-from models.quadrotor import Quadrotor
+from canonid.kernel.errors import ShapeError, UnknownSystemError
+from canonid.models.base import System
+from canonid.models.drone2d import Drone2D
+from canonid.models.quadrotor import Quadrotor
 
 __all__ = ["Scenario", "get_scenario", "register_scenario", "scenario_names"]
 
@@ -66,9 +66,9 @@ class Scenario:
             ``T`` (or a diverged one) is regenerated with a new derived seed.
         max_attempts: how many seeds a flight may use before generation gives up on it.
         chunk_length: when set, each flight is cut into consecutive chunks of this many samples
-            when the dataset is assembled (:func:`datagen.chunks.cut_chunks`; the remainder of a
-            flight is dropped): the dataset's trajectories are the chunks, its splits still
-            by flight.
+            when the dataset is assembled (:func:`canonid.datagen.chunks.cut_chunks`; the remainder
+            of a flight is dropped): the dataset's trajectories are the chunks, its splits still by
+            flight.
         notes: one paragraph for the dataset metadata (what was chosen and why).
     """
 

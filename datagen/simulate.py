@@ -1,6 +1,6 @@
 """Closed-loop simulation of a true system under a data-generation controller.
 
-Time convention (the one of :mod:`datagen.dataset`): for ``t = 0 … T−1``
+Time convention (the one of :mod:`canonid.datagen.dataset`): for ``t = 0 … T−1``
 
 * ``x[t]`` is the true state (``x[0] = x0``);
 * the controller sees the true state, ``c[t] = controller(t, x[t]).u``;
@@ -17,8 +17,8 @@ loose-step mask, loose perturbations), so a flight is a pure function of its gen
 noise of a flight does not change when its controller does.
 
 A controller that offers a compiled loop (:meth:`Controller.compiled_loop`, the NMPC) for this
-very system flies in chunks of steps, each one CasADi call (:mod:`datagen.compiled_loop`); the
-result has the same bytes as the step loop. A flight in which that loop meets a failed solve or
+very system flies in chunks of steps, each one CasADi call (:mod:`canonid.datagen.compiled_loop`);
+the result has the same bytes as the step loop. A flight in which that loop meets a failed solve or
 a non-finite value is flown again step by step, which counts failures and cuts divergence.
 """
 
@@ -30,11 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from datagen.controllers.base import Controller
-from models._validate import as_matrix, as_vector
-from models.base import System
-from models.errors import SetError, ShapeError
-from models.sets import Box
+from canonid.datagen.controllers.base import Controller
+from canonid.kernel.errors import SetError, ShapeError
+from canonid.kernel.validate import as_matrix, as_vector
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["ClosedLoop", "Excitation", "noise_box", "simulate_closed_loop"]
 

@@ -3,7 +3,7 @@ evaluation and the numpy export. Never imports CasADi or datagen.
 
 Typical use (``train``, ``val``, ``test``: sequences of objects with ``.u``, ``.y``)::
 
-    from learning import TrainOptions, evaluate, fit
+    from canonid.learning import TrainOptions, evaluate, fit
 
     result = fit(train, val, model="mlp", window=10, options=TrainOptions(epochs=200))
     scores = evaluate(result.model, test, horizon=100)
@@ -11,13 +11,13 @@ Typical use (``train``, ``val``, ``test``: sequences of objects with ``.u``, ``.
     reduced = reduce_model(result.model, train, val, compression=0.6).model   # n̄ states
 """
 
-from learning.data import Normalisation, Series, as_series
-from learning.evaluate import Evaluation, Scores, evaluate
-from learning.export import NumpyModel
-from learning.model import Model
-from learning.nets import NETS, SequenceModel, UnknownModelError, build_net, model_names
-from learning.reduction import ReductionOptions, latent_size, reduce_model
-from learning.training import EpochReport, FitResult, OptionError, TrainOptions, fit
+from canonid.learning.data import Normalisation, Series, as_series
+from canonid.learning.evaluate import Evaluation, Scores, evaluate
+from canonid.learning.export import NumpyModel
+from canonid.learning.model import Model
+from canonid.learning.nets import NETS, SequenceModel, UnknownModelError, build_net, model_names
+from canonid.learning.reduction import ReductionOptions, latent_size, reduce_model
+from canonid.learning.training import EpochReport, FitResult, OptionError, TrainOptions, fit
 
 __all__ = [
     "NETS",

@@ -1,20 +1,21 @@
-"""The canonical state in torch: the shift of :mod:`models.canonical` for batched tensors.
+"""The canonical state in torch: the shift of :mod:`canonid.kernel.canonical` for batched tensors.
 
-Ordering (the same as :mod:`models.canonical`, the numpy reference): with window ℓ and
+Ordering (the same as :mod:`canonid.kernel.canonical`, the numpy reference): with window ℓ and
 ``p = n_u + n_y``,
 
     z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1}) ∈ R^{ℓ p},
 
 pairs ``[u_i; y_i]`` stacked oldest first. The shift ``z_{t+1} = Ā z_t + B̄ u_t + S̄ y_t`` drops the
 oldest pair and appends ``[u_t; y_t]``; here it is one concatenation, never a product with the
-dense Kronecker matrices (which :func:`models.canonical.shift_matrices` builds for the tests).
+dense Kronecker matrices (which :func:`canonid.kernel.canonical.shift_matrices` builds for the
+tests).
 """
 
 from __future__ import annotations
 
 import torch
 
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
 
 __all__ = ["pairs_to_state", "shift", "state_to_pairs"]
 

@@ -2,8 +2,8 @@
 
 The learning API is duck-typed: a trajectory is any object with arrays ``.u`` ``(T, n_u)`` and
 ``.y`` ``(T, n_y)`` (measured outputs) and, optionally, ``.y_clean`` ``(T, n_y)`` (noise-free
-outputs, used only for reporting). :class:`datagen.dataset.Trajectory` is one, but this layer
-never imports datagen.
+outputs, used only for reporting). :class:`canonid.datagen.dataset.Trajectory` is one, but this
+layer never imports datagen.
 
 Time alignment (the project's convention): sample ``t`` holds ``u[t]`` and ``y[t]``; a model with
 window ℓ predicting ``y[t]`` sees samples ``t−ℓ … t−1`` and, with feedthrough, ``u[t]``.
@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 import torch
 
-from models._validate import require_finite
-from models.errors import DataError, ShapeError
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.validate import require_finite
 
 __all__ = ["Normalisation", "Series", "WindowBank", "as_series", "window_starts"]
 

@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from learning.data import Series, as_series
-from learning.model import Model
-from models.errors import ShapeError
-from models.io import jsonable
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.io import jsonable
+from canonid.learning.data import Series, as_series
+from canonid.learning.model import Model
 
 __all__ = ["Evaluation", "Scores", "evaluate", "simulate_records"]
 
@@ -232,7 +232,7 @@ def evaluate(
     """Score ``model`` on the trajectories ``data`` (see the module docstring).
 
     Args:
-        model: a trained :class:`learning.model.Model`.
+        model: a trained :class:`canonid.learning.model.Model`.
         data: test trajectories (objects with ``.u``, ``.y`` and optionally ``.y_clean``).
         horizon: ``H`` of the paper metric (paper: 100).
         stride: stride of the rollout start times.

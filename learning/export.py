@@ -6,7 +6,7 @@ Contract (what ``analysis`` may rely on)
 ``feedthrough`` (whether ``H`` reads ``u_t``) and two methods, float64 in and out, physical units:
 
 ``H(z, u) -> y``
-    The one-step output map. ``z`` is ``(N, ℓ (n_u + n_y))`` in the :mod:`models.canonical`
+    The one-step output map. ``z`` is ``(N, ℓ (n_u + n_y))`` in the :mod:`canonid.kernel.canonical`
     ordering — ``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})``, oldest pair first — ``u`` is
     ``u_t``, ``(N, n_u)``; returns ``ŷ_t``, ``(N, n_y)``. A single ``z`` ``(ℓ(n_u+n_y),)`` with
     ``u`` ``(n_u,)`` gives ``(n_y,)``. For Ours (MLP/GRU) this is the regressor ``Ĥ`` of the
@@ -19,9 +19,9 @@ Contract (what ``analysis`` may rely on)
     canonical models this is ``ẑ_{t+1} = Ā ẑ_t + B̄ u_t + S̄ H(ẑ_t, u_t)`` from the measured
     ``z_ℓ``.
 
-A reduced model (:class:`learning.nets.ReducedNet`) exports a :class:`ReducedNumpyModel`: the same
-``H`` (``Ĥ(D(E(z_t)), u_t)``, the prediction from a measured window) and ``simulate``, plus its
-state-space form — ``latent_dim`` (``n̄``) and
+A reduced model (:class:`canonid.learning.nets.ReducedNet`) exports a :class:`ReducedNumpyModel`:
+the same ``H`` (``Ĥ(D(E(z_t)), u_t)``, the prediction from a measured window) and ``simulate``, plus
+its state-space form — ``latent_dim`` (``n̄``) and
 
 ``encode(z) -> x``
     ``x̄ = E(z)``: ``z`` ``(N, ℓ (n_u + n_y))`` physical, as for ``H`` → ``(N, n̄)``.
@@ -37,10 +37,10 @@ followed by ``output``/``step``.
 The object holds a float64 copy of the network on the CPU; it never changes the model it came
 from.
 
-``network()`` returns the weights themselves as plain numpy (:mod:`models.network`): a
-:class:`~models.network.CanonicalNet` for Ours (MLP) and Ours (GRU), a
-:class:`~models.network.ReducedNet` for their reduced models. :mod:`models.learned` builds
-CasADi expressions from it; the other models raise :class:`NotExportableError`.
+``network()`` returns the weights themselves as plain numpy (:mod:`canonid.kernel.network`): a
+:class:`~canonid.kernel.network.CanonicalNet` for Ours (MLP) and Ours (GRU), a
+:class:`~canonid.kernel.network.ReducedNet` for their reduced models. :mod:`canonid.models.learned`
+builds CasADi expressions from it; the other models raise :class:`NotExportableError`.
 """
 
 from __future__ import annotations
@@ -51,14 +51,14 @@ import numpy as np
 import torch
 from torch import nn
 
-from learning.nets import ALL_NETS, ARX, OursGRU, OursMLP, ReducedNet, build_net
-from learning.nets.base import ACTIVATIONS
-from models import network as plain
-from models._validate import require_finite
-from models.errors import CanonidError, ShapeError
+from canonid.kernel import network as plain
+from canonid.kernel.errors import CanonidError, ShapeError
+from canonid.kernel.validate import require_finite
+from canonid.learning.nets import ALL_NETS, ARX, OursGRU, OursMLP, ReducedNet, build_net
+from canonid.learning.nets.base import ACTIVATIONS
 
-if TYPE_CHECKING:  # learning.model imports this module for Model.export()
-    from learning.model import Model
+if TYPE_CHECKING:  # canonid.learning.model imports this module for Model.export()
+    from canonid.learning.model import Model
 
 __all__ = ["NotExportableError", "NumpyModel", "ReducedNumpyModel"]
 
@@ -76,7 +76,7 @@ def _not_exportable(name: str) -> NotExportableError:
 
 
 def _layers(seq: nn.Sequential, activation: str) -> tuple[plain.Layer, ...]:
-    """The layers of an :func:`learning.nets.base.mlp`: each ``Linear`` with the activation
+    """The layers of an :func:`canonid.learning.nets.base.mlp`: each ``Linear`` with the activation
     that follows it (``"linear"`` for the output layer)."""
     linears = [m for m in seq if isinstance(m, nn.Linear)]
     expected = ACTIVATIONS[activation]
@@ -116,7 +116,7 @@ def _gru_layers(gru: nn.GRU) -> tuple[plain.GRULayer, ...]:
 
 def _affine_path(regressor: nn.Module) -> tuple[np.ndarray, np.ndarray] | None:
     """``(L, c)`` of the regressor's affine path on ``[z̃; ũ]`` (its ``affine`` layer, see
-    :class:`models.network.CanonicalNet`), or ``None`` where it has none."""
+    :class:`canonid.kernel.network.CanonicalNet`), or ``None`` where it has none."""
     affine = getattr(regressor, "affine", None)
     if affine is None:
         return None
@@ -135,7 +135,7 @@ def _batch(name: str, value: Any, cols: int) -> tuple[np.ndarray, bool]:
 
 
 class NumpyModel:
-    """Numpy callables ``H`` and ``simulate`` of a trained :class:`learning.model.Model`."""
+    """Numpy callables ``H`` and ``simulate`` of a trained :class:`canonid.learning.model.Model`."""
 
     def __init__(self, model: Model) -> None:
         net = build_net(model.name, **model.net.config())

@@ -18,9 +18,9 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
-from learning.data import Normalisation, Series
-from learning.nets.base import CanonicalModel
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
+from canonid.learning.data import Normalisation, Series
+from canonid.learning.nets.base import CanonicalModel
 
 __all__ = ["initialise_linear", "least_squares", "regressors"]
 

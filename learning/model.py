@@ -6,7 +6,7 @@ Folder layout written by :meth:`Model.save` (a run folder holds these plus train
   "net": constructor arguments, "info": free JSON (training options, data description)}``;
 * ``weights.pt`` — ``torch.save(state_dict)`` of the network (CPU tensors), read back with
   ``torch.load(..., weights_only=True)``;
-* ``normalisation.json`` — :class:`learning.data.Normalisation` (training statistics).
+* ``normalisation.json`` — :class:`canonid.learning.data.Normalisation` (training statistics).
 
 Simulation convention (:meth:`Model.simulate`): ``u`` holds samples ``0 … T−1``, ``y_burn_in``
 the measured outputs of samples ``0 … ℓ−1``; the result holds the open-loop predictions of
@@ -26,12 +26,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from learning.data import Normalisation
-from learning.export import NumpyModel, ReducedNumpyModel
-from learning.nets import ALL_NETS, ReducedNet, SequenceModel, build_net
-from models._validate import require_finite
-from models.errors import CheckpointError, DataError, ShapeError
-from models.io import atomic_write_bytes, atomic_write_json, read_json
+from canonid.kernel.errors import CheckpointError, DataError, ShapeError
+from canonid.kernel.io import atomic_write_bytes, atomic_write_json, read_json
+from canonid.kernel.validate import require_finite
+from canonid.learning.data import Normalisation
+from canonid.learning.export import NumpyModel, ReducedNumpyModel
+from canonid.learning.nets import ALL_NETS, ReducedNet, SequenceModel, build_net
 
 __all__ = ["MODEL_FORMAT_VERSION", "Model", "check_same", "load_state", "rollout_physical"]
 
@@ -130,7 +130,7 @@ class Model:
         return out[0] if single else out
 
     def export(self) -> NumpyModel:
-        """A plain numpy object for the analysis layer (see :mod:`learning.export`): a
+        """A plain numpy object for the analysis layer (see :mod:`canonid.learning.export`): a
         ``ReducedNumpyModel`` for a reduced model, else a ``NumpyModel``."""
         return ReducedNumpyModel(self) if isinstance(self.net, ReducedNet) else NumpyModel(self)
 

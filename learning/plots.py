@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from learning.data import as_series
-from learning.evaluate import simulate_records
-from learning.model import Model
+from canonid.learning.data import as_series
+from canonid.learning.evaluate import simulate_records
+from canonid.learning.model import Model
 
 __all__ = ["plot_rollouts", "plot_training_curve"]
 

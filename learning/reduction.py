@@ -1,19 +1,19 @@
 """Model reduction (paper §IV-B): train an auto-encoder around a trained canonical model.
 
 Given a trained canonical model (Ours (MLP) or Ours (GRU)) with regressor ``Ĥ`` and window ℓ,
-:func:`reduce_model` trains the reduced model of :class:`learning.nets.ReducedNet`,
+:func:`reduce_model` trains the reduced model of :class:`canonid.learning.nets.ReducedNet`,
 
     x̄_{t+1} = E(Ā D(x̄_t) + B̄ u_t + S̄ Ĥ(D(x̄_t), u_t)),      ȳ_t = Ĥ(D(x̄_t), u_t),
 
 whose state has ``n̄ = ⌊dim z · (1 − r)⌋ + 1`` entries for a compression rate ``r`` in (0, 1)
 (*authors' code*; ``dim z = ℓ (n_u + n_y)``), so ``n̄ = dim z`` exactly when ``r ≤ 1 / dim z``.
 
-Training goes through the output-error loop of :mod:`learning.training` (sub-windows, curriculum,
-validation on the reduced model's open-loop rollouts, best-on-validation kept, checkpoints and
-resume, seeds) with the three-term loss of :mod:`learning.nets.reduced`, under the full model's
-normalisation. ``Ĥ`` starts from the full model's weights and is frozen during epochs
-``1 … ⌊f · epochs⌋`` (``f = freeze_fraction``, *authors' code*: 0.75), then fine-tuned with
-``E`` and ``D`` (the reduced model keeps its own copy of ``Ĥ``; the full model is not changed).
+Training goes through the output-error loop of :mod:`canonid.learning.training` (sub-windows,
+curriculum, validation on the reduced model's open-loop rollouts, best-on-validation kept,
+checkpoints and resume, seeds) with the three-term loss of :mod:`canonid.learning.nets.reduced`,
+under the full model's normalisation. ``Ĥ`` starts from the full model's weights and is frozen
+during epochs ``1 … ⌊f · epochs⌋`` (``f = freeze_fraction``, *authors' code*: 0.75), then fine-tuned
+with ``E`` and ``D`` (the reduced model keeps its own copy of ``Ĥ``; the full model is not changed).
 """
 
 from __future__ import annotations
@@ -29,13 +29,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from learning.data import as_series
-from learning.model import Model
-from learning.nets import ReducedNet, SequenceModel
-from learning.nets.reduced import NotReducibleError, check_reducible
-from learning.training import EpochReport, FitResult, OptionError, TrainOptions, fit_net
-from models.canonical import cut_windows
-from models.errors import ShapeError
+from canonid.kernel.canonical import cut_windows
+from canonid.kernel.errors import ShapeError
+from canonid.learning.data import as_series
+from canonid.learning.model import Model
+from canonid.learning.nets import ReducedNet, SequenceModel
+from canonid.learning.nets.reduced import NotReducibleError, check_reducible
+from canonid.learning.training import EpochReport, FitResult, OptionError, TrainOptions, fit_net
 
 __all__ = [
     "NotReducibleError",
@@ -68,7 +68,7 @@ def latent_size(state_dim: int, compression: float) -> int:
 @dataclass(frozen=True)
 class ReductionOptions:
     """The reduction-specific options of :func:`reduce_model` (training budgets are
-    :class:`learning.training.TrainOptions`).
+    :class:`canonid.learning.training.TrainOptions`).
 
     Attributes:
         encoder_hidden, decoder_hidden: hidden widths of ``E`` and ``D`` (paper: 2 × 512).
@@ -79,7 +79,7 @@ class ReductionOptions:
             layers from zero: training starts at the linear (PCA) reduction. Off: the paper's
             plain MLPs, randomly initialised.
         reconstruction_weight, consistency_weight, output_weight: weights of the three loss
-            terms (:mod:`learning.nets.reduced`).
+            terms (:mod:`canonid.learning.nets.reduced`).
     """
 
     encoder_hidden: tuple[int, ...] = (512, 512)
@@ -164,18 +164,18 @@ def reduce_model(
     """Train the reduced model of the canonical ``model`` at compression rate ``compression``.
 
     Args:
-        model: a trained Ours (MLP) or Ours (GRU) model (:class:`learning.model.Model`).
+        model: a trained Ours (MLP) or Ours (GRU) model (:class:`canonid.learning.model.Model`).
         train, val: trajectories in physical units (objects with ``.u``, ``.y``); they are
             normalised with ``model``'s statistics.
         compression: ``r`` in (0, 1); the reduced state has :func:`latent_size` entries.
         options: training options (sub-windows, curriculum, epochs, learning rate, seed, ...).
         reduction: :class:`ReductionOptions` (defaults if ``None``).
-        run_dir, resume, callback: as for :func:`learning.training.fit`; a resumed run must
+        run_dir, resume, callback: as for :func:`canonid.learning.training.fit`; a resumed run must
             also match the full model's weights and the reduction options.
         info: extra JSON facts saved in the reduced model's ``config.json``.
 
     Returns:
-        the :class:`~learning.training.FitResult` whose ``model`` is the reduced model (its
+        the :class:`~canonid.learning.training.FitResult` whose ``model`` is the reduced model (its
         validation losses are the reduced model's rollout MSE, normalised units).
 
     Raises:

@@ -41,13 +41,13 @@ learning rate is halved for the rest of the run. After ``MAX_RECOVERIES`` of the
 as diverged, keeping the best model.
 
 Linear start: a canonical model whose affine path is ``linear="arx"`` starts from the
-least-squares ARX fit of the training data (:func:`learning.linear.least_squares`) with the
+least-squares ARX fit of the training data (:func:`canonid.learning.linear.least_squares`) with the
 nonlinear part's output layer at zero (a ``"skip"`` path starts at zero, the network as built); a
 model that is not ``iterative`` (ARX) takes no gradient step at all.
 
 :func:`fit` trains a registered identification model from scratch; :func:`fit_net` is the loop
-itself, for a network built by the caller (the reduced model of :mod:`learning.reduction` uses it
-with the full model's normalisation and a per-epoch hook that freezes ``Ĥ``).
+itself, for a network built by the caller (the reduced model of :mod:`canonid.learning.reduction`
+uses it with the full model's normalisation and a per-epoch hook that freezes ``Ĥ``).
 """
 
 from __future__ import annotations
@@ -67,14 +67,14 @@ from typing import Any
 import numpy as np
 import torch
 
-from learning.data import Normalisation, Series, WindowBank, as_series
-from learning.linear import initialise_linear
-from learning.model import Model, check_same, load_state
-from learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
-from learning.nets.base import linear_path
-from learning.presets import net_options as preset_net_options
-from models.errors import CanonidError, CheckpointError, ShapeError
-from models.io import atomic_write_bytes
+from canonid.kernel.errors import CanonidError, CheckpointError, ShapeError
+from canonid.kernel.io import atomic_write_bytes
+from canonid.learning.data import Normalisation, Series, WindowBank, as_series
+from canonid.learning.linear import initialise_linear
+from canonid.learning.model import Model, check_same, load_state
+from canonid.learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
+from canonid.learning.nets.base import linear_path
+from canonid.learning.presets import net_options as preset_net_options
 
 __all__ = [
     "CHECKPOINT_FILE",
@@ -599,14 +599,14 @@ def fit(
     """Train model ``model`` with window ``window`` by output error.
 
     Args:
-        train, val: trajectories (objects with ``.u``, ``.y``; see :mod:`learning.data`), in
+        train, val: trajectories (objects with ``.u``, ``.y``; see :mod:`canonid.learning.data`), in
             physical units. Normalisation statistics come from ``train`` only.
-        model: a registry name (:func:`learning.nets.model_names`).
+        model: a registry name (:func:`canonid.learning.nets.model_names`).
         window: ℓ.
         options: :class:`TrainOptions` (defaults if ``None``).
         net_options: constructor arguments of the network (sizes, ``feedthrough``,
             ``residual``, ``activation``, ``linear``) over the model's defaults
-            (:data:`learning.presets.DEFAULT_NET_OPTIONS`).
+            (:data:`canonid.learning.presets.DEFAULT_NET_OPTIONS`).
         run_dir: where the model and ``checkpoint.pt`` are written (nothing is written if
             ``None``).
         resume: continue from ``run_dir/checkpoint.pt``; the model, its configuration, the
@@ -663,7 +663,7 @@ def fit_net(
     Args:
         build: called once as ``build(norm)``, under ``torch.manual_seed(options.seed)``, to
             make the network (window ``window``, the data's ``n_u``, ``n_y``); its
-            :meth:`~learning.nets.SequenceModel.training_loss` is the loss minimised.
+            :meth:`~canonid.learning.nets.SequenceModel.training_loss` is the loss minimised.
         train, val, window, options, run_dir, resume, callback, info: as for :func:`fit`.
         norm: the normalisation to train under (default: fitted on ``train``).
         identity: extra JSON facts that a resumed run must match (saved in the checkpoint).

@@ -1,34 +1,27 @@
 """The true systems: CasADi definitions of f, h, their sets X, U, W, and one registry.
 
-This package is the root of canonid's dependency graph (``canonid → {datagen, learning,
-analysis} → models``); it needs only numpy and CasADi. The names below are imported lazily
-(PEP 562), so that ``learning`` can use the CasADi-free modules (``models.errors``,
-``models.canonical``, ``models.io``, ``models._validate``) without importing CasADi.
+The layer above the kernel (``canonid → {datagen, learning, analysis} → models → kernel``); it
+needs numpy and CasADi. The names below are imported lazily (PEP 562), so importing the package
+costs nothing until a system is built.
 """
 
 from __future__ import annotations
 
-from models.lazy import lazy_exports
+from canonid.kernel.lazy import lazy_exports
 
 _EXPORTS = {
-    "SimResult": "models.base",
-    "System": "models.base",
-    "Drone2D": "models.drone2d",
-    "CanonidError": "models.errors",
-    "CheckpointError": "models.errors",
-    "DataError": "models.errors",
-    "SetError": "models.errors",
-    "ShapeError": "models.errors",
-    "UnknownSystemError": "models.errors",
-    "LearnedSystem": "models.learned",
-    "LinearSystem": "models.linear",
-    "linear_example": "models.linear",
-    "get_system": "models.registry",
-    "register_system": "models.registry",
-    "system_names": "models.registry",
-    "Box": "models.sets",
-    "Tank": "models.tank",
-    "Quadrotor": "models.quadrotor",
+    "SimResult": "canonid.models.base",
+    "System": "canonid.models.base",
+    "Drone2D": "canonid.models.drone2d",
+    "LearnedSystem": "canonid.models.learned",
+    "LinearSystem": "canonid.models.linear",
+    "linear_example": "canonid.models.linear",
+    "get_system": "canonid.models.registry",
+    "register_system": "canonid.models.registry",
+    "system_names": "canonid.models.registry",
+    "Box": "canonid.models.sets",
+    "Tank": "canonid.models.tank",
+    "Quadrotor": "canonid.models.quadrotor",
 }
 
 __all__ = sorted(_EXPORTS)

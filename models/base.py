@@ -16,10 +16,10 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from models._validate import as_matrix, as_vector, require_finite
-from models.errors import SetError, ShapeError
-from models.io import jsonable
-from models.sets import Box
+from canonid.kernel.errors import SetError, ShapeError
+from canonid.kernel.io import jsonable
+from canonid.kernel.validate import as_matrix, as_vector, require_finite
+from canonid.models.sets import Box
 
 __all__ = ["Linearisation", "SimResult", "System"]
 

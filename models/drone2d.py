@@ -18,8 +18,8 @@ import math
 
 import casadi as ca
 
-from models.base import System
-from models.sets import Box
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["Drone2D"]
 

@@ -1,22 +1,23 @@
-"""A trained canonical model as a :class:`~models.base.System`, built in CasADi SX from its weights.
+"""A trained canonical model as a :class:`~canonid.models.base.System`, built in CasADi SX from its
+weights.
 
-The weights arrive as a plain description (:mod:`models.network`, exported by
-``learning.NumpyModel.network()``), so this module never sees torch. The SX graph is written out
-layer by layer — ReLU as ``fmax(v, 0)``, SiLU as ``v (1 + tanh(v/2)) / 2``, tanh as ``tanh`` — which
-keeps it open to the interval evaluator of :mod:`analysis.enclosure` (a wrapped torch function
-would be opaque to it).
+The weights arrive as a plain description (:mod:`canonid.kernel.network`, exported by
+``canonid.learning.NumpyModel.network()``), so this module never sees torch. The SX graph is written
+out layer by layer — ReLU as ``fmax(v, 0)``, SiLU as ``v (1 + tanh(v/2)) / 2``, tanh as ``tanh`` —
+which keeps it open to the interval evaluator of :mod:`canonid.analysis.enclosure` (a wrapped torch
+function would be opaque to it).
 
-State and maps. For a :class:`~models.network.CanonicalNet` the state is the canonical
-``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})`` in physical units (:mod:`models.canonical`
+State and maps. For a :class:`~canonid.kernel.network.CanonicalNet` the state is the canonical
+``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})`` in physical units (:mod:`canonid.kernel.canonical`
 ordering) and
 
     f(z, u) = Ā z + B̄ u + S̄ Ĥ(z, u),      h(z, u) = Ĥ(z, u),
 
 the shift written as a concatenation (drop the oldest pair, append ``[u; Ĥ(z, u)]``). For a
-:class:`~models.network.ReducedNet` the state is the reduced ``x̄_t`` (no units) and ``f``, ``h``
-are the reduced model's step and output (see :mod:`models.network`). Either way ``x[t]`` is filled
-from a measured window by :meth:`LearnedSystem.state_of_window` — the canonical state is measured
-by construction, no observer is needed.
+:class:`~canonid.kernel.network.ReducedNet` the state is the reduced ``x̄_t`` (no units) and ``f``,
+``h`` are the reduced model's step and output (see :mod:`canonid.kernel.network`). Either way
+``x[t]`` is filled from a measured window by :meth:`LearnedSystem.state_of_window` — the canonical
+state is measured by construction, no observer is needed.
 
 Sets (:meth:`LearnedSystem.from_data`): X is the box hull of the states of the training windows
 (every ``z_t`` of every training trajectory, or its encoding ``x̄``), U the hull of the training
@@ -34,13 +35,13 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from models._validate import as_matrix
-from models.base import Linearisation, System
-from models.canonical import cut_windows
-from models.errors import DataError, ShapeError
-from models.io import atomic_write_bytes
-from models.network import CanonicalNet, GRULayer, Layer, ReducedNet
-from models.sets import Box
+from canonid.kernel.canonical import cut_windows
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.io import atomic_write_bytes
+from canonid.kernel.network import CanonicalNet, GRULayer, Layer, ReducedNet
+from canonid.kernel.validate import as_matrix
+from canonid.models.base import Linearisation, System
+from canonid.models.sets import Box
 
 __all__ = [
     "LearnedSystem",
@@ -76,7 +77,7 @@ def _sigmoid(v: ca.SX) -> ca.SX:
 
 
 def _gru_step(layer: GRULayer, x: ca.SX, h: ca.SX) -> ca.SX:
-    """``h⁺`` of one GRU layer (:class:`models.network.GRULayer`)."""
+    """``h⁺`` of one GRU layer (:class:`canonid.kernel.network.GRULayer`)."""
     n = layer.hidden
     gi = ca.mtimes(ca.DM(layer.weight_ih), x) + layer.bias_ih
     gh = ca.mtimes(ca.DM(layer.weight_hh), h) + layer.bias_hh
@@ -100,7 +101,7 @@ def _features(net: CanonicalNet, zn: ca.SX) -> ca.SX:
 
 
 def regressor_expr(net: CanonicalNet, zn: ca.SX, un: ca.SX) -> ca.SX:
-    """``ỹ = Ĥ̃(z̃, ũ)`` in normalised units (see :mod:`models.network`)."""
+    """``ỹ = Ĥ̃(z̃, ũ)`` in normalised units (see :mod:`canonid.kernel.network`)."""
     features = _features(net, zn)
     a = ca.vertcat(features, un) if net.feedthrough else features
     raw = network_expr(net.layers, a)
@@ -288,9 +289,9 @@ class LearnedSystem(System):
         return _mlp_linearisation(net, xm, um)
 
     def state_of_window(self, z: Any) -> np.ndarray:
-        """The state ``x[t]`` of a measured window ``z_t`` (physical, :mod:`models.canonical`
-        ordering): ``z_t`` itself for a canonical model, ``E(z̃_t)`` for a reduced one.
-        ``(ℓp,)`` → ``(n_x,)`` or ``(N, ℓp)`` → ``(N, n_x)``."""
+        """The state ``x[t]`` of a measured window ``z_t`` (physical,
+        :mod:`canonid.kernel.canonical` ordering): ``z_t`` itself for a canonical model, ``E(z̃_t)``
+        for a reduced one. ``(ℓp,)`` → ``(n_x,)`` or ``(N, ℓp)`` → ``(N, n_x)``."""
         reg = self.regressor
         za = np.asarray(z, dtype=np.float64)
         single = za.ndim == 1

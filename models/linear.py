@@ -11,9 +11,9 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from models.base import System
-from models.errors import ShapeError
-from models.sets import Box
+from canonid.kernel.errors import ShapeError
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["LINEAR_EXAMPLES", "LinearSystem", "linear_example"]
 

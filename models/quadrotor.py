@@ -110,9 +110,9 @@ import math
 import casadi as ca
 import numpy as np
 
-from models.base import System
-from models.errors import SetError
-from models.sets import Box
+from canonid.kernel.errors import SetError
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["Quadrotor"]
 

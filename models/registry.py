@@ -9,12 +9,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from models.base import System
-from models.drone2d import Drone2D
-from models.errors import UnknownSystemError
-from models.linear import LINEAR_EXAMPLES
-from models.quadrotor import Quadrotor
-from models.tank import Tank
+from canonid.kernel.errors import UnknownSystemError
+from canonid.models.base import System
+from canonid.models.drone2d import Drone2D
+from canonid.models.linear import LINEAR_EXAMPLES
+from canonid.models.quadrotor import Quadrotor
+from canonid.models.tank import Tank
 
 __all__ = ["get_system", "register_system", "system_names"]
 

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import SetError
+from canonid.kernel.errors import SetError
 
 __all__ = ["Box"]
 

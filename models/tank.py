@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import casadi as ca
 
-from models.base import System
-from models.errors import SetError
-from models.sets import Box
+from canonid.kernel.errors import SetError
+from canonid.models.base import System
+from canonid.models.sets import Box
 
 __all__ = ["Tank"]
 

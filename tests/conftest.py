@@ -11,7 +11,7 @@ import pytest
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("MKL_NUM_THREADS", "1")
 
-from models.registry import get_system, system_names
+from canonid.models.registry import get_system, system_names
 
 
 @pytest.fixture(autouse=True)

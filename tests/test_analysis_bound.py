@@ -8,18 +8,18 @@ import math
 import numpy as np
 import pytest
 
-from analysis import bound as bound_module
-from analysis.argmin import ArgminResult
-from analysis.bound import BoundConstants, check_bound
-from analysis.estimate import Budget, Estimate
-from analysis.linear import alpha_exact, gamma_exact
-from analysis.lipschitz import lipschitz_bracket
-from analysis.observability import alpha_bracket
-from analysis.reach import reachable_hulls
-from models.errors import SetError, ShapeError
-from models.linear import linear_example
-from models.registry import get_system
-from models.sets import Box
+from canonid.analysis import bound as bound_module
+from canonid.analysis.argmin import ArgminResult
+from canonid.analysis.bound import BoundConstants, check_bound
+from canonid.analysis.estimate import Budget, Estimate
+from canonid.analysis.linear import alpha_exact, gamma_exact
+from canonid.analysis.lipschitz import lipschitz_bracket
+from canonid.analysis.observability import alpha_bracket
+from canonid.analysis.reach import reachable_hulls
+from canonid.kernel.errors import SetError, ShapeError
+from canonid.models.linear import linear_example
+from canonid.models.registry import get_system
+from canonid.models.sets import Box
 
 X = Box([0.05, 0.05], [5.0, 5.0])
 U = Box([1.0], [3.0])

@@ -1,4 +1,4 @@
-"""γ_f of a learned model (analysis.certify) against closed forms and sampled values."""
+"""γ_f of a learned model (canonid.analysis.certify) against closed forms and sampled values."""
 
 from __future__ import annotations
 
@@ -8,9 +8,9 @@ import pytest
 import torch
 from test_learned_system import as_system, gru_model, mlp_model, reduced_model
 
-from analysis.certify import layer_norm_bound, learned_gamma
-from analysis.estimate import Budget
-from models.canonical import shift_matrices
+from canonid.analysis.certify import layer_norm_bound, learned_gamma
+from canonid.analysis.estimate import Budget
+from canonid.kernel.canonical import shift_matrices
 
 BUDGET = Budget(boxes=16, samples=256, starts=2)
 
@@ -89,8 +89,8 @@ def test_a_gru_regressor_is_certified_by_branch_and_bound_only(rng):
 def test_increasing_functions_are_enclosed_by_the_images_of_the_ends(name, rng):
     """A wide interval's image is [g(lo), g(hi)] (one arb ball over it would be far looser:
     the SiLU layers' interval bounds depend on it), and it contains every sampled value."""
-    from analysis.enclosure import Enclosure
-    from analysis.interval import Interval
+    from canonid.analysis.enclosure import Enclosure
+    from canonid.analysis.interval import Interval
 
     x = ca.SX.sym("x")
     g = getattr(ca, name)

@@ -12,7 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from analysis.enclosure import (
+from canonid.analysis.enclosure import (
     DISCONTINUITY,
     DIV_ZERO,
     SLOPE,
@@ -20,11 +20,11 @@ from analysis.enclosure import (
     RangeEnclosure,
     describe_flags,
 )
-from analysis.interval import Interval, norm_lower, norm_upper
-from analysis.maps import Horizon
-from analysis.matrix_bounds import smin_lower, spectral_upper
-from models.errors import SetError
-from models.registry import get_system
+from canonid.analysis.interval import Interval, norm_lower, norm_upper
+from canonid.analysis.maps import Horizon
+from canonid.analysis.matrix_bounds import smin_lower, spectral_upper
+from canonid.kernel.errors import SetError
+from canonid.models.registry import get_system
 
 finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_infinity=False)
 

@@ -11,14 +11,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from analysis.estimate import Budget, Estimate
-from analysis.linear import canonical_regressor
-from analysis.report import AnalysisReport, analyze
-from datagen.dataset import Trajectory
-from models.errors import DataError, SetError
-from models.io import jsonable
-from models.registry import get_system
-from models.sets import Box
+from canonid.analysis.estimate import Budget, Estimate
+from canonid.analysis.linear import canonical_regressor
+from canonid.analysis.report import AnalysisReport, analyze
+from canonid.datagen.dataset import Trajectory
+from canonid.kernel.errors import DataError, SetError
+from canonid.kernel.io import jsonable
+from canonid.models.registry import get_system
+from canonid.models.sets import Box
 
 
 @settings(max_examples=60, deadline=None)

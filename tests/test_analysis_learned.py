@@ -8,12 +8,12 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from analysis.bound import BoundConstants
-from analysis.estimate import Estimate
-from analysis.learned import residual_check, state_probe, window_rows
-from analysis.linear import alpha_exact, canonical_regressor, gamma_exact
-from models.errors import DataError, ShapeError
-from models.linear import linear_example
+from canonid.analysis.bound import BoundConstants
+from canonid.analysis.estimate import Estimate
+from canonid.analysis.learned import residual_check, state_probe, window_rows
+from canonid.analysis.linear import alpha_exact, canonical_regressor, gamma_exact
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.models.linear import linear_example
 
 
 @dataclass

@@ -12,20 +12,20 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from analysis.estimate import Budget
-from analysis.linear import (
+from canonid.analysis.estimate import Budget
+from canonid.analysis.linear import (
     alpha_exact,
     canonical_regressor,
     gamma_exact,
     observability_matrix,
     toeplitz_matrix,
 )
-from analysis.lipschitz import lipschitz_bracket
-from analysis.maps import Horizon, batched
-from analysis.observability import _pairs_branch_and_bound, alpha_bracket
-from models.canonical import cut_windows
-from models.errors import ShapeError
-from models.linear import LinearSystem, linear_example
+from canonid.analysis.lipschitz import lipschitz_bracket
+from canonid.analysis.maps import Horizon, batched
+from canonid.analysis.observability import _pairs_branch_and_bound, alpha_bracket
+from canonid.kernel.canonical import cut_windows
+from canonid.kernel.errors import ShapeError
+from canonid.models.linear import LinearSystem, linear_example
 
 SMALL = Budget(boxes=200, samples=256, starts=2)
 

@@ -8,13 +8,13 @@ import re
 import numpy as np
 import pytest
 
-from analysis.estimate import Bracket, Budget, Estimate
-from analysis.lipschitz import lipschitz_bracket, lipschitz_lower, lipschitz_upper
-from analysis.observability import alpha_bracket, alpha_lower
-from analysis.reach import reach, reachable_hulls
-from models.errors import SetError, ShapeError
-from models.registry import get_system
-from models.sets import Box
+from canonid.analysis.estimate import Bracket, Budget, Estimate
+from canonid.analysis.lipschitz import lipschitz_bracket, lipschitz_lower, lipschitz_upper
+from canonid.analysis.observability import alpha_bracket, alpha_lower
+from canonid.analysis.reach import reach, reachable_hulls
+from canonid.kernel.errors import SetError, ShapeError
+from canonid.models.registry import get_system
+from canonid.models.sets import Box
 
 X = Box([0.05, 0.05], [5.0, 5.0])
 U = Box([1.0], [3.0])
@@ -138,7 +138,7 @@ def test_sampled_alpha_upper_leaves_out_the_singular_samples_up_to_window_10(tan
     """On the default sets a few sampled ∂O_ℓ/∂x are not finite for ℓ ≥ 3 (a level reaches 0
     inside the window, where √ has an infinite slope): they are left out of the minimum, counted
     and explained in the estimate's details, and the bound stays a finite upper bound."""
-    from analysis.observability import alpha_upper
+    from canonid.analysis.observability import alpha_upper
 
     labelled = 0
     for ell in range(3, 11):
@@ -155,7 +155,7 @@ def test_sampled_alpha_upper_leaves_out_the_singular_samples_up_to_window_10(tan
 
 
 def test_smin_of_a_non_finite_matrix_is_infinite():
-    from analysis.observability import _smin
+    from canonid.analysis.observability import _smin
 
     j = np.array([np.diag([3.0, 0.5]), [[np.inf, 0.0], [0.0, 1.0]], [[np.nan, 1.0], [1.0, 1.0]]])
     assert _smin(j).tolist() == [0.5, np.inf, np.inf]

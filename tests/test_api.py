@@ -76,8 +76,8 @@ def test_public_names_are_the_library_objects_and_documented(name):
 def test_fit_defaults_to_the_options_canonid_train_uses(monkeypatch):
     # canonid.fit without options trains with the quick profile's train stage, as the CLI does
     from canonid.api import fit
+    from canonid.learning import training
     from canonid.profiles import DEFAULT_PROFILE, train_options
-    from learning import training
 
     seen = {}
     monkeypatch.setattr(training, "fit", lambda *a, **kw: seen.update(kw))

@@ -21,9 +21,9 @@ from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
 from canonid.cli import main
-from datagen.dataset import Dataset, Trajectory
-from datagen.loaders import load_data
-from models.errors import CanonidError
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.datagen.loaders import load_data
+from canonid.kernel.errors import CanonidError
 
 TRAIN = ["--model", "mlp", "--window", "2", "--epochs", "1", "--device", "cpu", "--no-progress"]
 CSV = ["--inputs", "u", "--outputs", "y", "--dt", "1"]

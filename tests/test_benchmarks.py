@@ -14,14 +14,14 @@ import scipy.io
 
 from canonid.benchmark import score_parts
 from canonid.cli import main
-from datagen.benchmarks import BENCHMARKS, benchmark, load_benchmark
-from datagen.dataset import Dataset
-from datagen.loaders import split_train_val
-from learning import Model
-from learning.data import Normalisation, as_series
-from learning.evaluate import simulate_records
-from learning.nets import build_net
-from models.errors import DataError
+from canonid.datagen.benchmarks import BENCHMARKS, benchmark, load_benchmark
+from canonid.datagen.dataset import Dataset
+from canonid.datagen.loaders import split_train_val
+from canonid.kernel.errors import DataError
+from canonid.learning import Model
+from canonid.learning.data import Normalisation, as_series
+from canonid.learning.evaluate import simulate_records
+from canonid.learning.nets import build_net
 
 # The official split of nonlinear_benchmarks 1.0.1, written out by hand from its benchmarks.py:
 # per benchmark, (file, [start, stop)) of every training record and every test part, in order.
@@ -359,7 +359,7 @@ def test_ced_with_the_default_profile_cuts_its_short_validation_rollouts(tmp_pat
     write_benchmark("ced", tmp_path)
     run = tmp_path / "run"
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run), "--no-progress"]
-    with caplog.at_level(logging.WARNING, logger="learning.training"):
+    with caplog.at_level(logging.WARNING, logger="canonid.learning.training"):
         assert main([*argv, "--threads", "1", "--train-args=--epochs 2"]) == 0
     assert [r.getMessage() for r in caplog.records if "cut" in r.getMessage()] == [
         "validation rollouts cut from 100 to 76 steps: the longest validation trajectory has "

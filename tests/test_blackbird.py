@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from datagen.blackbird import (
+from canonid.datagen.blackbird import (
     IMU_FILE,
     ROTOR_FILE,
     find_flights,
@@ -27,9 +27,9 @@ from datagen.blackbird import (
     resample_linear,
     split_flights,
 )
-from datagen.chunks import chunk_bounds
-from datagen.dataset import Dataset
-from models.errors import DataError
+from canonid.datagen.chunks import chunk_bounds
+from canonid.datagen.dataset import Dataset
+from canonid.kernel.errors import DataError
 
 #: an epoch-sized bag time (ns): timestamps must survive int64 → seconds without rounding loss
 BASE_NS = 1_528_000_000_123_456_789

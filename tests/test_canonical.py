@@ -7,8 +7,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models.canonical import cut_windows, shift, shift_matrices, state_dim
-from models.errors import ShapeError
+from canonid.kernel.canonical import cut_windows, shift, shift_matrices, state_dim
+from canonid.kernel.errors import ShapeError
 
 dims = st.tuples(st.integers(1, 6), st.integers(1, 3), st.integers(1, 3))
 

@@ -10,7 +10,7 @@ import pytest
 
 from canonid import __version__
 from canonid.cli import EXIT_BROKEN_PIPE, build_parser, main
-from models.registry import system_names
+from canonid.models.registry import system_names
 
 
 def test_version(capsys):
@@ -75,7 +75,7 @@ def test_parser_builds():
 @pytest.mark.parametrize("option", ["residual", "feedthrough", "linear"])
 def test_train_help_states_the_default_a_run_gets(option, capsys):
     """The help's default for Ours (MLP) is the preset's (it once said the affine path was on)."""
-    from learning.presets import DEFAULT_NET_OPTIONS
+    from canonid.learning.presets import DEFAULT_NET_OPTIONS
 
     with pytest.raises(SystemExit):
         main(["train", "--help"])

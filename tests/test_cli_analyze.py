@@ -9,13 +9,13 @@ import types
 import numpy as np
 import pytest
 
-from analysis.linear import canonical_regressor
+from canonid.analysis.linear import canonical_regressor
 from canonid.cli import main
 from canonid.commands.analyze import parse_box, parse_windows
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.errors import SetError
+from canonid.models.registry import get_system
 from canonid.runfolder import RunRecipe
-from datagen.dataset import Dataset, Trajectory
-from models.errors import SetError
-from models.registry import get_system
 
 TANK_SETS = ["--X", "0.05:5,0.05:5", "--U", "1:3"]
 
@@ -93,7 +93,7 @@ def test_bad_arguments_are_one_line_errors(argv, message, tmp_path, capsys):
 
 
 def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, monkeypatch):
-    """A stand-in for learning.Model with the export contract of the identification layer:
+    """A stand-in for canonid.learning.Model with the export contract of the identification layer:
     ``Model.load(run)`` has ``info`` and ``export()``, with ``H(z, u)``, ``window``, ``n_u`` and
     ``n_y``. Its H is the exact canonical
     map of the linear system, so every residual is within the noise-induced level."""
@@ -127,9 +127,9 @@ def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, m
             assert folder == run_dir
             return types.SimpleNamespace(export=Exported, info={"dt": 1.0})
 
-    fake = types.ModuleType("learning")
+    fake = types.ModuleType("canonid.learning")
     fake.Model = Model
-    monkeypatch.setitem(sys.modules, "learning", fake)
+    monkeypatch.setitem(sys.modules, "canonid.learning", fake)
     out = tmp_path / "out"
     code = main(
         [

@@ -12,10 +12,10 @@ import pytest
 from learning_helpers import damped_siso, trajectories
 
 from canonid.cli import main
-from datagen.dataset import Dataset, Trajectory
-from learning import Model
-from models.errors import DataError
-from models.learned import load_function
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.errors import DataError
+from canonid.learning import Model
+from canonid.models.learned import load_function
 
 COMMON = ["--epochs", "1", "--no-progress", "--device", "cpu"]
 ELL = 3

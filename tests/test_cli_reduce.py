@@ -12,9 +12,9 @@ import pytest
 from learning_helpers import damped_siso, trajectories
 
 from canonid.cli import main
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.learning import Model
 from canonid.reduction import SweepPlan, compression_sweep
-from datagen.dataset import Dataset, Trajectory
-from learning import Model
 
 COMMON = ["--epochs", "2", "--no-progress", "--device", "cpu"]
 

@@ -11,10 +11,10 @@ from cli_helpers import one_line_error
 from learning_helpers import siso_dataset_file
 
 from canonid.cli import main
+from canonid.kernel.errors import CheckpointError
 from canonid.profiles import train_options
 from canonid.runfolder import RunRecipe
 from canonid.selection import Selection, plan_candidates
-from models.errors import CheckpointError
 
 FAST = ["--profile", "tiny", "--epochs", "2", "--no-progress", "--device", "cpu"]
 

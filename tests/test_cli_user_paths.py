@@ -12,7 +12,7 @@ import pytest
 from cli_helpers import one_line_error
 
 from canonid.cli import main
-from models.registry import get_system
+from canonid.models.registry import get_system
 
 DT = 2.0
 RECORD = 120

@@ -9,14 +9,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from datagen.compiled_loop import CHUNK, CompiledLoop, loop_functions
-from datagen.controllers.base import Controller, ControlStep
-from datagen.controllers.nmpc import NMPC
-from datagen.references import drone2d_reference
-from datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS
-from datagen.simulate import ClosedLoop, Excitation, simulate_closed_loop
-from models.drone2d import Drone2D
-from models.registry import get_system
+from canonid.datagen.compiled_loop import CHUNK, CompiledLoop, loop_functions
+from canonid.datagen.controllers.base import Controller, ControlStep
+from canonid.datagen.controllers.nmpc import NMPC
+from canonid.datagen.references import drone2d_reference
+from canonid.datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS
+from canonid.datagen.simulate import ClosedLoop, Excitation, simulate_closed_loop
+from canonid.models.drone2d import Drone2D
+from canonid.models.registry import get_system
 
 HORIZON = 10  # short: compiling the solver is the slow part of these tests
 

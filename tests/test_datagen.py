@@ -9,10 +9,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from datagen.controllers.base import Controller, ControlStep
-from datagen.controllers.pid import PID
-from datagen.dataset import Dataset
-from datagen.generate import (
+from canonid.datagen.controllers.base import Controller, ControlStep
+from canonid.datagen.controllers.pid import PID
+from canonid.datagen.dataset import Dataset
+from canonid.datagen.generate import (
     FlightJob,
     GenerationConfig,
     generate_dataset,
@@ -20,12 +20,12 @@ from datagen.generate import (
     plan_flights,
     run_flight,
 )
-from datagen.references import drone2d_reference, tank_reference
-from datagen.scenarios import Scenario, get_scenario, scenario_names
-from datagen.simulate import Excitation, noise_box, simulate_closed_loop
-from models.errors import DataError, SetError, ShapeError, UnknownSystemError
-from models.registry import get_system
-from models.tank import Tank
+from canonid.datagen.references import drone2d_reference, tank_reference
+from canonid.datagen.scenarios import Scenario, get_scenario, scenario_names
+from canonid.datagen.simulate import Excitation, noise_box, simulate_closed_loop
+from canonid.kernel.errors import DataError, SetError, ShapeError, UnknownSystemError
+from canonid.models.registry import get_system
+from canonid.models.tank import Tank
 
 # ---------------------------------------------------------------------------- references
 
@@ -279,7 +279,7 @@ def test_generated_tank_dataset(tmp_path):
 
 
 def test_same_seed_same_bytes_and_interrupted_run_resumes(tmp_path, monkeypatch):
-    import datagen.generate as gen
+    import canonid.datagen.generate as gen
 
     first = _small(tmp_path, "a").path
     calls = {"n": 0}
@@ -350,7 +350,7 @@ class _FailsOnSomeReferences(Controller):
 
 
 def _register(monkeypatch, factory, **kwargs):
-    import datagen.scenarios as sc
+    import canonid.datagen.scenarios as sc
 
     base = get_scenario("tank")
     scenario = Scenario(

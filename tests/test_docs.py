@@ -126,9 +126,9 @@ def test_cli_reference_lists_every_subcommand_and_flag():
 def test_api_reference_covers_public_modules():
     api = _hook("api_reference")
     modules = api.public_modules("learning")
-    assert "learning.training" in modules and "learning.nets.base" in modules
+    assert "canonid.learning.training" in modules and "canonid.learning.nets.base" in modules
     assert not any(part.startswith("_") for m in modules for part in m.split("."))
-    assert "::: learning.training" in api.render("learning")
+    assert "::: canonid.learning.training" in api.render("learning")
 
 
 def test_site_builds_strictly(tmp_path: Path):
@@ -150,12 +150,12 @@ def test_site_builds_strictly(tmp_path: Path):
 def test_docstring_rest_habits_become_markdown():
     markdown = _hook("griffe_rest").markdown
     text = (
-        "Uses :func:`fit` and ``x``, see :class:`~learning.Model`.\n\n"
+        "Uses :func:`fit` and ``x``, see :class:`~canonid.learning.Model`.\n\n"
         "Example::\n\n    y = 1\n\n"
         "Args:\n    X, U: boxes for x and u.\n    seed (int): a seed.\n\nNotes: a, b: not args.\n"
     )
     assert markdown(text) == (
-        "Uses `fit` and `x`, see `learning.Model`.\n\n"
+        "Uses `fit` and `x`, see `canonid.learning.Model`.\n\n"
         "Example:\n\n    y = 1\n\n"
         "Args:\n    X: boxes for x and u.\n    U: boxes for x and u.\n    seed (int): a seed.\n\n"
         "Notes: a, b: not args."

@@ -8,8 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from learning import evaluate
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
+from canonid.learning import evaluate
 
 
 class EchoModel:

@@ -7,10 +7,10 @@ import json
 import numpy as np
 import pytest
 
-import models.io as io
-from datagen.dataset import Dataset, Trajectory
-from models.errors import DataError, ShapeError
-from models.io import npz_bytes
+import canonid.kernel.io as io
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.io import npz_bytes
 
 
 def _dataset(rng, n=3, T=20):
@@ -107,7 +107,7 @@ def test_missing_or_corrupt_metadata(tmp_path, rng):
 def test_nan_in_stored_arrays_is_refused(tmp_path, rng):
     path = _dataset(rng).save(tmp_path / "d.npz")
     meta = json.loads(path.with_suffix(".json").read_text())
-    from models.io import read_npz, write_npz
+    from canonid.kernel.io import read_npz, write_npz
 
     arrays = read_npz(path)
     arrays["train/00000/y"][3, 0] = np.nan
@@ -145,7 +145,7 @@ def test_from_arrays_and_unknown_split():
 def test_atomic_writes_get_the_usual_file_mode(tmp_path):
     import os
 
-    from models.io import atomic_write_text
+    from canonid.kernel.io import atomic_write_text
 
     mask = os.umask(0o022)
     try:

@@ -10,8 +10,8 @@ import pytest
 import torch
 
 from canonid.jobs import RESULT_FILE, StoredJob, run_job
+from canonid.kernel.errors import CheckpointError
 from canonid.runner import run_jobs
-from models.errors import CheckpointError
 
 CALLS: list[str] = []
 

@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 KILLED_RUN = """
 import os, signal, sys
 import torch
-from learning.training import _Run
+from canonid.learning.training import _Run
 from canonid.cli import main
 
 epoch_now, steps = [0], [0]

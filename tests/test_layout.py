@@ -1,10 +1,15 @@
 """The dependency direction, checked statically and at import time.
 
-canonid → {datagen, learning, analysis} → models; the three middle layers do not import each
-other; ``analysis`` and ``models`` never import torch; ``learning`` never imports CasADi. Inside
-``canonid`` the command line is the top floor: only ``canonid.cli`` and the commands import
-``canonid.commands``. No module imports a private name of another package, and no modules
-import each other (counting imports inside functions, not those for type checkers only).
+Everything installs under one name, ``canonid``; each layer keeps its folder at the top of the
+repository (``kernel/`` is ``canonid.kernel``, ``models/`` is ``canonid.models``, …, and
+``canonid/`` is the application layer). Imports point one way: the application → {datagen,
+learning, analysis} → models → kernel; the three middle layers do not import each other;
+``analysis`` and ``models`` never import torch; ``learning`` never imports CasADi; the kernel
+imports none of CasADi, torch or scipy. Inside the application the command line is the top floor:
+only ``canonid.cli`` and the commands import ``canonid.commands``. No module imports a private
+name of another layer, no module names a folder as a top-level package (only ``canonid`` is
+installed), and no modules import each other (counting imports inside functions, not those for
+type checkers only).
 """
 
 from __future__ import annotations
@@ -17,9 +22,20 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("models", "datagen", "learning", "analysis", "canonid")
+#: folder → the layer's installed name
+LAYERS = {
+    "kernel": "canonid.kernel",
+    "models": "canonid.models",
+    "datagen": "canonid.datagen",
+    "learning": "canonid.learning",
+    "analysis": "canonid.analysis",
+    "canonid": "canonid",
+}
+PACKAGES = tuple(LAYERS)
 
+#: what each layer must not import: other layers (by folder) and third-party roots
 FORBIDDEN = {
+    "kernel": {"models", "datagen", "learning", "analysis", "canonid", "torch", "casadi", "scipy"},
     "models": {"datagen", "learning", "analysis", "canonid", "torch"},
     "datagen": {"learning", "analysis", "canonid", "torch"},
     "learning": {"datagen", "analysis", "canonid", "casadi"},
@@ -29,7 +45,19 @@ FORBIDDEN = {
 
 
 def _module(path: Path) -> str:
-    return ".".join(path.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+    folder, *rest = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join((LAYERS[folder], *rest)).removesuffix(".__init__")
+
+
+def layer_of(module: str) -> str:
+    """The folder of a ``canonid`` module (``canonid.learning.nets`` → ``learning``), or the
+    third-party root of any other (``torch.nn`` → ``torch``)."""
+    if module == "canonid" or module.startswith("canonid."):
+        parts = module.split(".")
+        if len(parts) > 1 and f"canonid.{parts[1]}" in LAYERS.values() and parts[1] in LAYERS:
+            return parts[1]
+        return "canonid"
+    return module.split(".")[0]
 
 
 MODULES = {_module(p): p for package in PACKAGES for p in sorted((ROOT / package).rglob("*.py"))}
@@ -64,37 +92,67 @@ def _dependencies(module: str) -> set[str]:
     return deps - {module}
 
 
-def _imported_roots(path: Path) -> set[str]:
+def _imported_modules(path: Path) -> set[str]:
+    """Every absolute import of ``path``, for type checkers too (``from a import b`` gives
+    ``a`` and ``a.b``: ``b`` may be a module)."""
     tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-    roots: set[str] = set()
+    found: set[str] = set()
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            roots.update(alias.name.split(".")[0] for alias in node.names)
+            found.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            roots.add(node.module.split(".")[0])
-    return roots
+            found.add(node.module)
+            found.update(f"{node.module}.{alias.name}" for alias in node.names)
+    return found
+
+
+def _imported_layers(path: Path) -> set[str]:
+    return {layer_of(m) for m in _imported_modules(path)}
 
 
 @pytest.mark.parametrize("package", PACKAGES)
 def test_static_imports_point_one_way(package):
     offenders = []
     for path in sorted((ROOT / package).rglob("*.py")):
-        bad = _imported_roots(path) & FORBIDDEN[package]
+        bad = (_imported_layers(path) - {package}) & FORBIDDEN[package]
         if bad:
             offenders.append(f"{path.relative_to(ROOT)} imports {sorted(bad)}")
     assert not offenders, "\n".join(offenders)
 
 
+def test_no_folder_is_imported_as_a_top_level_package():
+    """Only ``canonid`` is installed: ``import models`` works from the repository root and
+    nowhere else, so an import of a folder's name is a bug (and a second copy of the module)."""
+    top = set(LAYERS) - {"canonid"}
+    offenders = [
+        f"{path.relative_to(ROOT)} imports {m}"
+        for path in [
+            *MODULES.values(),
+            *sorted((ROOT / "tests").glob("*.py")),
+            *sorted((ROOT / "benchmarks").glob("*.py")),
+            *sorted((ROOT / "docs" / "hooks").glob("*.py")),
+        ]
+        for m in sorted(_imported_modules(path))
+        if m.split(".")[0] in top
+    ]
+    assert not offenders, "\n".join(offenders)
+
+
 @pytest.mark.parametrize(
     ("package", "blocked"),
-    [("models", "torch"), ("analysis", "torch"), ("datagen", "torch"), ("learning", "casadi")],
+    [
+        ("kernel", "torch"),
+        ("kernel", "casadi"),
+        ("kernel", "scipy"),
+        ("models", "torch"),
+        ("analysis", "torch"),
+        ("datagen", "torch"),
+        ("learning", "casadi"),
+    ],
 )
 def test_package_imports_without(package, blocked):
     """Import every module of ``package`` in a fresh interpreter where ``blocked`` cannot load."""
-    modules = sorted(
-        ".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
-        for p in (ROOT / package).rglob("*.py")
-    )
+    modules = sorted(m for m, p in MODULES.items() if p.is_relative_to(ROOT / package))
     code = (
         "import importlib, sys\n"
         f"sys.modules[{blocked!r}] = None\n"
@@ -110,6 +168,7 @@ def test_package_imports_without(package, blocked):
 def test_layout_is_the_design_card():
     for entry in (
         "pyproject.toml",
+        "kernel",
         "models",
         "datagen",
         "learning",
@@ -128,7 +187,7 @@ def test_only_the_command_line_imports_the_commands():
     offenders = [
         module
         for module, path in MODULES.items()
-        if module.startswith("canonid.")
+        if layer_of(module) == "canonid"
         and module != "canonid.cli"
         and not module.startswith("canonid.commands")
         and any(target.startswith("canonid.commands") for target, _ in _imports(path))
@@ -142,7 +201,7 @@ def test_no_private_name_of_another_package_is_imported():
         for module, path in MODULES.items()
         for target, names in _imports(path)
         for name in names
-        if name.startswith("_") and target.split(".")[0] != module.split(".")[0]
+        if name.startswith("_") and layer_of(target) != layer_of(module)
     ]
     assert not offenders, "\n".join(offenders)
 
@@ -175,19 +234,10 @@ def _cycles(modules: list[str]) -> list[list[str]]:
     return cycles
 
 
-@pytest.mark.parametrize(
-    "package",
-    [
-        "models",
-        "datagen",
-        "learning",
-        "analysis",
-        "canonid",
-    ],
-)
+@pytest.mark.parametrize("package", PACKAGES)
 def test_no_import_cycle(package):
-    """Within each package (across packages the one-way rule above excludes cycles)."""
-    modules = [m for m in MODULES if m.split(".")[0] == package]
+    """Within each layer (across layers the one-way rule above excludes cycles)."""
+    modules = [m for m in MODULES if layer_of(m) == package]
     assert _cycles(modules) == []
 
 
@@ -225,7 +275,7 @@ def test_one_jsonable():
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
         if isinstance(node, ast.FunctionDef) and node.name.lstrip("_") == "jsonable"
     ]
-    assert defined == ["models.io"]
+    assert defined == ["canonid.kernel.io"]
 
 
 def test_one_job_abstraction():
@@ -235,7 +285,7 @@ def test_one_job_abstraction():
     offenders = [
         module
         for module, path in MODULES.items()
-        if module.startswith("canonid.")
+        if layer_of(module) == "canonid"
         and not module.startswith(("canonid.commands", "canonid.jobs"))
         and "set_num_threads" in path.read_text(encoding="utf-8")
     ]
@@ -243,7 +293,7 @@ def test_one_job_abstraction():
     writers = [
         module
         for module, path in MODULES.items()
-        if module.startswith("canonid.")
+        if layer_of(module) == "canonid"
         and module != "canonid.jobs"
         and 'RESULT_FILE = "' in path.read_text(encoding="utf-8")
     ]

@@ -15,10 +15,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from models.learned import LearnedSystem
-from models.linear import LinearSystem
-from models.network import CanonicalNet, Layer
-from models.sets import Box
+from canonid.kernel.network import CanonicalNet, Layer
+from canonid.models.learned import LearnedSystem
+from canonid.models.linear import LinearSystem
+from canonid.models.sets import Box
 
 A, B = 0.9, 0.5
 

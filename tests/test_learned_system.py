@@ -1,7 +1,7 @@
-"""A trained canonical model as a CasADi system (models.learned) against the torch model.
+"""A trained canonical model as a CasADi system (canonid.models.learned) against the torch model.
 
-The SX graph is built from the exported weights (learning.NumpyModel.network()); it must give
-the torch model's numbers in float64 on random points and along a 100-step open-loop rollout,
+The SX graph is built from the exported weights (canonid.learning.NumpyModel.network()); it must
+give the torch model's numbers in float64 on random points and along a 100-step open-loop rollout,
 for every option of Ours (MLP) and Ours (GRU) and for their reduced models.
 """
 
@@ -13,15 +13,15 @@ import numpy as np
 import pytest
 import torch
 
-from learning.data import Normalisation
-from learning.export import NotExportableError
-from learning.model import Model
-from learning.nets import NETS, ReducedNet, build_net
-from models.base import System
-from models.errors import ShapeError
-from models.learned import LearnedSystem
-from models.network import CanonicalNet, Layer
-from models.sets import Box
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.network import CanonicalNet, Layer
+from canonid.learning.data import Normalisation
+from canonid.learning.export import NotExportableError
+from canonid.learning.model import Model
+from canonid.learning.nets import NETS, ReducedNet, build_net
+from canonid.models.base import System
+from canonid.models.learned import LearnedSystem
+from canonid.models.sets import Box
 
 N_U, N_Y, ELL = 2, 1, 3
 TOL = 1e-9
@@ -255,7 +255,7 @@ def test_from_data_takes_the_hulls_of_the_training_windows(rng):
     rsys = LearnedSystem.from_data(
         reduced.export().network(), trajs, dt=1.0, input_names=("a", "b"), output_names=("y",)
     )
-    from models.canonical import cut_windows
+    from canonid.kernel.canonical import cut_windows
 
     windows = np.concatenate([cut_windows(t.u, t.y, ELL) for t in trajs])
     assert rsys.X.contains(reduced.export().encode(windows), atol=1e-12)

@@ -1,4 +1,5 @@
-"""The torch shift equals the shift matrices of models.canonical and windows cut from data."""
+"""The torch shift equals the shift matrices of canonid.kernel.canonical and windows cut from
+data."""
 
 from __future__ import annotations
 
@@ -8,9 +9,9 @@ import torch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from learning.canonical import pairs_to_state, shift, state_to_pairs
-from models.canonical import cut_windows, shift_matrices
-from models.errors import ShapeError
+from canonid.kernel.canonical import cut_windows, shift_matrices
+from canonid.kernel.errors import ShapeError
+from canonid.learning.canonical import pairs_to_state, shift, state_to_pairs
 
 dims = st.tuples(st.integers(1, 6), st.integers(1, 3), st.integers(1, 3))
 

@@ -7,13 +7,13 @@ import pytest
 import torch
 from learning_helpers import damped_siso, trajectories
 
-from learning import Model, Normalisation, as_series, build_net, model_names
-from learning.canonical import pairs_to_state
-from learning.nets import CanonicalModel, UnknownModelError
-from models.canonical import cut_windows
-from models.canonical import shift as np_shift
-from models.errors import CheckpointError, ShapeError
-from models.linear import linear_example
+from canonid.kernel.canonical import cut_windows
+from canonid.kernel.canonical import shift as np_shift
+from canonid.kernel.errors import CheckpointError, ShapeError
+from canonid.learning import Model, Normalisation, as_series, build_net, model_names
+from canonid.learning.canonical import pairs_to_state
+from canonid.learning.nets import CanonicalModel, UnknownModelError
+from canonid.models.linear import linear_example
 
 SMALL = {
     "mlp": {"hidden": [16, 16]},

@@ -13,13 +13,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
-from learning import NETS, TrainOptions, evaluate, fit
-from learning.data import Normalisation, as_series
-from learning.linear import least_squares, regressors
-from learning.nets.base import LINEAR_PATHS, linear_path
-from learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS, net_options
-from learning.training import _draw_windows
-from models.canonical import cut_windows
+from canonid.kernel.canonical import cut_windows
+from canonid.learning import NETS, TrainOptions, evaluate, fit
+from canonid.learning.data import Normalisation, as_series
+from canonid.learning.linear import least_squares, regressors
+from canonid.learning.nets.base import LINEAR_PATHS, linear_path
+from canonid.learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS, net_options
+from canonid.learning.training import _draw_windows
 
 # the damped system's transfer function: y_t = a1 y_{t−1} + a2 y_{t−2} + b1 u_{t−1} + b2 u_{t−2}
 # with a1 = tr A, a2 = −det A, b1 = C B, b2 = C A B − a1 C B (A, B, C of damped_siso)
@@ -173,8 +173,8 @@ def test_window_draws_are_uniform_over_the_starts():
 
 
 def test_validation_is_capped_by_a_seeded_subset():
-    from learning.data import WindowBank
-    from learning.training import _validation_starts
+    from canonid.learning.data import WindowBank
+    from canonid.learning.training import _validation_starts
 
     tr = trajectories(damped_siso(), 2, 400, noise=0.0, seed=1)
     series = as_series(tr)
@@ -215,7 +215,7 @@ def test_every_linear_path_builds_and_round_trips_its_config(value):
 
 
 def test_an_unknown_linear_path_is_refused_by_name():
-    from models.errors import ShapeError
+    from canonid.kernel.errors import ShapeError
 
     with pytest.raises(ShapeError, match="linear must be one of off, skip, arx, got 'lsq'"):
         NETS["mlp"](window=3, n_u=1, n_y=1, linear="lsq")
@@ -251,7 +251,7 @@ def test_the_skip_keeps_its_random_start_and_the_arx_path_starts_at_least_square
 
 
 def test_an_old_run_option_is_refused_by_name():
-    from learning import OptionError
+    from canonid.learning import OptionError
 
     with pytest.raises(OptionError, match="windows_per_trajectory was replaced by windows_per"):
         TrainOptions.from_dict({"windows_per_trajectory": 4})

@@ -7,8 +7,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from datagen.dataset import Dataset
-from datagen.loaders import (
+from canonid.datagen.dataset import Dataset
+from canonid.datagen.loaders import (
     data_checksum,
     from_io_data,
     load_csv,
@@ -16,8 +16,8 @@ from datagen.loaders import (
     load_npz,
     split_train_val,
 )
-from models.errors import DataError
-from models.io import write_npz
+from canonid.kernel.errors import DataError
+from canonid.kernel.io import write_npz
 
 
 @pytest.fixture
@@ -184,7 +184,7 @@ def test_csv_and_io_data_give_the_same_model_as_arrays(tmp_path):
     """Three routes into training (arrays, CSV, Input_output_data-like) → identical weights."""
     from learning_helpers import damped_siso, trajectories
 
-    from learning import TrainOptions, fit
+    from canonid.learning import TrainOptions, fit
 
     data = trajectories(damped_siso(), 4, 30, noise=0.01, seed=5)
     us, ys = [d.u for d in data], [d.y for d in data]

@@ -1,4 +1,4 @@
-"""Layer-wise interval enclosures of a learned MLP model (analysis.network_enclosure).
+"""Layer-wise interval enclosures of a learned MLP model (canonid.analysis.network_enclosure).
 
 Every enclosure must hold the exact values: point Jacobians and values of the model sampled in
 a box lie inside the box's enclosure, for every activation and option of the network; the
@@ -14,14 +14,18 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from analysis.certify import learned_gamma
-from analysis.estimate import Budget
-from analysis.interval import Interval, interval_sum, point_matmul
-from analysis.matrix_bounds import spectral_upper
-from analysis.network_enclosure import NetworkEnclosure, activation_enclosure, network_enclosure
-from models.learned import LearnedSystem
-from models.network import CanonicalNet, Layer
-from models.sets import Box
+from canonid.analysis.certify import learned_gamma
+from canonid.analysis.estimate import Budget
+from canonid.analysis.interval import Interval, interval_sum, point_matmul
+from canonid.analysis.matrix_bounds import spectral_upper
+from canonid.analysis.network_enclosure import (
+    NetworkEnclosure,
+    activation_enclosure,
+    network_enclosure,
+)
+from canonid.kernel.network import CanonicalNet, Layer
+from canonid.models.learned import LearnedSystem
+from canonid.models.sets import Box
 
 ELL, N_U, N_Y = 3, 1, 2
 

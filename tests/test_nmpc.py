@@ -8,14 +8,14 @@ import casadi as ca
 import numpy as np
 import pytest
 
-import datagen.controllers._compiled as compiled
-from datagen.controllers._buffered import BufferedFunction
-from datagen.controllers.nmpc import NMPC
-from datagen.references import drone2d_reference
-from datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS
-from datagen.simulate import Excitation, simulate_closed_loop
-from models.drone2d import Drone2D
-from models.errors import ShapeError
+import canonid.datagen.controllers._compiled as compiled
+from canonid.datagen.controllers._buffered import BufferedFunction
+from canonid.datagen.controllers.nmpc import NMPC
+from canonid.datagen.references import drone2d_reference
+from canonid.datagen.scenarios import DRONE2D_INPUT_WEIGHTS, DRONE2D_STATE_WEIGHTS
+from canonid.datagen.simulate import Excitation, simulate_closed_loop
+from canonid.kernel.errors import ShapeError
+from canonid.models.drone2d import Drone2D
 
 HORIZON = 10  # short: compiling the solver is the slow part of these tests
 

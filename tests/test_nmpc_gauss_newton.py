@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.controllers.nmpc import NMPC
-from models.base import System
-from models.errors import ShapeError
-from models.learned import LearnedSystem
-from models.linear import LinearSystem
-from models.network import CanonicalNet, Layer
-from models.sets import Box
-from models.tank import Tank
+from canonid.datagen.controllers.nmpc import NMPC
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.network import CanonicalNet, Layer
+from canonid.models.base import System
+from canonid.models.learned import LearnedSystem
+from canonid.models.linear import LinearSystem
+from canonid.models.sets import Box
+from canonid.models.tank import Tank
 
 A = np.array([[0.8, 0.2], [-0.2, 0.8]])
 B = np.array([[0.5], [1.0]])

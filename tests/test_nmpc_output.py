@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from datagen.controllers.nmpc import NMPC
-from models.errors import ShapeError
-from models.linear import LinearSystem
+from canonid.datagen.controllers.nmpc import NMPC
+from canonid.kernel.errors import ShapeError
+from canonid.models.linear import LinearSystem
 
 A = np.array([[0.8, 0.2], [-0.2, 0.8]])
 B = np.array([[0.5], [1.0]])
@@ -78,7 +78,7 @@ def test_bad_output_options_are_refused(kwargs, message):
 
 def test_auto_does_not_compile_a_large_prediction_model(monkeypatch):
     """Above COMPILE_LIMIT SX instructions "auto" keeps the plugin (no gcc run at all)."""
-    import datagen.controllers.nmpc as nmpc_module
+    import canonid.datagen.controllers.nmpc as nmpc_module
 
     def no_compiler(*args, **kwargs):
         raise AssertionError("compile_functions was called")

@@ -6,8 +6,8 @@ import copy
 
 import pytest
 
+from canonid.learning.training import OptionError
 from canonid.profiles import PROFILES, Profile, load_profile, profile_names
-from learning.training import OptionError
 
 
 @pytest.mark.parametrize("name", profile_names())

@@ -12,9 +12,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from datagen.controllers.quadrotor_cascade import CascadeGains, QuadrotorCascade
-from datagen.quadrotor_reference import quadrotor_reference
-from models import Quadrotor, SetError, ShapeError, get_system
+from canonid.datagen.controllers.quadrotor_cascade import CascadeGains, QuadrotorCascade
+from canonid.datagen.quadrotor_reference import quadrotor_reference
+from canonid.kernel.errors import SetError, ShapeError
+from canonid.models import Quadrotor, get_system
 
 
 @pytest.fixture(scope="module")
@@ -283,7 +284,7 @@ def test_controller_errors_name_the_problem(quad):
         ctrl.reset(np.zeros((10, 3)), quad.hover_state())
     with pytest.raises(ShapeError, match="outside the reference"):
         ctrl(0, quad.hover_state())
-    with pytest.raises(ShapeError, match=r"flies a models\.quadrotor\.Quadrotor"):
+    with pytest.raises(ShapeError, match=r"flies a canonid\.models\.quadrotor\.Quadrotor"):
         QuadrotorCascade(get_system("drone2d"))  # type: ignore[arg-type]
     settings = QuadrotorCascade(quad, gains=CascadeGains(max_tilt_deg=20.0)).settings()
     assert settings["gains"]["max_tilt_deg"] == 20.0

@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from canonid.cli import main
+from canonid.datagen.chunks import chunk_bounds, cut_chunks
+from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.datagen.generate import FlightJob, GenerationConfig, generate_dataset, run_flight
+from canonid.datagen.scenarios import get_scenario
+from canonid.kernel.errors import DataError, ShapeError
 from canonid.runner import run_jobs
-from datagen.chunks import chunk_bounds, cut_chunks
-from datagen.dataset import Dataset, Trajectory
-from datagen.generate import FlightJob, GenerationConfig, generate_dataset, run_flight
-from datagen.scenarios import get_scenario
-from models.errors import DataError, ShapeError
 
 SMALL = {"train": 2, "val": 1, "test": 1}
 

@@ -13,19 +13,19 @@ from hypothesis import given
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
-from learning import Model, TrainOptions, fit
-from learning.export import ReducedNumpyModel
-from learning.nets import NotReducibleError, ReducedNet, build_net
-from learning.reduction import (
+from canonid.kernel.canonical import cut_windows, shift_matrices
+from canonid.kernel.errors import CheckpointError, ShapeError
+from canonid.learning import Model, TrainOptions, fit
+from canonid.learning.export import ReducedNumpyModel
+from canonid.learning.nets import NotReducibleError, ReducedNet, build_net
+from canonid.learning.reduction import (
     ReductionOptions,
     latent_size,
     principal_directions,
     reconstruction_mse,
     reduce_model,
 )
-from learning.training import CHECKPOINT_FILE, OptionError
-from models.canonical import cut_windows, shift_matrices
-from models.errors import CheckpointError, ShapeError
+from canonid.learning.training import CHECKPOINT_FILE, OptionError
 
 WINDOW = 3  # dim z = 3 · (1 + 1) = 6
 

@@ -12,13 +12,13 @@ import pytest
 
 import canonid.reproduce as rp
 from canonid.cli import main
+from canonid.kernel.errors import CheckpointError, DataError
+from canonid.learning.training import OptionError
 from canonid.paper import TABLE1
 from canonid.reproduce import reproduce, settings_from_profile
 from canonid.reproduce_jobs import RESULT_FILE, JobOutcome, finished, store
 from canonid.reproduce_report import system_label
 from canonid.runner import JobsFailedError
-from learning.training import OptionError
-from models.errors import CheckpointError, DataError
 
 
 def _results(out: Path) -> dict[str, tuple[bytes, int]]:

@@ -12,6 +12,8 @@ import pytest
 import torch
 from learning_helpers import siso_dataset_file
 
+from canonid.kernel.errors import CheckpointError
+from canonid.learning.presets import net_options
 from canonid.profiles import train_options
 from canonid.reproduce import table1_rows
 from canonid.reproduce_jobs import TrainJob
@@ -24,8 +26,6 @@ from canonid.runfolder import (
     recipe_of,
     train_run,
 )
-from learning.presets import net_options
-from models.errors import CheckpointError
 
 
 @pytest.fixture(scope="module")

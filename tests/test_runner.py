@@ -8,6 +8,7 @@ import math
 
 import pytest
 
+from canonid.datagen.generate import GenerationConfig, generate_dataset
 from canonid.runner import (
     LOCAL_CLUSTER_CONFIG,
     JobsFailedError,
@@ -15,7 +16,6 @@ from canonid.runner import (
     _batch_size,
     run_jobs,
 )
-from datagen.generate import GenerationConfig, generate_dataset
 
 
 def test_serial_results_in_job_order_with_callbacks():
@@ -63,7 +63,7 @@ def test_bad_arguments_and_unreachable_scheduler_are_clear_errors():
 
 
 def test_canonid_errors_are_not_retried():
-    from models.errors import DataError
+    from canonid.kernel.errors import DataError
 
     calls = []
 

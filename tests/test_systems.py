@@ -10,17 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from models import (
-    Box,
-    Drone2D,
-    LinearSystem,
-    SetError,
-    ShapeError,
-    Tank,
-    UnknownSystemError,
-    get_system,
-    system_names,
-)
+from canonid.kernel.errors import SetError, ShapeError, UnknownSystemError
+from canonid.models import Box, Drone2D, LinearSystem, Tank, get_system, system_names
 
 # ---------------------------------------------------------------- the registry, parametrised
 

@@ -10,9 +10,9 @@ import pytest
 import torch
 from learning_helpers import damped_siso, trajectories
 
-from learning import Model, TrainOptions, evaluate, fit
-from learning.training import CHECKPOINT_FILE, OptionError
-from models.errors import CheckpointError, DataError, ShapeError
+from canonid.kernel.errors import CheckpointError, DataError, ShapeError
+from canonid.learning import Model, TrainOptions, evaluate, fit
+from canonid.learning.training import CHECKPOINT_FILE, OptionError
 
 # the network options spelt out in full, so that the tests do not follow the defaults
 TINY = {
@@ -98,8 +98,8 @@ def test_best_on_validation_is_kept(data, ema_decay):
     vals = [row["val_loss"] for row in res.history]
     assert res.best_val_loss == min(vals)
     assert res.best_epoch == int(np.argmin(vals))
-    from learning.data import WindowBank, as_series
-    from learning.training import validation_loss  # the kept weights reproduce it
+    from canonid.learning.data import WindowBank, as_series
+    from canonid.learning.training import validation_loss  # the kept weights reproduce it
 
     bank = WindowBank(as_series(val), res.model.norm)
     again = validation_loss(res.model.net, bank, bank.starts(3 + 8), 8)
@@ -183,7 +183,7 @@ def test_resume_refuses_another_model_window_data_or_options(data, tmp_path, cha
 
 
 def test_the_weight_average_follows_its_formula_and_is_what_is_kept(data, tmp_path):
-    from learning.nets import build_net
+    from canonid.learning.nets import build_net
 
     train, val = data
     # 6 trajectories × 2 windows in one batch of 16: one optimiser step
@@ -214,7 +214,7 @@ def test_resume_with_more_epochs_continues_the_run(data, tmp_path):
 
 
 def test_a_diverging_run_stops_and_keeps_the_best_model(data, monkeypatch, caplog):
-    from learning.nets.ours_mlp import OursMLP
+    from canonid.learning.nets.ours_mlp import OursMLP
 
     train, val = data
     calls = {"n": 0}
@@ -237,7 +237,7 @@ def test_a_diverging_run_stops_and_keeps_the_best_model(data, monkeypatch, caplo
 def test_a_transient_non_finite_loss_is_recovered_from(data, monkeypatch, caplog, tmp_path):
     """One blown-up batch: back to the best weights, half the learning rate, training goes on;
     the recovery survives a resume."""
-    from learning.nets import OursMLP
+    from canonid.learning.nets import OursMLP
 
     train, val = data
     original = OursMLP.training_loss
@@ -274,12 +274,12 @@ def test_early_stopping_after_the_curriculum(data):
 
 def test_validation_shorter_than_its_rollout_is_cut_to_fit_and_recorded(data, caplog):
     train, val = data  # validation trajectories of 40 samples: 37 steps after ℓ = 3
-    with caplog.at_level(logging.WARNING, logger="learning.training"):
+    with caplog.at_level(logging.WARNING, logger="canonid.learning.training"):
         res = fit_tiny(train, val, options=tiny_options(val_horizon=39))
     assert "validation rollouts cut from 39 to 37 steps" in caplog.text
     assert res.model.info["training"]["options"]["val_horizon"] == 37
     caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="learning.training"):
+    with caplog.at_level(logging.WARNING, logger="canonid.learning.training"):
         fit_tiny(train, val, options=tiny_options(val_horizon=37))
     assert "cut" not in caplog.text  # a rollout that fits is left alone
 

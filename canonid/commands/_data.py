@@ -8,6 +8,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from canonid.datagen.dataset import Dataset
+from canonid.datagen.loaders import is_dataset
+from canonid.kernel.errors import DataError
 from canonid.runfolder import (
     DATA_FLAGS,
     RUN_FILE,
@@ -17,9 +20,6 @@ from canonid.runfolder import (
     recipe_of,
     run_data,
 )
-from datagen.dataset import Dataset
-from datagen.loaders import is_dataset
-from models.errors import DataError
 
 __all__ = [
     "USER_DATA_SPLIT",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from models.errors import OutputError
+from canonid.kernel.errors import OutputError
 
 __all__ = ["check_folder", "folder"]
 

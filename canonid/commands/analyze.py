@@ -1,6 +1,6 @@
 """``canonid analyze`` — the theory, numerically: γ_f, γ_h, α_ℓ brackets and Proposition 2.
 
-Writes ``analysis.json`` (schema: :data:`analysis.report.SCHEMA`, copied into the file), the
+Writes ``analysis.json`` (schema: :data:`canonid.analysis.report.SCHEMA`, copied into the file), the
 figure ``bound_vs_window.png`` ("bound and observed error versus ℓ", log scale) and prints a
 table. Without a system, ``--run RUN`` analyses the learned model alone (data with no registered
 true system, e.g. measurements): γ_f of its ``f`` in z on its training hull, written to
@@ -16,15 +16,15 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from analysis.estimate import Budget
-from analysis.report import AnalysisReport, analyze
+from canonid.analysis.estimate import Budget
+from canonid.analysis.report import AnalysisReport, analyze
 from canonid.commands import _data, _paths
+from canonid.datagen.dataset import Dataset
+from canonid.kernel.errors import CanonidError, DataError, SetError
+from canonid.kernel.io import atomic_write_json, jsonable
+from canonid.models.registry import get_system
+from canonid.models.sets import Box
 from canonid.runfolder import recipe_of
-from datagen.dataset import Dataset
-from models.errors import CanonidError, DataError, SetError
-from models.io import atomic_write_json, jsonable
-from models.registry import get_system
-from models.sets import Box
 
 
 def register(sub: Any) -> None:
@@ -138,12 +138,12 @@ def parse_box(text: str, dim: int, name: str) -> Box:
 
 
 def load_trained_model(run_dir: Path) -> Any:
-    """The model saved in ``run_dir`` (``learning.Model``).
+    """The model saved in ``run_dir`` (``canonid.learning.Model``).
 
     Its ``export()`` is the identification layer's contract with the analysis: an object with
     ``H(z, u) -> y``, ``window``, ``n_u`` and ``n_y`` (see ``learning/export.py``).
     """
-    from learning import Model  # torch, only when a learned model is checked
+    from canonid.learning import Model  # torch, only when a learned model is checked
 
     return Model.load(run_dir)
 
@@ -201,9 +201,9 @@ def _learned_source(
 def learned_gamma_record(
     model: Any, run_dir: Path, data: Path | None, *, budget: Budget, tol: float, seed: int
 ) -> dict[str, Any]:
-    """γ_f of the run's model in its state on its training hull (:mod:`analysis.certify`), or
-    why there is none (only canonical models are built as CasADi systems)."""
-    from analysis.certify import learned_gamma
+    """γ_f of the run's model in its state on its training hull (:mod:`canonid.analysis.certify`),
+    or why there is none (only canonical models are built as CasADi systems)."""
+    from canonid.analysis.certify import learned_gamma
     from canonid.learned import learned_system
 
     if not hasattr(model, "network"):

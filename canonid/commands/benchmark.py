@@ -33,13 +33,19 @@ from canonid.benchmark import (
     score_parts,
 )
 from canonid.commands import _options, train
+from canonid.datagen.benchmarks import (
+    BENCHMARKS,
+    benchmark,
+    benchmark_names,
+    find_files,
+    load_benchmark,
+)
+from canonid.datagen.loaders import split_train_val
+from canonid.kernel.errors import CheckpointError
+from canonid.kernel.io import atomic_write_json
+from canonid.learning import Model, OptionError, model_names
+from canonid.learning.training import CHECKPOINT_FILE
 from canonid.profiles import DEFAULT_PROFILE, profile_names
-from datagen.benchmarks import BENCHMARKS, benchmark, benchmark_names, find_files, load_benchmark
-from datagen.loaders import split_train_val
-from learning import Model, OptionError, model_names
-from learning.training import CHECKPOINT_FILE
-from models.errors import CheckpointError
-from models.io import atomic_write_json
 
 __all__ = ["register", "run"]
 

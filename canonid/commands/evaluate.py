@@ -3,7 +3,7 @@
 Reads the model of ``RUN`` and either the data it was trained on, split again exactly as
 training split them (``RUN/run.json``), or ``--data FILE`` read with the run's data options (a
 CSV or ``.npz`` file's records form the split ``all``); scores the ``test`` split (else ``val``,
-or ``--split``) with :func:`learning.evaluate.evaluate`, writes ``RUN/metrics.json`` and
+or ``--split``) with :func:`canonid.learning.evaluate.evaluate`, writes ``RUN/metrics.json`` and
 ``RUN/rollouts.png`` and prints a short table.
 """
 
@@ -15,9 +15,9 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data
+from canonid.kernel.errors import DataError
+from canonid.learning import Model
 from canonid.runfolder import METRICS_FILE, eval_defaults, evaluate_run
-from learning import Model
-from models.errors import DataError
 
 __all__ = ["eval_defaults", "evaluate_run", "register", "run", "table"]
 

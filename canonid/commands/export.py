@@ -1,7 +1,7 @@
 """``canonid export RUN --casadi FILE`` — a trained canonical model as a CasADi Function.
 
 Writes ``FILE``, the serialised ``casadi.Function`` ``learned_model(x, u) -> (x_next, y)`` of
-:class:`models.learned.LearnedSystem` (load it with ``casadi.Function.load(FILE)``), and
+:class:`canonid.models.learned.LearnedSystem` (load it with ``casadi.Function.load(FILE)``), and
 ``FILE.json`` beside it: dimensions, names, units, ``dt``, the sets X, U, W and how the state is
 filled from measured data. For a reduced model it also writes ``FILE`` with the suffix
 ``.encoder.casadi``: ``encode(z) -> x``, the reduced state of a measured window (physical units).
@@ -15,10 +15,10 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from canonid.kernel.errors import DataError
+from canonid.kernel.io import atomic_write_json
 from canonid.learned import learned_system
-from models.errors import DataError
-from models.io import atomic_write_json
-from models.learned import model_function, save_function
+from canonid.models.learned import model_function, save_function
 
 __all__ = ["register", "run"]
 

@@ -2,7 +2,7 @@
 
 Flights run serially, on a local Dask cluster (``--workers N``) or on an existing one
 (``--scheduler ADDRESS``) through :func:`canonid.runner.run_jobs`; the same seed gives the same
-bytes whichever is used. See :mod:`datagen.generate` for seeds, parts and resuming.
+bytes whichever is used. See :mod:`canonid.datagen.generate` for seeds, parts and resuming.
 """
 
 from __future__ import annotations
@@ -13,17 +13,17 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _options, _paths
-from canonid.runner import run_jobs
-from datagen.dataset import Dataset
-from datagen.generate import (
+from canonid.datagen.dataset import Dataset
+from canonid.datagen.generate import (
     FLIGHTS_PER_TASK,
     FlightResult,
     GenerationConfig,
     generate_dataset,
 )
-from datagen.scenarios import get_scenario, scenario_names
-from models.errors import ShapeError
-from models.registry import get_system
+from canonid.datagen.scenarios import get_scenario, scenario_names
+from canonid.kernel.errors import ShapeError
+from canonid.models.registry import get_system
+from canonid.runner import run_jobs
 
 
 def register(sub: Any) -> None:

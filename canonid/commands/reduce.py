@@ -14,6 +14,9 @@ from typing import Any
 
 from canonid.commands import _options, _paths, _progress
 from canonid.commands.evaluate import table
+from canonid.kernel.errors import DataError
+from canonid.kernel.io import read_json
+from canonid.learning import EpochReport
 from canonid.profiles import DEFAULT_PROFILE, profile_names, reduce_options
 from canonid.reduction import (
     DEFAULT_RATES,
@@ -24,9 +27,6 @@ from canonid.reduction import (
     reduce_run,
 )
 from canonid.runfolder import METRICS_FILE
-from learning import EpochReport
-from models.errors import DataError
-from models.io import read_json
 
 __all__ = ["register", "run"]
 

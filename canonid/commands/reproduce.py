@@ -12,9 +12,9 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _options, _paths
+from canonid.kernel.errors import ShapeError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.reproduce import reproduce, settings_from_profile
-from models.errors import ShapeError
 
 __all__ = ["register", "run"]
 

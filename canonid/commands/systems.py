@@ -6,7 +6,7 @@ import argparse
 import json
 from typing import Any
 
-from models.registry import get_system, system_names
+from canonid.models.registry import get_system, system_names
 
 
 def register(sub: Any) -> None:

@@ -18,6 +18,11 @@ from typing import Any
 
 from canonid.commands import _data, _options, _paths, _progress
 from canonid.commands.evaluate import table
+from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.io import read_json
+from canonid.learning import NETS, EpochReport, OptionError, TrainOptions, model_names, presets
+from canonid.learning.nets.base import ACTIVATIONS, LINEAR_PATHS, CanonicalModel
+from canonid.learning.training import CHECKPOINT_FILE
 from canonid.profiles import DEFAULT_PROFILE, profile_names, train_options
 from canonid.runfolder import DEFAULT_VAL_FRACTION, METRICS_FILE, RunRecipe, train_run
 from canonid.selection import (
@@ -28,11 +33,6 @@ from canonid.selection import (
     plan_candidates,
     select,
 )
-from learning import NETS, EpochReport, OptionError, TrainOptions, model_names, presets
-from learning.nets.base import ACTIVATIONS, LINEAR_PATHS, CanonicalModel
-from learning.training import CHECKPOINT_FILE
-from models.errors import CheckpointError, DataError
-from models.io import read_json
 
 __all__ = ["register", "run"]
 

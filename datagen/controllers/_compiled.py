@@ -30,7 +30,7 @@ from pathlib import Path
 
 import casadi as ca
 
-from models.io import atomic_write_text, sha256_file
+from canonid.kernel.io import atomic_write_text, sha256_file
 
 __all__ = ["compile_functions", "default_cache_dir"]
 

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from datagen.compiled_loop import CompiledLoop
+    from canonid.datagen.compiled_loop import CompiledLoop
 
 __all__ = ["ControlStep", "Controller"]
 
@@ -67,5 +67,6 @@ class Controller(ABC):
 
     def compiled_loop(self) -> CompiledLoop | None:
         """The closed loop of this controller as CasADi functions (see
-        :mod:`datagen.compiled_loop`), or ``None`` (the default): flights go step by step."""
+        :mod:`canonid.datagen.compiled_loop`), or ``None`` (the default): flights go step by step.
+        """
         return None

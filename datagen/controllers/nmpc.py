@@ -28,31 +28,31 @@ plan yet); the next solve is warm-started from that plan shifted again.
 
 Compiled loop (:meth:`NMPC.compiled_loop`): the same solve, warm start and shift as one CasADi
 policy ``(warm start, x[t], reference rows) -> (u_0, shifted plan, plan finite)`` around which
-:mod:`datagen.compiled_loop` builds whole chunks of a flight; the simulator uses it for flights
-of the NMPC's own system and falls back on the step loop (and the failure handling above) for a
-flight in which a solve fails.
+:mod:`canonid.datagen.compiled_loop` builds whole chunks of a flight; the simulator uses it for
+flights of the NMPC's own system and falls back on the step loop (and the failure handling above)
+for a flight in which a solve fails.
 
 Gauss-Newton SQP (``hessian="gauss-newton"``): for a prediction model whose exact Hessian is
 costly (a learned MLP: every solve differentiates the network twice per stage), each solve is a
 short sequential quadratic programme instead. From the warm start ``w̄`` (first state set to
 ``x[t]``) it linearises ``f`` and the tracked quantity (``x`` or ``h``) at every stage of ``w̄``
-(:meth:`models.base.System.linearise`, one batched call), writes the NLP above with ``f`` and
-``h`` replaced by these linearisations — the Gauss-Newton Hessian: the cost's own, no second
-derivatives of the model — and eliminates the states (condensing: ``x_k`` is affine in the
-inputs), which leaves a dense quadratic programme in the ``N · n_u`` inputs with their bounds,
-solved by DAQP (an active-set solver in the CasADi wheel). The states of the plan follow from
-the linearised dynamics. It repeats from that plan until no entry ``w_i`` moves by more than
-``sqp_tol · (1 + |w_i|)`` or after ``sqp_max_iter`` programmes; once a step is not at most half
-the previous one (Gauss-Newton can oscillate, e.g. on an unstable model), the next linearisation
-point is the midpoint of the plan and the solution (a damped fixed-point step: the same fixed
-point; an oscillation of ratio −1 becomes contracting). A fixed point is a KKT point of the NLP
-above (the linearisations are exact there), so both options plan the same inputs when both
-converge. Condensing makes a learned model's long state (``ℓ (n_u + n_y)`` entries) cheap: the
-programme's size does not depend on it. No compiled loop: flights go step by step.
+(:meth:`canonid.models.base.System.linearise`, one batched call), writes the NLP above with ``f``
+and ``h`` replaced by these linearisations — the Gauss-Newton Hessian: the cost's own, no second
+derivatives of the model — and eliminates the states (condensing: ``x_k`` is affine in the inputs),
+which leaves a dense quadratic programme in the ``N · n_u`` inputs with their bounds, solved by DAQP
+(an active-set solver in the CasADi wheel). The states of the plan follow from the linearised
+dynamics. It repeats from that plan until no entry ``w_i`` moves by more than ``sqp_tol · (1 +
+|w_i|)`` or after ``sqp_max_iter`` programmes; once a step is not at most half the previous one
+(Gauss-Newton can oscillate, e.g. on an unstable model), the next linearisation point is the
+midpoint of the plan and the solution (a damped fixed-point step: the same fixed point; an
+oscillation of ratio −1 becomes contracting). A fixed point is a KKT point of the NLP above (the
+linearisations are exact there), so both options plan the same inputs when both converge. Condensing
+makes a learned model's long state (``ℓ (n_u + n_y)`` entries) cheap: the programme's size does not
+depend on it. No compiled loop: flights go step by step.
 
 Solvers (``solver=``): ``"fatrop-c"`` generates the whole fatrop solver, with the step and the
 compiled loop around it, to C, compiles it on first use and caches the library (see
-:mod:`datagen.controllers._compiled`); ``"fatrop"`` is the plugin of the CasADi wheel;
+:mod:`canonid.datagen.controllers._compiled`); ``"fatrop"`` is the plugin of the CasADi wheel;
 ``"auto"`` (default) is ``"fatrop-c"`` when a C compiler is found, the build succeeds and the
 model is small (``f`` and ``h`` below :data:`COMPILE_LIMIT` SX instructions: the C of a learned
 MLP's exact Hessian is too large for gcc), else ``"fatrop"``; ``"ipopt"`` solves the same NLP
@@ -70,13 +70,13 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from datagen.compiled_loop import CompiledLoop, casadi_dump_captured, loop_functions
-from datagen.controllers._buffered import BufferedFunction
-from datagen.controllers._compiled import compile_functions
-from datagen.controllers.base import Controller, ControlStep
-from models._validate import as_matrix, as_vector
-from models.base import System
-from models.errors import ShapeError
+from canonid.datagen.compiled_loop import CompiledLoop, casadi_dump_captured, loop_functions
+from canonid.datagen.controllers._buffered import BufferedFunction
+from canonid.datagen.controllers._compiled import compile_functions
+from canonid.datagen.controllers.base import Controller, ControlStep
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.validate import as_matrix, as_vector
+from canonid.models.base import System
 
 __all__ = ["COMPILE_LIMIT", "HESSIANS", "NMPC", "SOLVERS"]
 
@@ -97,7 +97,7 @@ class NMPC(Controller):
 
     Args:
         system: the prediction model (its ``f``, and ``h`` for an output reference) and its U
-            the input bounds: a true system or a learned one (``models.learned``).
+            the input bounds: a true system or a learned one (``canonid.models.learned``).
         u_eq: the input the ``R`` term pulls towards and the LQR linearises at (e.g. hover).
         x_eq: the state the LQR linearises at (default 0).
         horizon: N, the number of predicted inputs.
@@ -114,7 +114,7 @@ class NMPC(Controller):
         mu_init: initial barrier parameter of fatrop / IPOPT (small suits warm starts).
         max_iter: iteration limit per solve (a solve that reaches it has failed).
         cache_dir: where ``"fatrop-c"`` keeps compiled solvers (default: the user's cache
-            folder, see :func:`datagen.controllers._compiled.default_cache_dir`).
+            folder, see :func:`canonid.datagen.controllers._compiled.default_cache_dir`).
         hessian: one of :data:`HESSIANS`; ``"gauss-newton"`` solves its programmes with DAQP
             (``solver`` stays ``"auto"``).
         sqp_max_iter, sqp_tol: the Gauss-Newton SQP's limit on quadratic programmes per solve

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from datagen.controllers.base import Controller, ControlStep
-from models._validate import as_matrix
-from models.errors import ShapeError
+from canonid.datagen.controllers.base import Controller, ControlStep
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.validate import as_matrix
 
 __all__ = ["PID"]
 

@@ -1,7 +1,7 @@
 """Cascaded position → attitude → rate controller for the simulated quadrotor.
 
 The standard structure of multirotor autopilots, evaluated once per sample (50 Hz) on the true
-state ``x[t]`` of :class:`models.quadrotor.Quadrotor`:
+state ``x[t]`` of :class:`canonid.models.quadrotor.Quadrotor`:
 
 1. **Position** (PID with feedforward). With ``e_p = p_ref − p`` and ``e_v = v_ref − v``,
 
@@ -33,10 +33,10 @@ from typing import Any
 
 import numpy as np
 
-from datagen.controllers.base import Controller, ControlStep
-from models._validate import as_matrix, as_vector
-from models.errors import ShapeError
-from models.quadrotor import Quadrotor
+from canonid.datagen.controllers.base import Controller, ControlStep
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.validate import as_matrix, as_vector
+from canonid.models.quadrotor import Quadrotor
 
 __all__ = ["REFERENCE_COLUMNS", "CascadeGains", "QuadrotorCascade"]
 
@@ -99,7 +99,8 @@ class QuadrotorCascade(Controller):
     def __init__(self, system: Quadrotor, *, gains: CascadeGains | None = None) -> None:
         if not isinstance(system, Quadrotor):
             raise ShapeError(
-                f"QuadrotorCascade flies a models.quadrotor.Quadrotor, got {type(system).__name__}"
+                "QuadrotorCascade flies a canonid.models.quadrotor.Quadrotor, got "
+                f"{type(system).__name__}"
             )
         self.system = system
         self.gains = gains or CascadeGains()

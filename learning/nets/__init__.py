@@ -14,14 +14,15 @@ from __future__ import annotations
 
 from typing import Any
 
-from learning.nets.arx import ARX
-from learning.nets.base import CanonicalModel, SequenceModel
-from learning.nets.classic_gru import ClassicGRU
-from learning.nets.masti import Masti
-from learning.nets.ours_gru import OursGRU
-from learning.nets.ours_mlp import OursMLP
-from learning.nets.reduced import ReducedNet
-from learning.nets.registry import (
+from canonid.kernel.errors import CanonidError
+from canonid.learning.nets.arx import ARX
+from canonid.learning.nets.base import CanonicalModel, SequenceModel
+from canonid.learning.nets.classic_gru import ClassicGRU
+from canonid.learning.nets.masti import Masti
+from canonid.learning.nets.ours_gru import OursGRU
+from canonid.learning.nets.ours_mlp import OursMLP
+from canonid.learning.nets.reduced import ReducedNet
+from canonid.learning.nets.registry import (
     ALL_NETS,
     NETS,
     NotReducibleError,
@@ -29,7 +30,6 @@ from learning.nets.registry import (
     check_reducible,
     model_names,
 )
-from models.errors import CanonidError
 
 __all__ = [
     "ALL_NETS",

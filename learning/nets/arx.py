@@ -6,22 +6,22 @@ from typing import Any
 
 import torch
 
-from learning.nets.base import CanonicalModel
+from canonid.learning.nets.base import CanonicalModel
 
 __all__ = ["ARX"]
 
 
 class ARX(CanonicalModel):
-    """The affine path of :class:`~learning.nets.base.CanonicalModel` alone: an ARX model of
+    """The affine path of :class:`~canonid.learning.nets.base.CanonicalModel` alone: an ARX model of
     orders ``n_a = n_b = ℓ`` (``b_0`` too with feedthrough) on the canonical state.
 
-    :func:`learning.training.fit` sets ``L, c`` by least squares on the one-step regression of the
-    training data and takes no gradient step (``iterative = False``); simulated in open loop it
-    is the linear baseline of the identification tables.
+    :func:`canonid.learning.training.fit` sets ``L, c`` by least squares on the one-step regression
+    of the training data and takes no gradient step (``iterative = False``); simulated in open loop
+    it is the linear baseline of the identification tables.
 
     Args:
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
-            :class:`learning.nets.base.SequenceModel`); ``linear`` is always ``"arx"``.
+            :class:`canonid.learning.nets.base.SequenceModel`); ``linear`` is always ``"arx"``.
     """
 
     name = "arx"

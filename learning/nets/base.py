@@ -1,7 +1,7 @@
 """The one interface every identification network implements, and the canonical-model base.
 
-All tensors here are in *normalised* units (see :class:`learning.data.Normalisation`); the
-physical-unit API is :class:`learning.model.Model`.
+All tensors here are in *normalised* units (see :class:`canonid.learning.data.Normalisation`); the
+physical-unit API is :class:`canonid.learning.model.Model`.
 
 Rollout convention. A batch of sub-windows holds samples ``s … s+ℓ+H−1``. The first ℓ samples
 (``u_past``, ``y_past``, measured) are the burn-in: they give ``z_{s+ℓ}``. The model then predicts
@@ -26,8 +26,8 @@ from typing import Any, ClassVar
 import torch
 from torch import nn
 
-from learning.canonical import pairs_to_state, shift
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
+from canonid.learning.canonical import pairs_to_state, shift
 
 __all__ = [
     "ACTIVATIONS",
@@ -168,7 +168,7 @@ class SequenceModel(nn.Module, ABC):
     @abstractmethod
     def one_step(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         """The one-step output map ``y_t`` ``(B, n_y)`` from a *measured* window ``z_t``
-        ``(B, ℓp)`` (models.canonical ordering) and ``u_t`` ``(B, n_u)``."""
+        ``(B, ℓp)`` (canonid.kernel.canonical ordering) and ``u_t`` ``(B, n_u)``."""
 
     def training_loss(
         self, u: torch.Tensor, y: torch.Tensor, *, alpha_first: float
@@ -205,16 +205,16 @@ class CanonicalModel(SequenceModel):
     """The output-error canonical model: regressor ``Ĥ`` on ``z_t``, exact shift of ``z``.
 
     ``ŷ_t = Ĥ(ẑ_t, u_t)`` and ``ẑ_{t+1} = Ā ẑ_t + B̄ u_t + S̄ ŷ_t``
-    (:func:`learning.canonical.shift`), starting from the measured ``z`` of the burn-in.
+    (:func:`canonid.learning.canonical.shift`), starting from the measured ``z`` of the burn-in.
     Subclasses implement :meth:`regress`, the raw network output before the residual option.
 
     Args:
         linear: the affine path, ``raw = L·x + c + regress(z, u)`` with ``x`` the head's input
             (``[z_t; u_t]``, or ``z_t`` without feedthrough), one of :data:`LINEAR_PATHS`:
             ``"off"``; ``"skip"``, ``L, c`` started at zero and trained with the network;
-            ``"arx"``, :func:`learning.training.fit` starts ``L, c`` at the least-squares (ARX)
-            fit and the nonlinear part's output layer at zero, so training starts from the best
-            linear model. ``False`` / ``True`` mean ``"off"`` / ``"arx"``.
+            ``"arx"``, :func:`canonid.learning.training.fit` starts ``L, c`` at the least-squares
+            (ARX) fit and the nonlinear part's output layer at zero, so training starts from the
+            best linear model. ``False`` / ``True`` mean ``"off"`` / ``"arx"``.
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``.
     """
 

@@ -8,8 +8,8 @@ from typing import Any
 import torch
 from torch import nn
 
-from learning.canonical import state_to_pairs
-from learning.nets.base import SequenceModel, mlp
+from canonid.learning.canonical import state_to_pairs
+from canonid.learning.nets.base import SequenceModel, mlp
 
 __all__ = ["ClassicGRU"]
 
@@ -28,7 +28,7 @@ class ClassicGRU(SequenceModel):
         num_layers: 2 (paper).
         head_hidden: width of the head's single hidden layer; default ``n_h`` (paper).
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
-            :class:`learning.nets.base.SequenceModel`).
+            :class:`canonid.learning.nets.base.SequenceModel`).
     """
 
     name = "classic-gru"

@@ -8,8 +8,8 @@ from typing import Any
 
 import torch
 
-from learning.canonical import pairs_to_state
-from learning.nets.base import SequenceModel, mlp, output_error
+from canonid.learning.canonical import pairs_to_state
+from canonid.learning.nets.base import SequenceModel, mlp, output_error
 
 __all__ = ["Masti"]
 
@@ -34,7 +34,7 @@ class Masti(SequenceModel):
         hidden: hidden widths of each of E, F, G and D (default 2 × 64).
         consistency_weight, reconstruction_weight: weights of the extra terms (default 1, 1).
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual`` (see
-            :class:`learning.nets.base.SequenceModel`).
+            :class:`canonid.learning.nets.base.SequenceModel`).
     """
 
     name = "masti"

@@ -8,8 +8,8 @@ from typing import Any
 import torch
 from torch import nn
 
-from learning.canonical import state_to_pairs
-from learning.nets.base import CanonicalModel, mlp
+from canonid.learning.canonical import state_to_pairs
+from canonid.learning.nets.base import CanonicalModel, mlp
 
 __all__ = ["OursGRU"]
 
@@ -25,8 +25,8 @@ class OursGRU(CanonicalModel):
         hidden_size, num_layers: the GRU (paper: 128, 3).
         head_hidden: hidden widths of the MLP head (one layer of 128 by default).
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``, ``linear`` (see
-            :class:`learning.nets.base.SequenceModel` and
-            :class:`learning.nets.base.CanonicalModel`).
+            :class:`canonid.learning.nets.base.SequenceModel` and
+            :class:`canonid.learning.nets.base.CanonicalModel`).
     """
 
     name = "gru"

@@ -8,7 +8,7 @@ from typing import Any
 import torch
 from torch import nn
 
-from learning.nets.base import CanonicalModel, mlp
+from canonid.learning.nets.base import CanonicalModel, mlp
 
 __all__ = ["OursMLP"]
 
@@ -22,8 +22,8 @@ class OursMLP(CanonicalModel):
         activation: the hidden layers' nonlinearity, ``"relu"`` (the paper's), ``"tanh"`` or
             ``"silu"``.
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``, ``linear`` (see
-            :class:`learning.nets.base.SequenceModel` and
-            :class:`learning.nets.base.CanonicalModel`).
+            :class:`canonid.learning.nets.base.SequenceModel` and
+            :class:`canonid.learning.nets.base.CanonicalModel`).
     """
 
     name = "mlp"

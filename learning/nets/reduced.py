@@ -6,11 +6,11 @@ R^{n̄}`` and a decoder ``D: R^{n̄} → R^{ℓp}`` (``p = n_u + n_y``, all in n
 
     x̄_{t+1} = E(Ā D(x̄_t) + B̄ u_t + S̄ Ĥ(D(x̄_t), u_t)),      ȳ_t = Ĥ(D(x̄_t), u_t),
 
-where ``Ā z + B̄ u + S̄ y`` is the canonical shift (:func:`learning.canonical.shift`). The reduced
-state is initialised from the measured burn-in window: ``x̄ = E(z)`` with ``z`` the samples
-``s … s+ℓ−1`` (the rollout convention of :mod:`learning.nets.base`). ``Ĥ`` is the regressor's
-:meth:`~learning.nets.base.CanonicalModel.one_step`, residual option included (the previous output
-it adds is the newest ``y`` of the *decoded* window).
+where ``Ā z + B̄ u + S̄ y`` is the canonical shift (:func:`canonid.learning.canonical.shift`). The
+reduced state is initialised from the measured burn-in window: ``x̄ = E(z)`` with ``z`` the samples
+``s … s+ℓ−1`` (the rollout convention of :mod:`canonid.learning.nets.base`). ``Ĥ`` is the
+regressor's :meth:`~canonid.learning.nets.base.CanonicalModel.one_step`, residual option included
+(the previous output it adds is the newest ``y`` of the *decoded* window).
 
 Training loss on a sub-window of ``ℓ + H`` samples (*authors' code*; means over every entry):
 
@@ -23,7 +23,7 @@ predicted sample ``k``), and ``x̄_k`` the reduced state after ``k`` open-loop s
 ``x̄_0 = E(z_0)``.
 
 ``E`` and ``D`` are ReLU MLPs (the paper's); with ``linear_skip`` each also has an affine path,
-which :func:`learning.reduction.reduce_model` starts from the principal components of the
+which :func:`canonid.learning.reduction.reduce_model` starts from the principal components of the
 training windows, so that training begins at the linear (PCA) reduction and learns a nonlinear
 correction.
 """
@@ -36,10 +36,10 @@ from typing import Any
 import torch
 from torch import nn
 
-from learning.canonical import pairs_to_state, shift
-from learning.nets.base import CanonicalModel, SequenceModel, mlp, output_error
-from learning.nets.registry import ALL_NETS, NotReducibleError, check_reducible
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
+from canonid.learning.canonical import pairs_to_state, shift
+from canonid.learning.nets.base import CanonicalModel, SequenceModel, mlp, output_error
+from canonid.learning.nets.registry import ALL_NETS, NotReducibleError, check_reducible
 
 __all__ = ["NotReducibleError", "ReducedNet", "check_reducible"]
 
@@ -52,7 +52,7 @@ class ReducedNet(SequenceModel):
         regressor_config: its constructor arguments (:meth:`SequenceModel.config`); ``window``,
             ``n_u``, ``n_y``, ``feedthrough`` and ``residual`` must equal the common ones.
         latent_dim: ``n̄``, the size of the reduced state (see
-            :func:`learning.reduction.latent_size`).
+            :func:`canonid.learning.reduction.latent_size`).
         encoder_hidden, decoder_hidden: hidden widths of the ReLU MLPs ``E`` and ``D`` (paper:
             2 × 512).
         reconstruction_weight, consistency_weight, output_weight: weights of the three loss

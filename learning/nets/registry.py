@@ -1,18 +1,18 @@
 """The registry of identification networks: name → class, and the checks that read it.
 
-It lives apart from :mod:`learning.nets` so that :mod:`learning.nets.reduced` can look up the
-canonical model it wraps without importing the package that imports it.
+It lives apart from :mod:`canonid.learning.nets` so that :mod:`canonid.learning.nets.reduced` can
+look up the canonical model it wraps without importing the package that imports it.
 """
 
 from __future__ import annotations
 
-from learning.nets.arx import ARX
-from learning.nets.base import CanonicalModel, SequenceModel
-from learning.nets.classic_gru import ClassicGRU
-from learning.nets.masti import Masti
-from learning.nets.ours_gru import OursGRU
-from learning.nets.ours_mlp import OursMLP
-from models.errors import CanonidError
+from canonid.kernel.errors import CanonidError
+from canonid.learning.nets.arx import ARX
+from canonid.learning.nets.base import CanonicalModel, SequenceModel
+from canonid.learning.nets.classic_gru import ClassicGRU
+from canonid.learning.nets.masti import Masti
+from canonid.learning.nets.ours_gru import OursGRU
+from canonid.learning.nets.ours_mlp import OursMLP
 
 __all__ = [
     "ALL_NETS",
@@ -38,7 +38,8 @@ NETS: dict[str, type[SequenceModel]] = {
 }
 
 #: every network a saved model may hold: the identification models, and the reduced model that
-#: :mod:`learning.nets.reduced` adds when it is imported (``learning.nets`` imports it first)
+# : :mod:`canonid.learning.nets.reduced` adds when it is imported (``canonid.learning.nets`` imports
+# it first)
 ALL_NETS: dict[str, type[SequenceModel]] = dict(NETS)
 
 

@@ -1,6 +1,6 @@
 """File helpers shared by every layer: atomic writes, deterministic ``.npz``, checksums.
 
-They live in ``models`` because it is the root of the dependency graph; they need only numpy.
+They live in the kernel, under every layer; they need only numpy.
 
 * Atomic: content is written to a temporary file in the target folder, flushed, fsynced and
   renamed over the target, so a reader never sees a half-written file. ``durable=False`` skips
@@ -10,7 +10,7 @@ They live in ``models`` because it is the root of the dependency graph; they nee
   order, so the same arrays always give the same bytes (``np.savez`` stamps the current time).
 * No pickle: arrays are written and read with ``allow_pickle=False``.
 * A write that fails (a file where a folder should be, a full disk, a read-only file system)
-  raises :class:`~models.errors.OutputError` naming the file, and leaves no temporary file.
+  raises :class:`~canonid.kernel.errors.OutputError` naming the file, and leaves no temporary file.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import DataError, OutputError
+from canonid.kernel.errors import DataError, OutputError
 
 __all__ = [
     "atomic_write_bytes",

@@ -6,7 +6,7 @@ from typing import Any
 
 import numpy as np
 
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
 
 __all__ = ["as_matrix", "as_vector", "require_finite"]
 

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from models._validate import as_matrix
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.validate import as_matrix
 
 __all__ = ["cut_windows", "shift", "shift_matrices", "state_dim"]
 

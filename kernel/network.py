@@ -1,15 +1,15 @@
 """A trained network as plain numpy arrays: what ``learning`` exports and ``models`` rebuilds.
 
-This module is the meeting point of the two layers: :mod:`learning.export` writes these
-descriptions from torch weights, :mod:`models.learned` builds CasADi SX expressions from them,
-and :mod:`analysis` reads the weights for its layer-norm bound. It needs only numpy, so that
-``learning`` can import it without CasADi.
+This module is the meeting point of three layers: :mod:`canonid.learning.export` writes these
+descriptions from torch weights, :mod:`canonid.models.learned` builds CasADi SX expressions from
+them, and :mod:`canonid.analysis` reads the weights for its layer-norm bound. It needs only numpy,
+so that ``learning`` can import it without CasADi.
 
 Units and conventions
 ---------------------
 Every network works in the *normalised* units of the model's training statistics:
 ``ũ = (u − u_mean) / u_std`` per input channel, ``ỹ = (y − y_mean) / y_std`` per output channel
-and ``z̃`` the window of normalised pairs, in the :mod:`models.canonical` ordering
+and ``z̃`` the window of normalised pairs, in the :mod:`canonid.kernel.canonical` ordering
 ``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})`` (oldest pair first).
 
 A :class:`Layer` is ``v ↦ σ(W v + b)``; a network is a tuple of layers applied in order, the last
@@ -27,7 +27,7 @@ one with ``activation="linear"``. A :class:`GRULayer` is one layer of a GRU (PyT
 
 and ``Ĥ(z, u) = y_mean + y_std ⊙ ỹ`` in physical units.
 
-:class:`ReducedNet` adds the auto-encoder of :mod:`learning.nets.reduced` around it:
+:class:`ReducedNet` adds the auto-encoder of :mod:`canonid.learning.nets.reduced` around it:
 ``E(z̃) = encoder(z̃) (+ encoder_skip(z̃))`` and ``D(x̄) = decoder(x̄) (+ decoder_skip(x̄))``, and
 the reduced model ``x̄_{t+1} = E(Ā D(x̄_t) + B̄ ũ_t + S̄ Ĥ̃(D(x̄_t), ũ_t))``,
 ``ȳ_t = y_mean + y_std ⊙ Ĥ̃(D(x̄_t), ũ_t)`` (``x̄`` has no units).
@@ -41,8 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from models._validate import require_finite
-from models.errors import ShapeError
+from canonid.kernel.errors import ShapeError
+from canonid.kernel.validate import require_finite
 
 __all__ = ["ACTIVATIONS", "CanonicalNet", "GRULayer", "Layer", "ReducedNet"]
 
