@@ -14,14 +14,17 @@ Index conventions (0-based Python slices ``[start, stop)`` of the record as stor
   ``40650:105712``, ``int(0.75 · 86,750)`` = 65,062 samples); test "arrow-full" = ``100:40575``;
   test "arrow-no-extrapolation" = its first 32,000 samples, ``100:32100``. ``n_init`` = 50.
 * **Cascaded Tanks** (``dataBenchmark.mat``: ``uEst``, ``yEst``, ``uVal``, ``yVal``, ``Ts``):
-  training = the whole estimation record, test = the whole validation record. ``n_init`` = 5.
+  training = the whole estimation record, test = the whole validation record. ``n_init`` = 50.
 * **Wiener–Hammerstein** (``WienerHammerBenchMark.mat``: ``uBenchMark``, ``yBenchMark``, ``fs``):
   training = ``5200:105200``, test = ``105200:184000``. ``n_init`` = 50.
 * **EMPS** (``DATA_EMPS.mat`` and ``DATA_EMPS_PULSES.mat``, each ``vir`` = motor force (input),
   ``qm`` = measured position (output), ``t``; dt = ``t[1] − t[0]``): training = the whole
   ``DATA_EMPS`` record, test = the whole ``DATA_EMPS_PULSES`` record. ``n_init`` = 20.
 * **CED** (``DATAUNIF.MAT``: ``u11``, ``z11`` low and ``u12``, ``z12`` high input amplitude;
-  dt = 0.02 s): training = ``0:400`` of each experiment, test = ``400:`` of each. ``n_init`` = 4.
+  dt = 0.02 s): training = ``0:400`` of each experiment, test = ``400:`` of each. ``n_init`` = 10.
+
+Version 1.0.1 raised ``n_init`` from 5 to 50 (Cascaded Tanks) and from 4 to 10 (CED); the other
+three are unchanged.
 
 Scoring rule (the package's submission examples): a model may use the whole test input and the
 first ``n_init`` measured outputs of each test part; the score is the RMSE of its simulation on
@@ -292,7 +295,7 @@ _REGISTRY = (
         input_names=("u",),
         output_names=("y",),
         units={"u": "V", "y": "V"},
-        n_init=5,
+        n_init=50,
         test_parts=("validation",),
         score_units="V",
         score_scale=1.0,
@@ -360,7 +363,7 @@ _REGISTRY = (
         input_names=("u",),
         output_names=("z",),
         units={"u": None, "z": "ticks/s"},
-        n_init=4,
+        n_init=10,
         test_parts=("low-amplitude", "high-amplitude"),
         score_units="ticks/s",
         score_scale=1.0,
