@@ -41,7 +41,7 @@ EXPECTED = {
         "dt": 4.0,
         "train": [("dataBenchmark.mat", 0, 1024)],
         "test": [("validation", "dataBenchmark.mat", 0, 1024)],
-        "n_init": 5,
+        "n_init": 50,
         "score": ("V", 1.0),
     },
     "wiener-hammerstein": {
@@ -65,7 +65,7 @@ EXPECTED = {
             ("low-amplitude", "DATAUNIF.MAT", 400, 500),
             ("high-amplitude", "DATAUNIF.MAT", 400, 500),
         ],
-        "n_init": 4,
+        "n_init": 10,
         "score": ("ticks/s", 1.0),
     },
 }
@@ -254,17 +254,18 @@ def test_scores_never_see_outputs_after_n_init_and_match_the_formula(tmp_path):
     bench, model = benchmark("cascaded-tanks"), _untrained(3, ds)
     scores, sims = score_parts(model, ds, bench)
     (part,) = ds.split("test")
+    n, ell = bench.n_init, 3
     # the simulation from samples n_init−ℓ … n_init−1, by hand
-    by_hand = model.predict(part.u[None, 2:], part.y[None, 2:5])[0]
+    by_hand = model.predict(part.u[None, n - ell :], part.y[None, n - ell : n])[0]
     np.testing.assert_allclose(sims[0], by_hand, rtol=1e-12)
-    assert scores[0].rmse == pytest.approx(np.sqrt(np.mean((by_hand - part.y[5:]) ** 2)))
-    assert (scores[0].n_init, scores[0].n_scored, scores[0].units) == (5, 1019, "V")
+    assert scores[0].rmse == pytest.approx(np.sqrt(np.mean((by_hand - part.y[n:]) ** 2)))
+    assert (scores[0].n_init, scores[0].n_scored, scores[0].units) == (50, 1024 - 50, "V")
     # measured outputs after n_init (and before n_init − ℓ) do not change the simulation
     y = part.y.copy()
-    y[5:] += 1.0
-    y[:2] -= 1.0
+    y[n:] += 1.0
+    y[: n - ell] -= 1.0
     hidden = as_series(SimpleNamespace(u=part.u, y=y))
-    np.testing.assert_array_equal(simulate_records(model, hidden, 5)[0], sims[0])
+    np.testing.assert_array_equal(simulate_records(model, hidden, n)[0], sims[0])
 
 
 def test_records_of_different_lengths_simulate_as_they_would_alone(tmp_path):
@@ -283,9 +284,9 @@ def test_records_of_different_lengths_simulate_as_they_would_alone(tmp_path):
 
 def test_a_window_beyond_n_init_is_refused_before_training(tmp_path, capsys):
     write_benchmark("cascaded-tanks", tmp_path)
-    code = main(["benchmark", "cascaded-tanks", "--dir", str(tmp_path), "--window", "6"])
+    code = main(["benchmark", "cascaded-tanks", "--dir", str(tmp_path), "--window", "51"])
     err = capsys.readouterr().err.strip()
-    assert code == 1 and "n_init = 5" in err and "\n" not in err
+    assert code == 1 and "n_init = 50" in err and "\n" not in err
     assert not (Path("runs") / "cascaded-tanks-mlp").exists()
 
 
@@ -354,18 +355,19 @@ def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_pa
 
 def test_ced_with_the_default_profile_cuts_its_short_validation_rollouts(tmp_path, caplog):
     """CED's validation tails (80 samples here, as in the real files) are shorter than ℓ + the
-    quick profile's 100-step validation rollout: training cuts the rollout to what fits, says
-    so in one line and records the cut length with the model."""
+    quick profile's 100-step validation rollout (default ℓ = min(10, n_init) = 10): training
+    cuts the rollout to what fits, says so in one line and records the cut length with the
+    model."""
     write_benchmark("ced", tmp_path)
     run = tmp_path / "run"
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run), "--no-progress"]
     with caplog.at_level(logging.WARNING, logger="canonid.learning.training"):
         assert main([*argv, "--threads", "1", "--train-args=--epochs 2"]) == 0
     assert [r.getMessage() for r in caplog.records if "cut" in r.getMessage()] == [
-        "validation rollouts cut from 100 to 76 steps: the longest validation trajectory has "
-        "80 samples, window ℓ = 4"
+        "validation rollouts cut from 100 to 70 steps: the longest validation trajectory has "
+        "80 samples, window ℓ = 10"
     ]
     model = json.loads((run / "config.json").read_text())
-    assert model["info"]["training"]["options"]["val_horizon"] == 76
+    assert model["info"]["training"]["options"]["val_horizon"] == 70
     report = json.loads((run / "benchmark.json").read_text())
     assert [s["test"] for s in report["scores"]] == ["low-amplitude", "high-amplitude"]

@@ -1,0 +1,328 @@
+"""The standard benchmarks' protocol and published results, pinned against BASELINES.md.
+
+``../shared/data/BASELINES.md`` (beside the repository) holds the scoring protocol of
+``nonlinear_benchmarks`` 1.0.1 and the published results of Champneys et al. (2024), with
+sources. Its tables are copied below (``PUBLISHED``), so a checkout without ``shared/`` still
+checks every ``n_init``, split, figure and best mark of :data:`BENCHMARKS`; where the file exists,
+the same checks run on it. The parser is strict: a cell it cannot read, a row too short or too
+long, or any changed digit fails.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from test_benchmarks import EXPECTED
+
+from canonid.datagen.benchmarks import BENCHMARKS, CHAMPNEYS, baselines_markdown
+
+ROOT = Path(__file__).resolve().parents[1]
+BASELINES_MD = ROOT.parent / "shared" / "data" / "BASELINES.md"
+DOCS = ROOT / "docs" / "benchmarks.md"
+
+# BASELINES.md's tables and its last paragraph, as copied from the file
+PUBLISHED = """
+| benchmark | train / test | n_init (1.0.0 → 1.0.1) | sampling | units |
+|---|---|---|---|---|
+| Cascaded Tanks | `uEst/yEst` / `uVal/yVal` (1,024 samples each) | 5 → **50** | `Ts` from the file (4 s) | V |
+| CED | two records of 500 samples, train `[:400]`, test `[400:]` of each | 4 → **10** | 0.02 s | ticks/s |
+| EMPS | `DATA_EMPS` / `DATA_EMPS_PULSES` | 20 → 20 | from the file | mm |
+| Wiener–Hammerstein | `5200:184000`: first 100,000 train, last 78,800 test | 50 → 50 | 1/51200 s | mV |
+| Silverbox | multisine `40650:127400`, first 75 % train, rest test; arrow full `100:40575`, arrow no-extrapolation its first 32,000 | 50 → 50 | 1/610.35 s | mV |
+
+## Baseline study: Champneys, Beintema, Tóth, Schoukens, Rogers (2024)
+
+"Baseline results for selected nonlinear system identification benchmarks", arXiv:2405.10779;
+
+| method | SB multisine [mV] | SB arrow full [mV] | SB arrow no-extrap. [mV] | WH [mV] | EMPS [mm] | CT [V] | CED test 1 | CED test 2 |
+|---|---|---|---|---|---|---|---|---|
+| LTI state space | 6.96 | 14.4 | 6.58 | 43.4 | 5.53 | 0.588 | 0.224 | 0.384 |
+| LTI ARX | 6.95 | 14.2 | 6.59 | 43.4 | 12.6 | 0.685 | 0.291 | 0.331 |
+| polynomial NARX | 0.640 | 2.25 | 0.571 | 27.3 | 5.17 | 0.413 | 0.10 | 0.141 |
+| GP NARX | 0.301 | 0.60 | 0.259 | 23.1 | 1690 | 0.622 | 0.102 | 0.090 |
+| MLP NARX | 2.80 | 5.18 | 2.40 | 310 | 133 | 2.04 | 0.142 | 0.101 |
+| MLP FIR | 18.9 | 20.2 | 15.3 | 24.8 | 121 | 1.43 | 0.122 | 0.095 |
+| RNN | 1.64 | 4.88 | 1.73 | 6.87 | 89.2 | 0.543 | 0.096 | 0.235 |
+| GRU | 1.49 | 2.80 | 0.947 | 3.97 | 220 | 0.396 | 0.286 | 0.238 |
+| LSTM | 1.50 | 2.68 | 0.960 | 4.45 | 74.1 | 0.490 | 0.303 | 0.145 |
+| OLSTM | 1.51 | 2.38 | 1.08 | 4.55 | 111 | 0.471 | 0.151 | 0.259 |
+
+## Best published results (the same paper's state-of-the-art table, with its sources)
+
+| method (source) | SB multisine | SB arrow full | SB no-extrap. | WH | EMPS | CT | CED 1 | CED 2 |
+|---|---|---|---|---|---|---|---|---|
+| DT SUBNET (Beintema et al., 2021) | 0.36 | 1.4 | 0.32 | 0.241 | – | 0.37 | 0.169 | 0.117 |
+| CT SUBNET (Beintema et al., 2023) | – | – | – | – | 4.61 | 0.306 | 0.115 | 0.074 |
+| grey box (Worden et al., 2018) | – | – | – | – | – | 0.191 | – | – |
+| PNLSS (Paduart et al., 2010; Relan et al., 2017) | – | 0.26 | – | 0.42 | – | 0.45 | – | – |
+| TSEM (Forgione and Piga, 2021a) | – | – | – | – | – | 0.33 | – | – |
+| SCI (Forgione and Piga, 2021a) | – | – | – | – | – | 0.4 | – | – |
+| dynoNet (Forgione and Piga, 2021b) | – | – | – | 0.452 | 2.64 | – | – | – |
+
+The lowest published figure per column is the bar to beat: SB multisine 0.301 (GP NARX), arrow
+full 0.26 (PNLSS), no-extrapolation 0.259 (GP NARX), WH 0.241, EMPS 2.64, CT 0.191, CED 0.096 /
+0.074.
+"""  # noqa: E501 — the tables as the file writes them, one row a line
+
+# BASELINES.md's names → the registry's: benchmarks, and the test part of each results column
+BENCH = {
+    "Cascaded Tanks": "cascaded-tanks",
+    "CED": "ced",
+    "EMPS": "emps",
+    "Wiener–Hammerstein": "wiener-hammerstein",
+    "Silverbox": "silverbox",
+}
+COLUMN = {
+    "SB multisine": ("silverbox", "multisine"),
+    "SB arrow full": ("silverbox", "arrow-full"),
+    "SB arrow no-extrap.": ("silverbox", "arrow-no-extrapolation"),
+    "SB no-extrap.": ("silverbox", "arrow-no-extrapolation"),
+    "WH": ("wiener-hammerstein", "test"),
+    "EMPS": ("emps", "DATA_EMPS_PULSES"),
+    "CT": ("cascaded-tanks", "validation"),
+    "CED test 1": ("ced", "low-amplitude"),
+    "CED 1": ("ced", "low-amplitude"),
+    "CED test 2": ("ced", "high-amplitude"),
+    "CED 2": ("ced", "high-amplitude"),
+}
+FIGURE = re.compile(r"\d+(?:\.\d+)?")
+
+
+def _tables(text: str) -> dict[str, list[list[str]]]:
+    """Every Markdown table of ``text`` by its first header cell: header row, then body rows."""
+    tables: dict[str, list[list[str]]] = {}
+    for block in re.findall(r"(?:^\|.*\|[ \t]*\n?)+", text, flags=re.M):
+        rows = [[c.strip() for c in line.strip()[1:-1].split("|")] for line in block.splitlines()]
+        header, rule, *body = rows
+        assert all(re.fullmatch(r"-{3,}", c) for c in rule), f"not a table rule: {rule}"
+        for row in body:
+            assert len(row) == len(header), f"{row} has {len(row)} cells, the header {len(header)}"
+        tables[header[0]] = [header, *body]
+    return tables
+
+
+def _figures(text: str) -> dict[tuple[str, str, str], tuple[str, str | None]]:
+    """Each published figure: (benchmark, test part, method) → (figure, its source's reference
+    in the best-results table, None for the baseline study)."""
+    tables = _tables(text)
+    out = {}
+    for first, pattern in (
+        ("method", r"(?P<m>.+)"),
+        ("method (source)", r"(?P<m>.+?) \((?P<r>.+)\)"),
+    ):
+        header, *body = tables[first]
+        columns = []
+        for cell in header[1:]:  # "SB multisine [mV]": the column, in the scoring units
+            name, units = re.fullmatch(r"(.+?)(?: \[(.+)\])?", cell).groups()
+            columns.append(COLUMN[name])
+            assert units in (None, BENCHMARKS[COLUMN[name][0]].score_units), cell
+        for row in body:
+            method = re.fullmatch(pattern, row[0])
+            assert method, f"unreadable method cell {row[0]!r}"
+            for (bench, test), cell in zip(columns, row[1:], strict=True):
+                assert FIGURE.fullmatch(cell) or cell == "–", f"unreadable figure {cell!r} in {row}"
+                if cell != "–":
+                    out[(bench, test, method["m"])] = (cell, method.groupdict().get("r"))
+    return out
+
+
+def _protocol(text: str) -> dict[str, dict]:
+    """Each benchmark's n_init (1.0.1), units, sampling time (None: read from the file) and
+    sample ranges ``[start, stop)`` of its training records and test parts (stop None: to the
+    record's end), read from the protocol table's cells."""
+    header, *body = _tables(text)["benchmark"]
+    assert header == ["benchmark", "train / test", "n_init (1.0.0 → 1.0.1)", "sampling", "units"]
+    out = {}
+    for title, split, n_init, sampling, units in body:
+        name = BENCH[title]
+        new = re.fullmatch(r"\d+ → (?:\*\*)?(\d+)(?:\*\*)?", n_init)
+        assert new, f"unreadable n_init {n_init!r}"
+        out[name] = {
+            "n_init": int(new.group(1)),
+            "units": units,
+            "dt": _sampling(sampling),
+            **_split(name, split),
+        }
+    return out
+
+
+def _sampling(cell: str) -> float | None:
+    if cell == "from the file":
+        return None
+    for pattern, value in (
+        (r"1/([\d.]+) s", lambda x: 1 / float(x)),
+        (r"`Ts` from the file \(([\d.]+) s\)", float),
+        (r"([\d.]+) s", float),
+    ):
+        if m := re.fullmatch(pattern, cell):
+            return value(m.group(1))
+    raise AssertionError(f"unreadable sampling {cell!r}")
+
+
+def _int(text: str) -> int:
+    return int(text.replace(",", ""))
+
+
+def _split(name: str, cell: str) -> dict[str, list[tuple[int, int | None]]]:
+    """The training and test ranges a protocol cell states, in the package's order."""
+    patterns = {
+        "cascaded-tanks": r"`uEst/yEst` / `uVal/yVal` \(([\d,]+) samples each\)",
+        "ced": r"two records of (\d+) samples, train `\[:(\d+)\]`, test `\[(\d+):\]` of each",
+        "emps": r"`DATA_EMPS` / `DATA_EMPS_PULSES`",
+        "wiener-hammerstein": r"`(\d+):(\d+)`: first ([\d,]+) train, last ([\d,]+) test",
+        "silverbox": (
+            r"multisine `(\d+):(\d+)`, first (\d+) % train, rest test; arrow full `(\d+):(\d+)`, "
+            r"arrow no-extrapolation its first ([\d,]+)"
+        ),
+    }
+    m = re.fullmatch(patterns[name], cell)
+    assert m, f"{name}: unreadable train / test cell {cell!r}"
+    g = [_int(x) for x in m.groups()]
+    if name == "cascaded-tanks":
+        return {"train": [(0, g[0])], "test": [(0, g[0])]}
+    if name == "ced":
+        n, train_stop, test_start = g
+        return {"train": [(0, train_stop)] * 2, "test": [(test_start, n)] * 2}
+    if name == "emps":
+        return {"train": [(0, None)], "test": [(0, None)]}
+    if name == "wiener-hammerstein":
+        lo, hi, n_train, n_test = g
+        assert n_train + n_test == hi - lo, f"{cell!r}: the two parts do not fill {lo}:{hi}"
+        return {"train": [(lo, lo + n_train)], "test": [(hi - n_test, hi)]}
+    lo, hi, percent, arrow_lo, arrow_hi, no_extrapolation = g
+    cut = lo + int(percent / 100 * (hi - lo))
+    test = [(cut, hi), (arrow_lo, arrow_hi), (arrow_lo, arrow_lo + no_extrapolation)]
+    return {"train": [(lo, cut)], "test": test}
+
+
+def _bar(text: str) -> list[str]:
+    """The figures of the closing 'bar to beat' sentence, in the columns' order."""
+    m = re.search(r"bar to beat:(.*?)\.\s*$", text, flags=re.S)
+    assert m, "no 'bar to beat' sentence"
+    return re.findall(r"(?<![\w.])\d+(?:\.\d+)?(?![\w.])", m.group(1))
+
+
+def _texts() -> list:
+    file = pytest.param(
+        BASELINES_MD,
+        id="shared/data/BASELINES.md",
+        marks=pytest.mark.skipif(
+            not BASELINES_MD.is_file(), reason=f"{BASELINES_MD} is not in this checkout"
+        ),
+    )
+    return [pytest.param(None, id="copy in this file"), file]
+
+
+def _read(path: Path | None) -> str:
+    return PUBLISHED if path is None else path.read_text(encoding="utf-8")
+
+
+def _check_protocol(text: str) -> None:
+    protocol = _protocol(text)
+    assert set(protocol) == set(BENCHMARKS)
+    for name, stated in protocol.items():
+        bench, expected = BENCHMARKS[name], EXPECTED[name]
+        assert stated["n_init"] == bench.n_init == expected["n_init"], name
+        assert stated["units"] == bench.score_units == expected["score"][0], name
+        assert stated["dt"] is None or stated["dt"] == pytest.approx(expected["dt"], rel=1e-12)
+        for role, parts in (("train", expected["train"]), ("test", expected["test"])):
+            ranges = [tuple(part[-2:]) for part in parts]  # EXPECTED's (…, start, stop)
+            assert len(stated[role]) == len(ranges), (name, role)
+            for (start, stop), (want_start, want_stop) in zip(stated[role], ranges):
+                assert start == want_start and stop in (None, want_stop), (name, role)
+
+
+def _check_figures(text: str) -> None:
+    published = _figures(text)
+    entered = {(n, b.test, b.method): b for n, bench in BENCHMARKS.items() for b in bench.baselines}
+    assert set(entered) == set(published)
+    for key, (figure, reference) in published.items():
+        b = entered[key]
+        assert (b.figure, b.units) == (figure, BENCHMARKS[key[0]].score_units), key
+        assert b.rmse == float(figure) and b.test in BENCHMARKS[key[0]].test_parts
+        if reference is None:
+            assert b.source == CHAMPNEYS and "arXiv:2405.10779" in CHAMPNEYS
+        else:
+            assert b.source.startswith(reference) and "Champneys" in b.source, key
+
+
+def _check_best(text: str) -> None:
+    lowest: dict[tuple[str, str], str] = {}
+    for (bench, test, _), (figure, _) in _figures(text).items():
+        lowest[(bench, test)] = min(lowest.get((bench, test), figure), figure, key=float)
+    marked = {
+        (n, b.test): b.figure for n, bench in BENCHMARKS.items() for b in bench.baselines if b.best
+    }
+    assert marked == lowest
+    # the file's own closing sentence names the same figures, in its columns' order
+    assert _bar(text) == [lowest[c] for c in dict.fromkeys(COLUMN.values())]
+
+
+@pytest.mark.parametrize("path", _texts())
+def test_n_init_units_sampling_and_splits_are_version_1_0_1s(path):
+    _check_protocol(_read(path))
+
+
+def test_the_1_0_1_changes_are_cascaded_tanks_and_ced():
+    assert {name: b.n_init for name, b in BENCHMARKS.items()} == {
+        "cascaded-tanks": 50,
+        "silverbox": 50,
+        "wiener-hammerstein": 50,
+        "emps": 20,
+        "ced": 10,
+    }
+
+
+@pytest.mark.parametrize("path", _texts())
+def test_every_published_figure_is_entered_as_printed_with_its_source(path):
+    _check_figures(_read(path))
+
+
+@pytest.mark.parametrize("path", _texts())
+def test_the_best_published_figure_of_every_test_part_is_marked(path):
+    _check_best(_read(path))
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "check"),
+    [
+        pytest.param("| GRU | 1.49 |", "| GRU | 1.490 |", _check_figures, id="a-digit-more"),
+        pytest.param("| 0.224 | 0.384 |", "| 0.224 |", _check_figures, id="a-cell-less"),
+        pytest.param("| 0.396 |", "| 0.39 6 |", _check_figures, id="an-unreadable-cell"),
+        pytest.param("(Forgione and Piga, 2021a)", "(Piga, 2021a)", _check_figures, id="source"),
+        pytest.param("0.096 /\n0.074.", "0.096 /\n0.070.", _check_best, id="bar-to-beat"),
+        pytest.param("4 → **10**", "4 → **4**", _check_protocol, id="n_init"),
+        pytest.param("train `[:400]`", "train `[:300]`", _check_protocol, id="ced-split"),
+        pytest.param("first 75 %", "first 70 %", _check_protocol, id="silverbox-split"),
+        pytest.param("last 78,800 test", "last 78,000 test", _check_protocol, id="wh-split"),
+        pytest.param("| 1/610.35 s |", "| 1/610 s |", _check_protocol, id="sampling"),
+    ],
+)
+def test_a_changed_number_or_row_fails_the_check(old, new, check):
+    assert old in PUBLISHED
+    check(PUBLISHED)
+    with pytest.raises(AssertionError):
+        check(PUBLISHED.replace(old, new))
+
+
+def test_one_source_and_one_note_per_method_and_benchmark():
+    for bench in BENCHMARKS.values():
+        by_method = {(b.method, b.source, b.note) for b in bench.baselines}
+        assert len(by_method) == len({b.method for b in bench.baselines}), bench.name
+
+
+@pytest.mark.parametrize("name", list(BENCHMARKS))
+def test_the_docs_show_each_benchmarks_published_results_from_the_registry(name):
+    """docs/benchmarks.md holds each table between markers; it must be what the registry makes."""
+    page = DOCS.read_text(encoding="utf-8")
+    m = re.search(
+        rf"<!-- BEGIN baselines {name} -->\n(.*?)\n<!-- END baselines {name} -->", page, flags=re.S
+    )
+    assert m, f"{DOCS}: no '<!-- BEGIN baselines {name} -->' … '<!-- END … -->' section"
+    expected = baselines_markdown(name)
+    assert m.group(1).strip() == expected, (
+        f"{DOCS}: the {name} table differs from the registry's; replace the section with:\n"
+        f"{expected}"
+    )
