@@ -8,6 +8,7 @@ changed, nothing planted ran or was loaded, and a refusal is one line naming the
 
 from __future__ import annotations
 
+import json
 import os
 import stat
 from pathlib import Path
@@ -17,9 +18,10 @@ import torch
 from learning_helpers import damped_siso, trajectories
 from matplotlib.figure import Figure
 
-from canonid.kernel.errors import OutputError
+from canonid.kernel.errors import CheckpointError, OutputError
 from canonid.kernel.io import atomic_copy, atomic_write_figure
 from canonid.learning import Model, Normalisation, as_series, build_net
+from canonid.learning import model as model_module
 from canonid.learning.plots import plot_rollouts, plot_training_curve
 
 VICTIM_TEXT = "the victim's own bytes\n"
@@ -154,6 +156,82 @@ def test_window_auto_adopts_the_chosen_model_without_a_fixed_temporary_name(tmp_
     for name in ADOPTED:
         assert not (run / name).is_symlink()
         assert (run / name).read_text(encoding="utf-8") == f"chosen {name}\n"
+
+
+# ---------------------------------------------------------------------- crafted config.json
+SAVED = {
+    "mlp": {"hidden": [16, 16]},
+    "gru": {"hidden_size": 8, "num_layers": 2, "head_hidden": [8]},
+    "masti": {"hidden": [16], "latent_dim": 2},
+}
+LARGER = r" is larger than the \d+ numbers the weights in .*weights\.pt hold$"
+ONLY = r"the weights in .*weights\.pt hold only {} tensors$"
+CRAFTED = [  # (model, field, value, what the refusal says)
+    ("mlp", "hidden", [400_000_000, 16], r"'net\.hidden\[0\]' = 400000000" + LARGER),
+    ("mlp", "hidden", [50_000_000], r"'net\.hidden\[0\]' = 50000000" + LARGER),
+    ("mlp", "hidden", [16] * 100_000, r"'net\.hidden' lists 100000 layers; " + ONLY.format(7)),
+    (
+        "mlp",
+        "hidden",
+        [17, 16],
+        r"shape differs: net\.0\.bias \(16,\) in weights\.pt vs \(17,\) in",
+    ),
+    ("mlp", "hidden", [16], r"'net' \('mlp'.*do not fit: unexpected \['net\.4\.bias'"),
+    ("mlp", "window", 4, r"'net' \('mlp', window 4.*do not fit: shape differs: net\.0\.weight"),
+    ("mlp", "n_u", 10**12, r"'net\.n_u' = 1000000000000" + LARGER),
+    ("gru", "num_layers", 10**9, r"'net\.num_layers' = 1000000000: " + ONLY.format(13)),
+    ("gru", "hidden_size", 10**8, r"'net\.hidden_size' = 100000000" + LARGER),
+    ("gru", "hidden_size", 9, r"'net' \('gru'.*do not fit: shape differs: "),
+    ("masti", "latent_dim", 10**9, r"'net\.latent_dim' = 1000000000" + LARGER),
+    ("mlp", "hidden", [-3, 16], r"'net' describes no network: .*negative dimension -3"),
+    ("mlp", "hidden", [1e300, 16], r"'net' describes no network: model 'mlp': bad config"),
+    ("mlp", "hidden", [4e8, 16], r"net\.0\.weight \(16, 7\) in weights\.pt vs \(400000000, 7\)"),
+]
+
+
+@pytest.fixture
+def no_real_build(monkeypatch):
+    """Fail the test if Model.load builds a network anywhere but on the meta device (where
+    no memory is allocated) before it has refused the crafted configuration."""
+    real = model_module.build_net
+
+    def meta_only(name, **config):
+        if torch.get_default_device().type != "meta":
+            raise AssertionError(f"built {name!r} for real from an unchecked config {config}")
+        return real(name, **config)
+
+    monkeypatch.setattr(model_module, "build_net", meta_only)
+
+
+@pytest.mark.parametrize(
+    ("name", "field", "value", "says"),
+    CRAFTED,
+    ids=[f"{n}-{f}-{str(v)[:20]}" for n, f, v, _ in CRAFTED],
+)
+def test_a_crafted_config_is_refused_before_anything_is_built(
+    name, field, value, says, siso_data, tmp_path, no_real_build
+):
+    torch.manual_seed(0)
+    series = as_series(siso_data)
+    net = build_net(name, window=3, n_u=1, n_y=1, **SAVED[name])
+    Model(net, Normalisation.fit(series)).save(tmp_path / "run")
+    config_file = tmp_path / "run" / "config.json"
+    config = json.loads(config_file.read_text(encoding="utf-8"))
+    config["net"][field] = value
+    config_file.write_text(json.dumps(config), encoding="utf-8")
+    with pytest.raises(CheckpointError, match=says) as refused:
+        Model.load(tmp_path / "run")
+    message = str(refused.value)
+    assert "\n" not in message and message.startswith(f"{config_file}: field 'net")
+
+
+def test_an_untouched_run_still_loads_after_the_check(siso_data, tmp_path):
+    model = _small_mlp(siso_data)
+    model.save(tmp_path / "run")
+    loaded = Model.load(tmp_path / "run")
+    tr = siso_data[0]
+    assert loaded.net.config() == model.net.config()
+    assert (loaded.simulate(tr.u, tr.y[:3]) == model.simulate(tr.u, tr.y[:3])).all()
 
 
 def _umask() -> int:
