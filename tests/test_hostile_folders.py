@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shutil
 import stat
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -18,6 +21,7 @@ import torch
 from learning_helpers import damped_siso, trajectories
 from matplotlib.figure import Figure
 
+import canonid.datagen.controllers._compiled as compiled
 from canonid.kernel.errors import CheckpointError, OutputError
 from canonid.kernel.io import atomic_copy, atomic_write_figure
 from canonid.learning import Model, Normalisation, as_series, build_net
@@ -232,6 +236,148 @@ def test_an_untouched_run_still_loads_after_the_check(siso_data, tmp_path):
     tr = siso_data[0]
     assert loaded.net.config() == model.net.config()
     assert (loaded.simulate(tr.u, tr.y[:3]) == model.simulate(tr.u, tr.y[:3])).all()
+
+
+# ---------------------------------------------------------------------- compiled-solver cache
+needs_gcc = pytest.mark.skipif(shutil.which("gcc") is None, reason="needs a C compiler")
+as_root = pytest.mark.skipif(os.geteuid() != 0, reason="giving a file to another user needs root")
+OTHER_UID = 54321  # a user that is not this one (only root can give files away)
+
+
+def _square():
+    import casadi as ca
+
+    x = ca.SX.sym("x")
+    return ca.Function("square", [x], [x**2 + 1])
+
+
+def _planted_cache(cache: Path, marker: Path) -> Path:
+    """A cache whose library (found where canonid looks for it) is a planted one, with a
+    matching checksum, whose constructor creates ``marker`` when it is loaded."""
+    assert compiled.compile_functions([_square()], name="sq", cache_dir=cache) is not None
+    (library,) = cache.glob("sq-*.so")
+    source = cache.parent / "planted.c"
+    source.write_text(
+        "#include <stdio.h>\n"
+        "__attribute__((constructor)) static void planted(void) {\n"
+        f'    FILE *f = fopen("{marker}", "w");\n'
+        "    if (f) fclose(f);\n"
+        "}\n",
+        encoding="utf-8",
+    )
+    planted = cache.parent / "planted.so"
+    subprocess.run(["gcc", "-shared", "-fPIC", str(source), "-o", str(planted)], check=True)
+    os.replace(planted, library)  # a new file: this process still maps the one it loaded
+    compiled._checksum_file(library).write_text(compiled.sha256_file(library) + "\n")
+    return library
+
+
+def _one_warning(caplog) -> str:
+    lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(lines) == 1 and "\n" not in lines[0], lines
+    return lines[0]
+
+
+UNTRUSTED_FOLDERS = {  # how the cache folder is made untrustworthy, what the refusal says
+    "world-writable": (lambda cache: cache.chmod(0o777), r"{cache} is writable by others"),
+    "group-writable": (lambda cache: cache.chmod(0o770), r"{cache} is writable by others"),
+    "parent writable by others": (
+        lambda cache: cache.parent.chmod(0o777),
+        r"{parent} is writable by others",
+    ),
+    "owned by another user": (
+        lambda cache: os.chown(cache, OTHER_UID, -1),
+        r"{cache} is owned by uid 54321",
+    ),
+}
+
+
+@needs_gcc
+@pytest.mark.parametrize("how", list(UNTRUSTED_FOLDERS))
+def test_a_cache_folder_others_can_write_is_not_used(how, tmp_path, caplog):
+    if how == "owned by another user" and os.geteuid() != 0:
+        pytest.skip("giving a folder to another user needs root")
+    cache, marker = tmp_path / "shared" / "cache", tmp_path / "planted-library-ran"
+    library = _planted_cache(cache, marker)
+    planted = library.read_bytes()
+    spoil, says = UNTRUSTED_FOLDERS[how]
+    spoil(cache)
+    caplog.clear()
+    assert compiled.compile_functions([_square()], name="sq", cache_dir=cache) is None
+    assert not marker.exists()
+    assert library.read_bytes() == planted  # neither loaded nor rebuilt: nothing written there
+    message = _one_warning(caplog)
+    assert re.search(
+        says.format(cache=re.escape(str(cache)), parent=re.escape(str(cache.parent))), message
+    )
+    assert "using the pure-CasADi solver" in message and "chmod go-w" in message
+
+
+@needs_gcc
+def test_a_sticky_parent_such_as_tmp_is_fine(tmp_path, caplog):
+    (tmp_path / "tmp").mkdir(mode=0o1777)
+    (tmp_path / "tmp").chmod(0o1777)
+    built = compiled.compile_functions([_square()], name="sq", cache_dir=tmp_path / "tmp" / "c")
+    assert built is not None and float(built[0](3.0)) == 10.0
+    assert not [r for r in caplog.records if r.levelname == "WARNING"]
+
+
+def _symlink_to_planted(library: Path) -> None:
+    elsewhere = library.parent.parent / "elsewhere.so"
+    os.replace(library, elsewhere)
+    library.symlink_to(elsewhere)
+    compiled._checksum_file(library).write_text(compiled.sha256_file(elsewhere) + "\n")
+
+
+UNTRUSTED_FILES = {  # how a cached file is made untrustworthy, what the warning says
+    "library world-writable": (lambda lib: lib.chmod(0o666), r"{lib} is writable by others"),
+    "checksum group-writable": (
+        lambda lib: compiled._checksum_file(lib).chmod(0o664),
+        r"{lib}\.sha256 is writable by others",
+    ),
+    "library a symlink": (_symlink_to_planted, r"{lib} is a symbolic link"),
+    "library owned by another user": (
+        lambda lib: os.chown(lib, OTHER_UID, -1),
+        r"{lib} is owned by uid 54321",
+    ),
+}
+
+
+@needs_gcc
+@pytest.mark.parametrize("how", list(UNTRUSTED_FILES))
+def test_a_cached_file_others_could_have_written_is_rebuilt_not_loaded(how, tmp_path, caplog):
+    if how == "library owned by another user" and os.geteuid() != 0:
+        pytest.skip("giving a file to another user needs root")
+    cache, marker = tmp_path / "cache", tmp_path / "planted-library-ran"
+    library = _planted_cache(cache, marker)
+    spoil, says = UNTRUSTED_FILES[how]
+    spoil(library)
+    caplog.clear()
+    built = compiled.compile_functions([_square()], name="sq", cache_dir=cache)
+    assert not marker.exists()
+    assert built is not None and float(built[0](4.0)) == 17.0
+    message = _one_warning(caplog)
+    assert re.search(says.format(lib=re.escape(str(library))), message)
+    assert "rebuilding it" in message
+    for path in (library, compiled._checksum_file(library)):
+        info = path.lstat()
+        assert stat.S_ISREG(info.st_mode) and info.st_uid == os.geteuid()
+        assert info.st_mode & 0o022 == 0
+
+
+@needs_gcc
+def test_a_new_cache_is_private_even_under_a_permissive_umask(tmp_path, caplog):
+    old = os.umask(0o002)
+    try:
+        built = compiled.compile_functions([_square()], name="sq", cache_dir=tmp_path / "a" / "c")
+    finally:
+        os.umask(old)
+    assert built is not None
+    assert stat.S_IMODE((tmp_path / "a" / "c").stat().st_mode) == 0o700
+    for path in (tmp_path / "a" / "c").iterdir():
+        assert path.stat().st_mode & 0o022 == 0, path
+    again = compiled.compile_functions([_square()], name="sq", cache_dir=tmp_path / "a" / "c")
+    assert again is not None and not [r for r in caplog.records if r.levelname == "WARNING"]
 
 
 def _umask() -> int:
