@@ -80,7 +80,7 @@ def atomic_copy(
         while True:
             try:
                 chunk = reader.read(1 << 20)
-            except OSError as exc:  # not OSError past here: the writer reports its own errors
+            except OSError as exc:  # names the source; the writer names the target for its own
                 raise OutputError(f"cannot copy {src} to {target}: {exc.strerror or exc}") from exc
             if not chunk:
                 break

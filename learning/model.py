@@ -182,7 +182,7 @@ class Model:
         if not isinstance(config, dict) or config.get("format") != "canonid-model":
             raise CheckpointError(f"{folder / CONFIG_FILE} is not a canonid model configuration")
         name, net_config = config.get("model"), config.get("net")
-        if name not in ALL_NETS or not isinstance(net_config, dict):
+        if not isinstance(name, str) or name not in ALL_NETS or not isinstance(net_config, dict):
             raise CheckpointError(
                 f"{folder / CONFIG_FILE}: field 'model' must be one of {sorted(ALL_NETS)} and "
                 f"'net' an object; got model={name!r}"

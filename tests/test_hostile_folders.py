@@ -229,6 +229,16 @@ def test_a_crafted_config_is_refused_before_anything_is_built(
     assert "\n" not in message and message.startswith(f"{config_file}: field 'net")
 
 
+@pytest.mark.parametrize("model", [["mlp"], {"mlp": 1}, None, "rnn"])
+def test_a_config_naming_no_model_is_one_line(model, siso_data, tmp_path):
+    _small_mlp(siso_data).save(tmp_path / "run")
+    config_file = tmp_path / "run" / "config.json"
+    config = json.loads(config_file.read_text(encoding="utf-8"))
+    config_file.write_text(json.dumps({**config, "model": model}), encoding="utf-8")
+    with pytest.raises(CheckpointError, match=r"config\.json: field 'model' must be one of "):
+        Model.load(tmp_path / "run")
+
+
 def test_an_untouched_run_still_loads_after_the_check(siso_data, tmp_path):
     model = _small_mlp(siso_data)
     model.save(tmp_path / "run")
