@@ -19,7 +19,6 @@ the sampled bounds and the Monte-Carlo check are always computed.
 
 from __future__ import annotations
 
-import io
 import math
 import platform
 import time
@@ -40,7 +39,7 @@ from canonid.analysis.maps import check_window
 from canonid.analysis.observability import alpha_bracket
 from canonid.analysis.reach import ReachableHulls, reach
 from canonid.kernel.errors import DataError, SetError
-from canonid.kernel.io import atomic_write_bytes, atomic_write_json, jsonable, read_json
+from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable, read_json
 from canonid.models.base import System
 from canonid.models.registry import get_system
 from canonid.models.sets import Box
@@ -363,9 +362,7 @@ class AnalysisReport:
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
         fig.tight_layout()
-        buf = io.BytesIO()
-        fig.savefig(buf, format="png", metadata={"Software": None})
-        return atomic_write_bytes(path, buf.getvalue())
+        return atomic_write_figure(path, fig, format="png", metadata={"Software": None})
 
 
 def _factor(gamma: float, alpha: float, ell: int) -> float:

@@ -6,6 +6,11 @@ They live in the kernel, under every layer; they need only numpy.
   renamed over the target, so a reader never sees a half-written file. ``durable=False`` skips
   the fsync (a killed process still leaves the old file or the new one; a power failure may
   lose or damage the file): for caches that are checked when read, such as generation parts.
+* Safe in a folder someone else prepared: the temporary file has a unique name, created
+  exclusively (``mkstemp``), so a symlink planted under a predictable temporary name is never
+  written through; and the rename replaces a symlink planted at the target itself rather than
+  the file it points to. Every file canonid writes goes through here: figures too
+  (:func:`atomic_write_figure`), and copies (:func:`atomic_copy`).
 * Deterministic: :func:`write_npz` fixes every zip timestamp and writes arrays in sorted key
   order, so the same arrays always give the same bytes (``np.savez`` stamps the current time).
 * No pickle: arrays are written and read with ``allow_pickle=False``.
@@ -22,16 +27,19 @@ import math
 import os
 import tempfile
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import IO, Any, Protocol
 
 import numpy as np
 
 from canonid.kernel.errors import DataError, OutputError
 
 __all__ = [
+    "atomic_copy",
     "atomic_write_bytes",
+    "atomic_write_figure",
     "atomic_write_json",
     "atomic_write_text",
     "jsonable",
@@ -46,9 +54,72 @@ __all__ = [
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
 
 
-def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bool = True) -> Path:
+def atomic_write_bytes(
+    path: str | os.PathLike[str], data: bytes, *, durable: bool = True, mode: int | None = None
+) -> Path:
     """Write ``data`` to ``path`` atomically (temporary file + rename, fsynced when
-    ``durable``); return the path."""
+    ``durable``); return the path. ``mode``: the new file's permission bits (default what a plain
+    ``open()`` gives, 0666 less the umask)."""
+    with _replacing(path, durable=durable, mode=mode) as fh:
+        fh.write(data)
+    return Path(path)
+
+
+def atomic_copy(
+    source: str | os.PathLike[str], path: str | os.PathLike[str], *, durable: bool = True
+) -> Path:
+    """Copy the bytes of ``source`` to ``path`` atomically (as :func:`atomic_write_bytes`, the
+    new file with the mode a plain ``open()`` gives); return the path. A source that cannot be
+    read raises :class:`OutputError` naming both files and leaves ``path`` as it was."""
+    src, target = Path(source), Path(path)
+    try:
+        reader = open(src, "rb")  # closed by the with below
+    except OSError as exc:
+        raise OutputError(f"cannot copy {src} to {target}: {exc.strerror or exc}") from exc
+    with reader, _replacing(target, durable=durable, mode=None) as fh:
+        while True:
+            try:
+                chunk = reader.read(1 << 20)
+            except OSError as exc:  # names the source; the writer names the target for its own
+                raise OutputError(f"cannot copy {src} to {target}: {exc.strerror or exc}") from exc
+            if not chunk:
+                break
+            fh.write(chunk)
+    return target
+
+
+class Savefig(Protocol):
+    """What :func:`atomic_write_figure` needs of a figure (a matplotlib ``Figure`` has it)."""
+
+    def savefig(self, fname: Any, *, format: str | None = ..., **kwargs: Any) -> Any: ...
+
+
+def atomic_write_figure(
+    path: str | os.PathLike[str],
+    figure: Savefig,
+    *,
+    format: str | None = None,
+    durable: bool = True,
+    **savefig: Any,
+) -> Path:
+    """Render ``figure`` in memory (``figure.savefig(buffer, format=..., **savefig)``) and write
+    the bytes to ``path`` atomically; return the path, exactly as given (matplotlib's own
+    ``savefig(path)`` would follow a symlink planted there and append a suffix to a name
+    without one). ``format`` defaults to the suffix of ``path`` (``png``, ``pdf``, ``svg``)."""
+    target = Path(path)
+    buffer = io.BytesIO()
+    figure.savefig(buffer, format=format or target.suffix.lstrip(".").lower() or None, **savefig)
+    return atomic_write_bytes(target, buffer.getvalue(), durable=durable)
+
+
+@contextmanager
+def _replacing(
+    path: str | os.PathLike[str], *, durable: bool, mode: int | None
+) -> Iterator[IO[bytes]]:
+    """A binary file whose content replaces ``path`` when the block ends without error: a
+    unique temporary file created exclusively beside the target, renamed over it. Any failure
+    leaves the target as it was and no temporary file; an ``OSError`` becomes an
+    :class:`OutputError` naming the target."""
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -56,10 +127,10 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bo
     except OSError as exc:
         raise OutputError(f"cannot write {target}: {exc.strerror or exc}") from exc
     try:
-        # mkstemp creates the file 0600; give it the mode a plain open() would (0666 & ~umask)
-        os.fchmod(fd, 0o666 & ~_umask())
+        # mkstemp creates the file 0600; give it the mode asked for, or what open() would give
+        os.fchmod(fd, 0o666 & ~_umask() if mode is None else mode)
         with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
+            yield fh
             fh.flush()
             if durable:
                 os.fsync(fh.fileno())
@@ -70,7 +141,6 @@ def atomic_write_bytes(path: str | os.PathLike[str], data: bytes, *, durable: bo
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
-    return target
 
 
 def _umask() -> int:
@@ -79,8 +149,10 @@ def _umask() -> int:
     return mask
 
 
-def atomic_write_text(path: str | os.PathLike[str], text: str, *, durable: bool = True) -> Path:
-    return atomic_write_bytes(path, text.encode("utf-8"), durable=durable)
+def atomic_write_text(
+    path: str | os.PathLike[str], text: str, *, durable: bool = True, mode: int | None = None
+) -> Path:
+    return atomic_write_bytes(path, text.encode("utf-8"), durable=durable, mode=mode)
 
 
 def atomic_write_json(path: str | os.PathLike[str], obj: Any, *, durable: bool = True) -> Path:

@@ -19,21 +19,29 @@ import io
 import os
 import pickle
 import zipfile
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from canonid.kernel.errors import CheckpointError, DataError, ShapeError
+from canonid.kernel.errors import CanonidError, CheckpointError, DataError, ShapeError
 from canonid.kernel.io import atomic_write_bytes, atomic_write_json, read_json
 from canonid.kernel.validate import require_finite
 from canonid.learning.data import Normalisation
 from canonid.learning.export import NumpyModel, ReducedNumpyModel
 from canonid.learning.nets import ALL_NETS, ReducedNet, SequenceModel, build_net
 
-__all__ = ["MODEL_FORMAT_VERSION", "Model", "check_same", "load_state", "rollout_physical"]
+__all__ = [
+    "MODEL_FORMAT_VERSION",
+    "Model",
+    "check_architecture",
+    "check_same",
+    "load_state",
+    "read_weights",
+    "rollout_physical",
+]
 
 MODEL_FORMAT_VERSION = 1
 CONFIG_FILE, WEIGHTS_FILE, NORM_FILE = "config.json", "weights.pt", "normalisation.json"
@@ -174,7 +182,7 @@ class Model:
         if not isinstance(config, dict) or config.get("format") != "canonid-model":
             raise CheckpointError(f"{folder / CONFIG_FILE} is not a canonid model configuration")
         name, net_config = config.get("model"), config.get("net")
-        if name not in ALL_NETS or not isinstance(net_config, dict):
+        if not isinstance(name, str) or name not in ALL_NETS or not isinstance(net_config, dict):
             raise CheckpointError(
                 f"{folder / CONFIG_FILE}: field 'model' must be one of {sorted(ALL_NETS)} and "
                 f"'net' an object; got model={name!r}"
@@ -187,8 +195,13 @@ class Model:
             )
         except DataError as exc:
             raise CheckpointError(str(exc)) from exc
+        state = read_weights(folder / WEIGHTS_FILE, map_location=map_location)
+        # the architecture is checked against the weights before anything is allocated
+        check_architecture(
+            name, net_config, state, config=folder / CONFIG_FILE, weights=folder / WEIGHTS_FILE
+        )
         net = build_net(name, **net_config)
-        load_weights(net, folder / WEIGHTS_FILE, map_location=map_location)
+        load_state(net, state, where=str(folder / WEIGHTS_FILE))
         return cls(net, norm, info=config.get("info", {}))
 
 
@@ -229,6 +242,12 @@ def load_weights(
     net: SequenceModel, path: Path, *, map_location: str | torch.device = "cpu"
 ) -> None:
     """Load a ``state_dict`` file into ``net`` (``weights_only=True``), naming any mismatch."""
+    load_state(net, read_weights(path, map_location=map_location), where=str(path))
+
+
+def read_weights(path: Path, *, map_location: str | torch.device = "cpu") -> Any:
+    """The ``state_dict`` saved in ``path``, read with ``weights_only=True`` (tensors, never
+    Python objects); a file that is missing, corrupt or holds NaN raises CheckpointError."""
     if not path.is_file():
         raise CheckpointError(f"weights file not found: {path}")
     if not zipfile.is_zipfile(path):  # torch.save writes a zip archive
@@ -260,7 +279,95 @@ def load_weights(
                 f"weights {path}: tensor(s) {bad[:3]} hold NaN or infinite values (a diverged "
                 "or damaged model)"
             )
-    load_state(net, state, where=str(path))
+    return state
+
+
+def check_architecture(
+    name: str, net_config: Mapping[str, Any], state: Any, *, config: Path, weights: Path
+) -> None:
+    """Refuse, before any network is built for real, a recorded architecture (``config.json``
+    field ``net``) that the weights do not hold.
+
+    Two steps, neither of which allocates what the configuration asks for: every size in
+    ``net`` is bounded by the weights (a list of layers by the number of tensors, a width by the
+    number of values: no layer is wider than all the weights together), so that even the
+    skeleton below stays as small as the file; then the network is built on the ``meta`` device
+    (shapes without memory) and its tensor names and shapes are compared with the weights'.
+    """
+    if not isinstance(state, Mapping):
+        raise CheckpointError(f"{weights}: expected a state_dict, got {type(state).__name__}")
+    tensors = [v for v in state.values() if isinstance(v, torch.Tensor)]
+    n_tensors, n_values = len(tensors), sum(v.numel() for v in tensors)
+    held = f"the weights in {weights} hold"
+    for field, value in _fields(net_config, "net"):
+        if isinstance(value, (list, tuple)) and len(value) > n_tensors:
+            raise CheckpointError(
+                f"{config}: field {field!r} lists {len(value)} layers; {held} only "
+                f"{n_tensors} tensors"
+            )
+        if field.endswith(".num_layers") and isinstance(value, int) and value > n_tensors:
+            raise CheckpointError(
+                f"{config}: field {field!r} = {value}: {held} only {n_tensors} tensors"
+            )
+        # the window of a recurrent model sizes no tensor (only the burn-in it reads)
+        if _is_int(value) and not field.endswith(".window") and value > n_values:
+            raise CheckpointError(
+                f"{config}: field {field!r} = {value} is larger than the {n_values} numbers {held}"
+            )
+    try:
+        with torch.device("meta"):
+            skeleton = build_net(name, **net_config)
+    except (CanonidError, RuntimeError, OverflowError) as exc:  # torch: a negative size, say
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CheckpointError(f"{config}: field 'net' describes no network: {first}") from exc
+    problems = _mismatch(skeleton.state_dict(), state, theirs=weights.name, ours=config.name)
+    if problems:
+        raise CheckpointError(
+            f"{config}: field 'net' ({name!r}, window {skeleton.window}, n_u={skeleton.n_u}, "
+            f"n_y={skeleton.n_y}) is not the network whose weights are in {weights} (weights do "
+            f"not fit: {problems})"
+        )
+
+
+def _fields(value: Any, path: str) -> Iterator[tuple[str, Any]]:
+    """Every value in a JSON tree with its path (``net.hidden``, ``net.hidden[0]``)."""
+    yield path, value
+    if isinstance(value, Mapping):
+        for key, item in value.items():
+            yield from _fields(item, f"{path}.{key}")
+    elif isinstance(value, (list, tuple)):
+        for i, item in enumerate(value):
+            yield from _fields(item, f"{path}[{i}]")
+
+
+def _shape(value: Any) -> str:
+    return str(tuple(value.shape)) if isinstance(value, torch.Tensor) else "(not a tensor)"
+
+
+def _is_int(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _mismatch(
+    own: Mapping[str, torch.Tensor], state: Mapping[str, Any], *, theirs: str, ours: str
+) -> str:
+    """What keeps ``state`` (from ``theirs``) from loading into a network whose ``state_dict``
+    is ``own`` (from ``ours``): missing, unexpected and mis-shaped tensors, or ``""``."""
+    missing = sorted(set(own) - set(state))
+    extra = sorted(set(state) - set(own))
+    shapes = [
+        f"{k} {_shape(state[k])} in {theirs} vs {tuple(own[k].shape)} in {ours}"
+        for k in sorted(set(own) & set(state))
+        if not isinstance(state[k], torch.Tensor) or state[k].shape != own[k].shape
+    ]
+    parts = []
+    if missing:
+        parts.append(f"missing {missing}")
+    if extra:
+        parts.append(f"unexpected {extra}")
+    if shapes:
+        parts.append("shape differs: " + ", ".join(shapes))
+    return "; ".join(parts)
 
 
 def load_state(net: SequenceModel, state: Any, *, where: str) -> None:
@@ -268,24 +375,10 @@ def load_state(net: SequenceModel, state: Any, *, where: str) -> None:
     missing, unexpected and mis-shaped tensors."""
     if not isinstance(state, Mapping):
         raise CheckpointError(f"{where}: expected a state_dict, got {type(state).__name__}")
-    own = net.state_dict()
-    missing = sorted(set(own) - set(state))
-    extra = sorted(set(state) - set(own))
-    shapes = [
-        f"{k} {tuple(state[k].shape)} vs {tuple(own[k].shape)}"
-        for k in sorted(set(own) & set(state))
-        if not isinstance(state[k], torch.Tensor) or state[k].shape != own[k].shape
-    ]
-    if missing or extra or shapes:
-        parts = []
-        if missing:
-            parts.append(f"missing {missing}")
-        if extra:
-            parts.append(f"unexpected {extra}")
-        if shapes:
-            parts.append("shape differs: " + ", ".join(shapes))
+    problems = _mismatch(net.state_dict(), state, theirs="the weights", ours="the model")
+    if problems:
         raise CheckpointError(
             f"{where}: weights do not fit model {net.name!r} (window {net.window}, "
-            f"n_u={net.n_u}, n_y={net.n_y}): " + "; ".join(parts)
+            f"n_u={net.n_u}, n_y={net.n_y}): {problems}"
         )
     net.load_state_dict(state)

@@ -1,7 +1,9 @@
 """Figures of a training run: the training curve and open-loop rollouts against the data.
 
 Both write a PNG and return its path. They draw on a :class:`matplotlib.figure.Figure` of their
-own, so they neither need nor change pyplot's backend and never show windows.
+own, so they neither need nor change pyplot's backend and never show windows; the file is written
+atomically (:func:`canonid.kernel.io.atomic_write_figure`), replacing a symlink planted at its
+name rather than writing through it.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from canonid.kernel.io import atomic_write_figure
 from canonid.learning.data import as_series
 from canonid.learning.evaluate import simulate_records
 from canonid.learning.model import Model
@@ -41,9 +44,7 @@ def plot_training_curve(history: Sequence[Mapping[str, Any]], path: str | os.Pat
         ax2.set_ylabel("training rollout length H (dotted)")
     ax.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=120)
-    return out
+    return atomic_write_figure(path, fig, dpi=120)
 
 
 def plot_rollouts(
@@ -90,6 +91,4 @@ def plot_rollouts(
         fontsize=10,
     )
     fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=120)
-    return out
+    return atomic_write_figure(path, fig, dpi=120)

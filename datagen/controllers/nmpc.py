@@ -368,7 +368,8 @@ class NMPC(Controller):
                 return "fatrop-c", compiled[0], (compiled[1], compiled[2])
             if solver == "fatrop-c":
                 raise ShapeError(
-                    "solver 'fatrop-c' needs a working C compiler (gcc); use solver='fatrop'"
+                    "solver 'fatrop-c' needs a working C compiler (gcc) and a cache folder only "
+                    "you can write (the warning above says which is missing); use solver='fatrop'"
                 )
         return "fatrop", step, loops
 
