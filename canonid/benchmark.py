@@ -17,33 +17,44 @@ How the indices are cut, for a canonical model of window ℓ on a test part of `
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from canonid.datagen.benchmarks import Baseline, Benchmark
+from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
 from canonid.datagen.dataset import Dataset, Trajectory
-from canonid.kernel.io import jsonable
-from canonid.learning import Model
-from canonid.learning.data import as_series
-from canonid.learning.evaluate import simulate_records
-from canonid.learning.training import OptionError
+from canonid.kernel.errors import OptionError, OutputError
+from canonid.kernel.io import atomic_write_json, jsonable
+from canonid.profiles import DEFAULT_PROFILE
+from canonid.training import TrainRequest
+
+if TYPE_CHECKING:
+    from canonid.learning import Model
 
 __all__ = [
+    "BENCHMARKS",
     "BenchmarkReport",
+    "BenchmarkRequest",
     "PartScore",
+    "benchmark_list",
     "check_window",
     "plot_part",
     "report_table",
+    "run_benchmark",
     "score_parts",
 ]
 
 REPORT_FILE = "benchmark.json"
+#: the benchmark as a canonid dataset, the data the run trains on
+DATA_FILE = "benchmark-data.npz"
+#: window when none is given: 10, or n_init when the rule allows fewer measured outputs
+DEFAULT_WINDOW = 10
 #: samples shown in the zoomed panel of a test part's figure
 ZOOM_SAMPLES = 500
 
@@ -110,6 +121,9 @@ def score_parts(
 ) -> tuple[list[PartScore], list[np.ndarray]]:
     """Official scores of ``model`` on every test part of ``dataset`` (see the module
     docstring), with the simulated outputs of samples ``n_init … T−1`` of each part."""
+    from canonid.learning.data import as_series
+    from canonid.learning.evaluate import simulate_records
+
     check_window(model.window, bench)
     parts = dataset.split("test")
     sims = simulate_records(model, as_series(parts, what="test parts"), bench.n_init)
@@ -200,3 +214,101 @@ def report_table(report: BenchmarkReport) -> str:
         else ["published baselines: none entered for this benchmark"]
     )
     return "\n".join([head, *lines, *tail])
+
+
+@dataclass(frozen=True, kw_only=True)
+class BenchmarkRequest:
+    """A benchmark run: train on benchmark ``name``'s official training part (from ``files``,
+    default the package's cache) as ``train`` asks (its data, model, window, profile, folder,
+    seed and threads are the benchmark's: ``None`` here means its default), with the last
+    ``val_fraction`` of every training record validating; score every official test part."""
+
+    name: str
+    files: Path | None = None
+    model: str = "mlp"
+    window: int | str | None = None
+    profile: str = DEFAULT_PROFILE
+    out: Path | None = None
+    seed: int | None = None
+    threads: int | None = None
+    val_fraction: float = 0.2
+    train: TrainRequest = field(default_factory=TrainRequest)
+
+
+def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
+    """Train and score ``request`` (see :class:`BenchmarkRequest`); write the run folder with
+    ``benchmark-data.npz``, ``benchmark.json`` and a figure per test part; return the report and
+    the folder."""
+    from canonid.datagen.benchmarks import benchmark, load_benchmark
+    from canonid.datagen.loaders import split_train_val
+    from canonid.learning import Model
+    from canonid.learning.training import CHECKPOINT_FILE
+    from canonid.training import train
+
+    bench = benchmark(request.name)
+    window = request.window if request.window is not None else min(DEFAULT_WINDOW, bench.n_init)
+    if isinstance(window, int):
+        check_window(window, bench)
+    run_dir = request.out or Path("runs") / f"{bench.name}-{request.model}"
+    if (run_dir / CHECKPOINT_FILE).exists():
+        raise OutputError(f"{run_dir} already holds a training run; choose another --out")
+    wanted = dataclasses.replace(
+        request.train,
+        data=str(run_dir / DATA_FILE),
+        model=request.model,
+        window=window,
+        profile=request.profile,
+        out=run_dir,
+        seed=request.seed,
+        threads=request.threads,
+    )
+    dataset = load_benchmark(bench.name, request.files)
+    split = split_train_val(dataset, val_fraction=request.val_fraction, record_tails=True)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    split.save(run_dir / DATA_FILE)
+    train(wanted)
+
+    model = Model.load(run_dir)
+    scores, sims = score_parts(model, split, bench)
+    report = BenchmarkReport(
+        benchmark=bench.name,
+        title=bench.title,
+        definition=str(split.metadata["definition"]),
+        files=list(split.metadata["files"]),
+        model=request.model,
+        window=model.window,
+        profile=request.profile,
+        validation=str(split.metadata["validation_split"]),
+        scores=scores,
+        baselines=list(bench.baselines),
+        rule=RULE,
+    )
+    for part, sim, score in zip(split.split("test"), sims, scores, strict=True):
+        plot_part(
+            run_dir / f"benchmark-{score.test}.png",
+            part,
+            sim,
+            bench=bench,
+            dt=split.dt,
+            score=score,
+            model_label=f"{model.name} ℓ = {model.window}",
+        )
+    atomic_write_json(run_dir / REPORT_FILE, report.to_json())
+    return report, run_dir
+
+
+def benchmark_list(files: Path | None) -> str:
+    """The benchmarks, their official rule and where their files are (or where to get them)."""
+    from canonid.datagen.benchmarks import find_files
+
+    lines = []
+    for bench in BENCHMARKS.values():
+        lines.append(
+            f"{bench.name}: {bench.title}; n_init = {bench.n_init}; scored in "
+            f"{bench.score_units}; test parts: {', '.join(bench.test_parts)}"
+        )
+        for file, path in find_files(bench, files).items():
+            alt = f" (or {', '.join(bench.csv)})" if bench.csv else ""
+            where = f"found: {path}" if path else f"missing; download from {bench.page}"
+            lines.append(f"  {bench.folder}/{file}{alt}: {where}")
+    return "\n".join(lines)

@@ -10,7 +10,8 @@ raised once and shows the progress.
 
 :class:`StoredJob` stores its result in ``folder/result.json`` (:func:`store`), written last and
 atomically (so a file that exists is complete); a ``result.json`` of another recipe is an error:
-the folder belongs to another run.
+the folder belongs to another run. :func:`check_folder` refuses an output folder that a file
+stands in the way of, before any job runs.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
-from canonid.kernel.errors import CheckpointError
+from canonid.kernel.errors import CheckpointError, OutputError
 from canonid.kernel.io import atomic_write_json, jsonable, read_json
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "Job",
     "JobOutcome",
     "StoredJob",
+    "check_folder",
     "finished",
     "run_job",
     "store",
@@ -181,3 +183,15 @@ class StoredJob(Job[JobOutcome]):
 def run_job(job: Job[R]) -> R:
     """Run one job (the function :func:`canonid.runner.run_jobs` sends to workers)."""
     return job.run()
+
+
+def check_folder(path: Path, *, flag: str = "--out") -> Path:
+    """``path`` if it is a folder or can become one; else :class:`OutputError` naming the file
+    in the way (``path`` itself or one of its parents), checked before any work is done."""
+    for part in (path, *path.parents):
+        if part.exists():
+            if not part.is_dir():
+                what = "is a file" if part == path else f"lies below the file {part}"
+                raise OutputError(f"{flag} {path} {what}; expected a folder")
+            break
+    return path

@@ -1,4 +1,5 @@
-"""A run folder's trained model as a CasADi system, with its sets from the run's training data.
+"""A run folder's trained model as a CasADi system, with its sets from the run's training data;
+the checks of learned models against an analysis; the export of ``canonid export``.
 
 ``learned_system(RUN)`` reads the model of ``RUN`` (``canonid.learning.Model.load``), exports its
 weights (``NumpyModel.network()``: Ours (MLP), Ours (GRU) and their reduced models) and builds a
@@ -14,18 +15,23 @@ weights (``NumpyModel.network()``: Ours (MLP), Ours (GRU) and their reduced mode
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from canonid.datagen.loaders import is_dataset
-from canonid.kernel.errors import DataError
+from canonid.kernel.errors import DataError, SetError
+from canonid.kernel.io import atomic_write_json
 from canonid.learning import Model
 from canonid.models.learned import LearnedSystem
 from canonid.models.sets import Box
-from canonid.runfolder import RUN_FILE, load, load_splits, recipe_of
+from canonid.runfolder import RUN_FILE, load, load_splits, pick_split, recipe_of
 
-__all__ = ["LearnedRun", "learned_system"]
+if TYPE_CHECKING:
+    from canonid.analysis.report import AnalysisReport, LearnedChecks
+
+__all__ = ["LearnedRun", "encoder_path", "export_casadi", "learned_checks", "learned_system"]
 
 
 @dataclass(frozen=True)
@@ -84,3 +90,75 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
         name=f"learned:{run_dir.name}",
     )
     return LearnedRun(run=run_dir, model=model, system=system, dataset=dataset, train=train)
+
+
+def learned_checks(
+    report: AnalysisReport,
+    models: Sequence[Any],
+    dataset: Any,
+    *,
+    split: str | None = None,
+    where: str = "data",
+) -> LearnedChecks:
+    """The checks of the exported ``models`` (``H(z, u)``, ``window``) with the certified
+    constants of ``report`` (:meth:`~canonid.analysis.report.AnalysisReport.learned_checks`) on
+    split ``split`` of ``dataset`` (default ``test``, else its only split), its ``train`` split
+    feeding the state probe: what ``canonid analyze --run`` and ``canonid reproduce`` record."""
+    covered = {r.window for r in report.results}
+    for model in models:
+        if int(model.window) not in covered:
+            raise SetError(
+                f"the model has window ℓ = {int(model.window)}, which the analysis did not cover"
+            )
+    _, test = pick_split(dataset, split, where=where)
+    return report.learned_checks(list(models), list(dataset.splits.get("train", ())), test)
+
+
+def encoder_path(path: Path) -> Path:
+    """Where the encoder of a reduced model is written beside ``path``."""
+    return path.with_name(f"{path.stem}.encoder.casadi")
+
+
+def export_casadi(
+    run_dir: Path, target: Path, *, data: Path | None = None
+) -> tuple[str, list[Path]]:
+    """Write the canonical model of ``run_dir`` as the ``casadi.Function`` ``target`` (and the
+    encoder of a reduced model beside it) and its description ``target.json``; the sets come
+    from ``data`` (default: the run's training data). Returns a one-line description of the
+    model and the files written."""
+    from canonid.models.learned import model_function, save_function
+
+    if target.suffix != ".casadi":
+        raise DataError(f"--casadi: expected a file name ending in .casadi, got {target}")
+    if target.is_dir():
+        raise DataError(f"--casadi: {target} is a folder, expected a file name")
+    learned = learned_system(run_dir, data=data)
+    system = learned.system
+    fun = model_function(system)
+    files = [save_function(fun, target)]
+    reduced = system.reduced
+    if reduced:
+        files.append(save_function(system.encoder, encoder_path(target)))
+    description = {
+        "format": "canonid-casadi-model",
+        "run": str(run_dir),
+        "model": learned.model.name,
+        "function": {
+            "name": fun.name(),
+            "inputs": {"x": system.n_x, "u": system.n_u},
+            "outputs": {"x_next": system.n_x, "y": system.n_y},
+        },
+        "state": (
+            "reduced state x̄ = E(z_t): run the encoder file on the measured window z_t"
+            if reduced
+            else "canonical window z_t = (u[t-ℓ], y[t-ℓ], …, u[t-1], y[t-1]), oldest first"
+        ),
+        "window": system.regressor.window,
+        **system.describe(),
+    }
+    files.append(atomic_write_json(target.with_name(target.name + ".json"), description))
+    summary = (
+        f"{learned.model.name} model of {run_dir}: {system.n_x} states, {system.n_u} "
+        f"input(s), {system.n_y} output(s), dt = {system.dt:g} s"
+    )
+    return summary, files

@@ -35,12 +35,16 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import functools
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from canonid.learning.reduction import ReductionOptions
-from canonid.learning.training import OptionError, TrainOptions
+from canonid.kernel.errors import OptionError
+
+if TYPE_CHECKING:  # torch: the option types load when a profile is typed, not for --help
+    from canonid.learning.reduction import ReductionOptions
+    from canonid.learning.training import TrainOptions
 
 __all__ = [
     "DEFAULT_PROFILE",
@@ -318,7 +322,12 @@ def _refuse_unknown(data: Mapping[str, Any], known: set[str] | frozenset[str], w
         raise OptionError(f"{where}: unknown key(s) {unknown}; known: {sorted(known)}")
 
 
-_TRAIN_KEYS = frozenset(f.name for f in dataclasses.fields(TrainOptions))
+@functools.cache
+def _train_keys() -> frozenset[str]:
+    """The fields of :class:`TrainOptions`: the keys a ``train`` mapping may hold."""
+    from canonid.learning.training import TrainOptions
+
+    return frozenset(f.name for f in dataclasses.fields(TrainOptions))
 
 
 @dataclass(frozen=True)
@@ -331,11 +340,14 @@ class ReduceStage:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str) -> ReduceStage:
         """Split one mapping into the two option sets; an unknown key is refused by name."""
+        from canonid.learning.reduction import ReductionOptions
+        from canonid.learning.training import TrainOptions
+
         reduction_keys = {f.name for f in dataclasses.fields(ReductionOptions)}
-        _refuse_unknown(data, _TRAIN_KEYS | reduction_keys, where)
+        _refuse_unknown(data, _train_keys() | reduction_keys, where)
         return cls(
-            TrainOptions.from_dict({k: v for k, v in data.items() if k in _TRAIN_KEYS}),
-            ReductionOptions.from_dict({k: v for k, v in data.items() if k not in _TRAIN_KEYS}),
+            TrainOptions.from_dict({k: v for k, v in data.items() if k in _train_keys()}),
+            ReductionOptions.from_dict({k: v for k, v in data.items() if k not in _train_keys()}),
         )
 
 
@@ -375,10 +387,10 @@ class ReproduceStage:
         ):
             _refuse_unknown(data.get(key, {}), keys, f"{where}.{key}")
         train = dict(data.get("train", {}))
-        _refuse_unknown(train, _TRAIN_KEYS | {"per_model", "per_system"}, f"{where}.train")
+        _refuse_unknown(train, _train_keys() | {"per_model", "per_system"}, f"{where}.train")
         for group in ("per_model", "per_system"):
             for name, overrides in train.get(group, {}).items():
-                _refuse_unknown(overrides, _TRAIN_KEYS, f"{where}.train.{group}.{name}")
+                _refuse_unknown(overrides, _train_keys(), f"{where}.train.{group}.{name}")
         body = copy.deepcopy(dict(data))
         for key in ("systems", "windows", "models"):
             body[key] = tuple(body[key])
@@ -397,6 +409,8 @@ class Profile:
 
     @classmethod
     def from_dict(cls, name: str, data: Mapping[str, Any]) -> Profile:
+        from canonid.learning.training import TrainOptions
+
         where = f"profile {name!r}"
         _refuse_unknown(data, {"train", "reduce", "reproduce"}, where)
         try:
@@ -440,6 +454,8 @@ def stage_train_options(name: str, overrides: Mapping[str, Any]) -> TrainOptions
     """The ``train`` stage of profile ``name`` with ``overrides`` applied as given: unlike
     :func:`train_options`, where ``None`` means "not given", ``None`` here switches an option
     off (a reproduce stage's ``grad_clip: None``, a study's column without clipping)."""
+    from canonid.learning.training import TrainOptions
+
     opts = profile(name)["train"]
     opts.update(overrides)
     return TrainOptions.from_dict(opts)
@@ -449,9 +465,12 @@ def reduce_options(name: str, **overrides: Any) -> tuple[TrainOptions, Reduction
     """The ``reduce`` stage of profile ``name``, split into the auto-encoder's
     :class:`TrainOptions` and :class:`ReductionOptions`, with ``overrides`` (``None`` values
     are ignored) applied to either; an unknown key raises :class:`OptionError`."""
+    from canonid.learning.reduction import ReductionOptions
+    from canonid.learning.training import TrainOptions
+
     opts = profile(name)["reduce"]
     opts.update({k: v for k, v in overrides.items() if v is not None})
-    train_keys = set(TrainOptions.__dataclass_fields__)
+    train_keys = _train_keys()
     return (
         TrainOptions.from_dict({k: v for k, v in opts.items() if k in train_keys}),
         ReductionOptions.from_dict({k: v for k, v in opts.items() if k not in train_keys}),

@@ -41,7 +41,7 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from canonid.jobs import Job
+from canonid.jobs import Job, check_folder
 from canonid.kernel.errors import CheckpointError, DataError
 from canonid.kernel.io import atomic_write_json, read_json
 from canonid.learning import EpochReport, Model, evaluate
@@ -58,6 +58,7 @@ from canonid.learning.reduction import (
 from canonid.learning.training import CHECKPOINT_FILE, TrainOptions
 from canonid.profiles import reduce_options
 from canonid.runfolder import (
+    METRICS_FILE,
     Recipe,
     ReductionRecipe,
     eval_defaults,
@@ -68,7 +69,7 @@ from canonid.runfolder import (
     recipe_of,
     write_history,
 )
-from canonid.runner import run_jobs
+from canonid.runner import EpochBar, run_jobs
 
 __all__ = [
     "DEFAULT_RATES",
@@ -79,6 +80,7 @@ __all__ = [
     "SweepResult",
     "compression_sweep",
     "rate_label",
+    "reduce_one",
     "reduce_run",
     "run_reduction_job",
 ]
@@ -214,6 +216,25 @@ class ReductionResult:
     def to_dict(self) -> dict[str, Any]:
         return {"format": "canonid-reduction", **dataclasses.asdict(self)}
 
+    def summary(self) -> str:
+        """What ``canonid reduce --compression`` prints: the reduction, the scores of the
+        reduced and the full model, the reduced run's metrics table and where it is."""
+        from canonid.scoring import metrics_table
+
+        return "\n".join(
+            [
+                f"{self.model} (ℓ = {self.window}) reduced at r = {self.compression:.0%}: "
+                f"n̄ = {self.latent_dim} of dim z = {self.state_dim}; {self.stopped} after "
+                f"{self.epochs_run} epochs (best at {self.best_epoch})",
+                f"{self.rollout_horizon}-step rollout MSE on the {self.split} split: reduced "
+                f"{self.rollout_mse:.4g}, full {self.full_rollout_mse:.4g} (ratio "
+                f"{self.ratio:.3g}); reconstruction MSE {self.reconstruction_mse:.3g} "
+                "(normalised)",
+                metrics_table(read_json(Path(self.out) / METRICS_FILE, what="metrics")),
+                f"run written to {self.out}",
+            ]
+        )
+
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str) -> ReductionResult:
         fields = dataclasses.fields(cls)
@@ -228,6 +249,33 @@ def _load_source(source: Path) -> tuple[Model, Recipe]:
     model = Model.load(source)
     check_reducible(model.name)
     return model, recipe
+
+
+def reduce_one(job: ReductionJob, *, progress: bool = True) -> ReductionResult:
+    """:func:`reduce_run` into a checked output folder, with a progress bar over its epochs
+    (``progress``) that names the phase: ``Ĥ`` frozen, then fine-tuned."""
+    check_folder(Path(job.out))
+    train_opts, red_opts = reduce_options(
+        job.profile, epochs=job.epochs, linear_skip=job.linear_skip
+    )
+    frozen = red_opts.frozen_epochs(train_opts.epochs)
+    bar = EpochBar("reduce", enabled=progress)
+
+    def show(report: EpochReport) -> None:
+        phase = "Ĥ frozen" if report.epoch <= frozen else "Ĥ fine-tuned"
+        val = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
+        recon = report.parts.get("reconstruction", float("nan"))
+        bar.show(
+            report.epoch,
+            report.epochs,
+            f"{phase}, H={report.horizon}, recon={recon:.3g}, val rollout={val} "
+            f"(best {report.best_val_loss:.3g} at {report.best_epoch})",
+        )
+
+    try:
+        return reduce_run(job, callback=show)
+    finally:
+        bar.close()
 
 
 def reduce_run(
@@ -476,7 +524,7 @@ def compression_sweep(
     ``scheduler``, ``progress`` are its options) and write ``sweep.json`` and the two figures
     into ``plan.out`` (see the module docstring)."""
     jobs = plan.jobs()
-    folder = Path(plan.out)
+    folder = check_folder(Path(plan.out))
     folder.mkdir(parents=True, exist_ok=True)
     results = run_jobs(
         run_reduction_job,

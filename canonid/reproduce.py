@@ -56,15 +56,16 @@ from typing import Any
 
 import numpy as np
 
+from canonid import learned
 from canonid.analysis.report import AnalysisReport
 from canonid.datagen.dataset import Dataset
 from canonid.datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
 from canonid.datagen.scenarios import scenario_names
-from canonid.kernel.errors import CheckpointError, DataError
+from canonid.jobs import check_folder
+from canonid.kernel.errors import CheckpointError, DataError, OptionError
 from canonid.kernel.io import atomic_write_json, jsonable, read_json
 from canonid.learning import Model, model_names
 from canonid.learning.presets import net_options
-from canonid.learning.training import OptionError
 from canonid.paper import table1_value
 from canonid.profiles import load_profile, stage_train_options
 from canonid.profiles import profile as profile_stages
@@ -442,6 +443,7 @@ class Reproduction:
 
 
 def _check_out(settings: ReproduceSettings) -> None:
+    check_folder(settings.out)
     started = [settings.out / name for name in (SUMMARY_FILE, "runs", "analysis")]
     if not settings.resume and any(path.exists() for path in started):
         raise CheckpointError(
@@ -582,11 +584,9 @@ def learned_checks(
             and o.recipe["seed"] == 0
             and o.recipe["window"] in windows
         ]
-        checks = report.learned_checks(
-            [Model.load(o.folder).export() for o in runs],
-            list(dataset.split("train")),
-            list(dataset.split("test")),
-        )
+        models = [Model.load(o.folder).export() for o in runs]
+        where = str(datasets[system].path)
+        checks = learned.learned_checks(report, models, dataset, split="test", where=where)
         residuals = [
             {
                 "model": o.recipe["model"],

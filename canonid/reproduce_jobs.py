@@ -18,7 +18,8 @@ from typing import Any, ClassVar
 from canonid.analysis.estimate import Budget
 from canonid.analysis.report import analyze
 from canonid.jobs import RESULT_FILE, JobOutcome, StoredJob, finished, run_job, store
-from canonid.learning.training import CHECKPOINT_FILE, OptionError
+from canonid.kernel.errors import OptionError
+from canonid.learning.training import CHECKPOINT_FILE
 from canonid.models.registry import get_system
 from canonid.models.sets import Box
 from canonid.runfolder import RunRecipe, train_run

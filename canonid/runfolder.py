@@ -32,6 +32,7 @@ from canonid.datagen.loaders import is_dataset, load_data, split_train_val
 from canonid.kernel.errors import CheckpointError, DataError
 from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, evaluate, fit
+from canonid.learning.evaluate import default_n_init
 from canonid.learning.plots import plot_rollouts, plot_training_curve
 from canonid.learning.training import CHECKPOINT_FILE
 
@@ -463,11 +464,10 @@ def evaluate_run(
 ) -> RunEvaluation:
     """Score ``model`` on ``dataset``; write metrics.json and rollouts.png to ``run_dir``."""
     name, trajs = pick_split(dataset, split, where=data_path)
-    ell, longest = model.window, max(tr.T for tr in trajs)
-    if n_init is None and "n_init" in dataset.metadata:
-        n_init = max(int(dataset.metadata["n_init"]), ell)
-    elif n_init is None:
-        n_init = max(ell, min(50, longest - 1))
+    if n_init is None:
+        n_init = default_n_init(
+            model.window, [tr.T for tr in trajs], dataset.metadata.get("n_init")
+        )
     ev = evaluate(
         model,
         trajs,

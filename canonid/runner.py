@@ -43,6 +43,7 @@ import logging
 import pickle
 import signal
 import socket
+import sys
 import threading
 import traceback
 import warnings
@@ -55,7 +56,14 @@ from tqdm.auto import tqdm
 
 from canonid.kernel.errors import CanonidError
 
-__all__ = ["LOCAL_CLUSTER_CONFIG", "FailedJob", "JobsFailedError", "RunnerError", "run_jobs"]
+__all__ = [
+    "LOCAL_CLUSTER_CONFIG",
+    "EpochBar",
+    "FailedJob",
+    "JobsFailedError",
+    "RunnerError",
+    "run_jobs",
+]
 
 log = logging.getLogger(__name__)
 
@@ -381,3 +389,26 @@ def _failure(position: int, job: Any, exc: BaseException, text: str) -> FailedJo
     return FailedJob(
         position=position, job=str(name), error=f"{type(exc).__name__}: {exc}", traceback=text
     )
+
+
+class EpochBar:
+    """A progress bar over the epochs of one training, created at the first :meth:`show` (never
+    when disabled), so that an error raised before any work is done prints alone, as one line."""
+
+    def __init__(self, desc: str, *, enabled: bool, **options: Any) -> None:
+        self.desc, self.enabled, self.options = desc, enabled, options
+        self._bar: Any = None
+
+    def show(self, epoch: int, total: int, postfix: str) -> None:
+        if not self.enabled:
+            return
+        if self._bar is None:
+            self._bar = tqdm(
+                total=total, desc=self.desc, unit="epoch", file=sys.stderr, **self.options
+            )
+        self._bar.n = epoch
+        self._bar.set_postfix_str(postfix)
+
+    def close(self) -> None:
+        if self._bar is not None:
+            self._bar.close()

@@ -1,14 +1,15 @@
 """Selection on validation: ``canonid train … --window auto`` (and ``--hidden auto``).
 
-Every candidate — a window ℓ of :data:`WINDOW_CANDIDATES` that the data allow, times a width of
-:data:`WIDTH_CANDIDATES` with ``--hidden auto`` — is one :class:`CandidateJob`: a ``canonid
-train`` run folder ``RUN/candidates/<name>`` trained with the same options and seed, run through
-:func:`canonid.runner.run_jobs` (serially, on local processes or on a Dask cluster). The
-candidate with the lowest best validation loss (normalised output-error rollouts on the
-validation split; the test split plays no part) is chosen and its run becomes the run folder's
-model: its ``run.json``, model files, history, metrics and figures are copied into ``RUN``, so
-``canonid evaluate RUN``, ``canonid analyze --run RUN`` and ``canonid export RUN`` read it. The
-table of candidates is ``RUN/candidates.json`` (:class:`Selection`) and ``RUN/candidates.md``.
+Every candidate — a window ℓ of :data:`canonid.training.WINDOW_CANDIDATES` that the data allow,
+times a width of :data:`canonid.training.WIDTH_CANDIDATES` with ``--hidden auto`` — is one
+:class:`CandidateJob`: a ``canonid train`` run folder ``RUN/candidates/<name>`` trained with the
+same options and seed, run through :func:`canonid.runner.run_jobs` (serially, on local processes or
+on a Dask cluster). The candidate with the lowest best validation loss (normalised output-error
+rollouts on the validation split; the test split plays no part) is chosen and its run becomes the
+run folder's model: its ``run.json``, model files, history, metrics and figures are copied into
+``RUN``, so ``canonid evaluate RUN``, ``canonid analyze --run RUN`` and ``canonid export RUN`` read
+it. The table of candidates is ``RUN/candidates.json`` (:class:`Selection`) and
+``RUN/candidates.md``.
 
 A candidate whose folder holds a finished ``result.json`` of the same recipe (the data by
 checksum, not by path) is not trained again, and one with a checkpoint continues from it:
@@ -27,10 +28,10 @@ from typing import Any, ClassVar
 
 from canonid.datagen.loaders import data_checksum
 from canonid.jobs import StoredJob, run_job
-from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.errors import CheckpointError, DataError, OptionError
 from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
 from canonid.learning import NETS
-from canonid.learning.training import CHECKPOINT_FILE, OptionError
+from canonid.learning.training import CHECKPOINT_FILE
 from canonid.runfolder import (
     HISTORY_FILE,
     METRICS_FILE,
@@ -44,8 +45,6 @@ from canonid.runner import run_jobs
 __all__ = [
     "CANDIDATES_DIR",
     "CANDIDATES_FILE",
-    "WIDTH_CANDIDATES",
-    "WINDOW_CANDIDATES",
     "Candidate",
     "CandidateJob",
     "Selection",
@@ -54,10 +53,6 @@ __all__ = [
     "select",
 ]
 
-#: the windows ℓ that ``--window auto`` tries (those the data allow)
-WINDOW_CANDIDATES = (2, 5, 10, 20)
-#: the hidden widths that ``--hidden auto`` tries (three layers, up to the default 256)
-WIDTH_CANDIDATES = ((64, 64, 64), (128, 128, 128), (256, 256, 256))
 CANDIDATES_FILE = "candidates.json"
 CANDIDATES_TABLE = "candidates.md"
 CANDIDATES_DIR = "candidates"

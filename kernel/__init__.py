@@ -15,6 +15,7 @@ _EXPORTS = {
     "CanonidError": "canonid.kernel.errors",
     "CheckpointError": "canonid.kernel.errors",
     "DataError": "canonid.kernel.errors",
+    "OptionError": "canonid.kernel.errors",
     "OutputError": "canonid.kernel.errors",
     "SetError": "canonid.kernel.errors",
     "ShapeError": "canonid.kernel.errors",

@@ -11,6 +11,7 @@ __all__ = [
     "CanonidError",
     "CheckpointError",
     "DataError",
+    "OptionError",
     "OutputError",
     "SetError",
     "ShapeError",
@@ -39,6 +40,11 @@ class UnknownSystemError(CanonidError, KeyError):
 
 class DataError(CanonidError, ValueError):
     """A data file or dataset is missing, corrupt, truncated or inconsistent."""
+
+
+class OptionError(CanonidError, ValueError):
+    """An option out of range or of the wrong kind: a command-line flag, a function's keyword, a
+    profile's key, or a device that is not available."""
 
 
 class CheckpointError(CanonidError, ValueError):

@@ -19,7 +19,10 @@ use samples ``n_init … T−1`` of every record (concatenated), which the model
 Per output: ``RMSE``, ``NRMSE = RMSE / std(target)`` and ``fit% = 100 (1 − ‖e‖ / ‖target −
 mean(target)‖)`` over those samples; overall: ``rmse`` = square root of the mean over outputs of
 the per-output MSE, ``nrmse`` and ``fit_percent`` = means of the per-output values.
-``n_init`` defaults to ``max(ℓ, 50)``.
+``n_init`` defaults to :func:`default_n_init`, the one rule of the library and of ``canonid
+evaluate``: ``max(ℓ, min(50, T_max − 1))`` for records of at most ``T_max`` samples (50, less on
+short records so that the longest keeps a scored sample, never less than ℓ), or ``max(ℓ, n)``
+for data that name their own ``n`` (a benchmark's official rule, ``metadata["n_init"]``).
 """
 
 from __future__ import annotations
@@ -36,7 +39,19 @@ from canonid.kernel.io import jsonable
 from canonid.learning.data import Series, as_series
 from canonid.learning.model import Model
 
-__all__ = ["Evaluation", "Scores", "evaluate", "simulate_records"]
+__all__ = ["Evaluation", "Scores", "default_n_init", "evaluate", "simulate_records"]
+
+#: samples of initialisation of the simulation scores when the records are long enough
+N_INIT = 50
+
+
+def default_n_init(window: int, lengths: Sequence[int], data_n_init: int | None = None) -> int:
+    """The samples reserved for initialisation when none are asked for: ``max(ℓ, data_n_init)``
+    when the data name their own (a benchmark's rule), else ``max(ℓ, min(50, T_max − 1))`` with
+    ``T_max`` the longest of ``lengths``."""
+    if data_n_init is not None:
+        return max(int(data_n_init), window)
+    return max(window, min(N_INIT, max(lengths, default=0) - 1))
 
 
 @dataclass(frozen=True)
@@ -237,7 +252,7 @@ def evaluate(
         horizon: ``H`` of the paper metric (paper: 100).
         stride: stride of the rollout start times.
         n_init: samples reserved for initialisation in the simulation scores (default
-            ``max(ℓ, 50)``; must be ≥ ℓ).
+            :func:`default_n_init`; must be ≥ ℓ).
         output_names: labels for the per-output lists (default ``y1, y2, …``).
     """
     series = as_series(data, what="test data")
@@ -249,7 +264,7 @@ def evaluate(
         )
     if isinstance(horizon, bool) or horizon < 1 or stride < 1:
         raise ShapeError(f"horizon and stride must be >= 1, got {horizon} and {stride}")
-    n_init = max(ell, 50) if n_init is None else int(n_init)
+    n_init = default_n_init(ell, [tr.T for tr in series]) if n_init is None else int(n_init)
     if n_init < ell:
         raise ShapeError(f"n_init = {n_init} must be at least the window ℓ = {ell}")
     records = [tr for tr in series if tr.T > n_init]

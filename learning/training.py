@@ -67,7 +67,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from canonid.kernel.errors import CanonidError, CheckpointError, ShapeError
+from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
 from canonid.learning.data import Normalisation, Series, WindowBank, as_series
 from canonid.learning.linear import initialise_linear
@@ -96,10 +96,6 @@ CHECKPOINT_VERSION = 1
 RESUMABLE_CHANGES = frozenset({"epochs", "patience", "checkpoint_every", "device"})
 #: non-finite batches recovered from (best weights back, learning rate halved) before a run stops
 MAX_RECOVERIES = 5
-
-
-class OptionError(CanonidError, ValueError):
-    """A training option is out of range, or the requested device is not available."""
 
 
 @dataclass(frozen=True)

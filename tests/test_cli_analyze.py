@@ -11,11 +11,11 @@ import pytest
 
 from canonid.analysis.linear import canonical_regressor
 from canonid.cli import main
-from canonid.commands.analyze import parse_box, parse_windows
 from canonid.datagen.dataset import Dataset, Trajectory
-from canonid.kernel.errors import SetError
+from canonid.kernel.errors import OptionError
 from canonid.models.registry import get_system
 from canonid.runfolder import RunRecipe
+from canonid.theory import parse_box, parse_windows
 
 TANK_SETS = ["--X", "0.05:5,0.05:5", "--U", "1:3"]
 
@@ -161,7 +161,7 @@ def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, m
 def test_window_parsing():
     assert parse_windows("1-4") == [1, 2, 3, 4]
     assert parse_windows("2,5,10") == [2, 5, 10]
-    with pytest.raises(SetError):
+    with pytest.raises(OptionError):
         parse_windows("a-b")
 
 

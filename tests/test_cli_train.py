@@ -233,3 +233,25 @@ def test_windows_per_epoch_is_kept_by_the_run_and_fixed_on_resume(dataset_path, 
     recipe = json.loads((run / "run.json").read_text())
     assert recipe["train_options"]["device"] == "cpu"
     assert len((run / "history.csv").read_text().splitlines()) == before + 1
+
+
+def test_evaluate_on_the_command_line_and_in_python_score_alike(dataset_path, tmp_path, capsys):
+    """One n_init rule (canonid.learning.evaluate.default_n_init): on records of 40 samples
+    `canonid evaluate` and `canonid.evaluate` both start the simulation scores at sample 39
+    (max(ℓ, min(50, T − 1))) and give the same numbers."""
+    import canonid
+    from canonid.datagen.dataset import Dataset
+
+    run = tmp_path / "run"
+    common = ["--window", "3", "--epochs", "1", "--device", "cpu", "--no-progress"]
+    assert main(["train", str(dataset_path), *common, "--out", str(run)]) == 0
+    short = Dataset.load(siso_dataset_file(tmp_path / "short", T=40))
+    assert main(["evaluate", str(run), "--data", str(tmp_path / "short" / "dataset.npz")]) == 0
+    capsys.readouterr()
+    cli = json.loads((run / "metrics.json").read_text())
+    library = canonid.evaluate(
+        canonid.Model.load(run), short.split("test"), horizon=cli["rollout_horizon"]
+    ).to_json()
+    assert cli["n_init"] == library["n_init"] == 39
+    for key in KEYS:
+        assert cli[key] == library[key] and cli["clean"][key] == library["clean"][key]

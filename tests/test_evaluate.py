@@ -143,7 +143,7 @@ def test_a_simulation_that_blows_up_is_written_null_and_flagged(records, capsys)
     """JSON has no inf or NaN: such scores are null, ``finite`` says so, and the table warns."""
     import json
 
-    from canonid.commands.evaluate import table
+    from canonid.scoring import metrics_table as table
 
     ell = 3
     fine = evaluate(EchoModel(ell), records, horizon=20, stride=5, n_init=10)

@@ -195,6 +195,73 @@ def test_only_the_command_line_imports_the_commands():
     assert not offenders, offenders
 
 
+#: what the commands may import: the standard library's argument and text helpers, the
+#: commands' own helpers, the kernel, and the application modules they call (never a library
+#: layer — canonid.learning, datagen, analysis, models — directly)
+COMMAND_IMPORTS = {
+    "__future__",
+    "argparse",
+    "importlib",
+    "logging",
+    "os",
+    "shlex",
+    "sys",
+    "collections.abc",
+    "dataclasses",
+    "pathlib",
+    "types",
+    "typing",
+}
+COMMAND_APPLICATION = {
+    "canonid",
+    "canonid.benchmark",
+    "canonid.generation",
+    "canonid.learned",
+    "canonid.profiles",
+    "canonid.reduction",
+    "canonid.reproduce",
+    "canonid.scoring",
+    "canonid.systems",
+    "canonid.theory",
+    "canonid.training",
+}
+
+
+def test_the_commands_import_only_the_application_and_the_kernel():
+    offenders = [
+        f"{module} imports {target}"
+        for module, path in MODULES.items()
+        if module.startswith("canonid.commands") or module == "canonid.cli"
+        for target, _ in _imports(path)
+        if target not in COMMAND_IMPORTS
+        and target not in COMMAND_APPLICATION
+        and not target.startswith(("canonid.commands", "canonid.kernel"))
+    ]
+    assert not offenders, offenders
+
+
+@pytest.mark.parametrize(
+    "command", ["systems", "train", "evaluate", "analyze", "reduce", "export", "reproduce"]
+)
+def test_help_imports_neither_torch_nor_casadi(command):
+    """``canonid COMMAND --help`` builds the parser only: no torch, CasADi or matplotlib
+    (generate and benchmark list their systems and benchmarks from datagen, which imports
+    CasADi until its package loads lazily)."""
+    code = (
+        "import sys\n"
+        "from canonid.cli import main\n"
+        "try:\n"
+        f"    main([{command!r}, '--help'])\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "print(sorted({'torch', 'casadi', 'matplotlib'} & set(sys.modules)))\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT
+    ).stdout
+    assert out.strip().splitlines()[-1] == "[]"
+
+
 def test_no_private_name_of_another_package_is_imported():
     offenders = [
         f"{module} imports {target}.{name}"
@@ -298,3 +365,15 @@ def test_one_job_abstraction():
         and 'RESULT_FILE = "' in path.read_text(encoding="utf-8")
     ]
     assert not writers, writers
+
+
+def test_the_catalog_names_what_the_networks_know():
+    """The plain-data names in canonid.kernel.catalog (what --help shows without torch) are
+    the registry's models, the MLPs' activations and the affine paths, in that order."""
+    from canonid.kernel import catalog
+    from canonid.learning import model_names
+    from canonid.learning.nets.base import ACTIVATIONS, LINEAR_PATHS
+
+    assert catalog.MODEL_NAMES == tuple(model_names())
+    assert catalog.ACTIVATION_NAMES == tuple(sorted(ACTIVATIONS))
+    assert catalog.LINEAR_PATHS == LINEAR_PATHS

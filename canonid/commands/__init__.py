@@ -12,7 +12,7 @@ import importlib
 from dataclasses import dataclass
 from types import ModuleType
 
-__all__ = ["COMMANDS", "Command", "command_names", "get_command"]
+__all__ = ["COMMANDS", "Command", "command_names"]
 
 
 @dataclass(frozen=True)
@@ -54,11 +54,3 @@ COMMANDS = (
 
 def command_names() -> list[str]:
     return [c.name for c in COMMANDS]
-
-
-def get_command(name: str) -> Command:
-    """The command called ``name`` (``KeyError`` if there is none)."""
-    for command in COMMANDS:
-        if command.name == name:
-            return command
-    raise KeyError(name)

@@ -11,9 +11,9 @@ take it) plus:
   ``{"test", "rmse", "units", "n_init", "n_scored"}``, and the published baselines shown;
 * ``benchmark-<part>.png``: the simulation of each test part.
 
-Training goes through ``canonid train`` itself: its own parser reads the options given here and
-those of ``--train-args``, so every default of ``canonid train`` applies and any of its options
-can be set.
+Training is ``canonid train``'s (:func:`canonid.training.train`): ``--train-args`` is read by its
+own parser into the :class:`~canonid.training.TrainRequest` that the benchmark completes, so every
+default of ``canonid train`` applies and any of its options can be set.
 """
 
 from __future__ import annotations
@@ -24,34 +24,21 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from canonid.benchmark import (
+    BENCHMARKS,
+    DEFAULT_WINDOW,
     REPORT_FILE,
-    RULE,
-    BenchmarkReport,
-    check_window,
-    plot_part,
+    BenchmarkRequest,
+    benchmark_list,
     report_table,
-    score_parts,
+    run_benchmark,
 )
 from canonid.commands import _options, train
-from canonid.datagen.benchmarks import (
-    BENCHMARKS,
-    benchmark,
-    benchmark_names,
-    find_files,
-    load_benchmark,
-)
-from canonid.datagen.loaders import split_train_val
-from canonid.kernel.errors import CheckpointError
-from canonid.kernel.io import atomic_write_json
-from canonid.learning import Model, OptionError, model_names
-from canonid.learning.training import CHECKPOINT_FILE
+from canonid.kernel.catalog import MODEL_NAMES
+from canonid.kernel.errors import OptionError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
+from canonid.training import TrainRequest
 
 __all__ = ["register", "run"]
-
-DATA_FILE = "benchmark-data.npz"
-#: window when --window is not given: 10, or n_init when the rule allows fewer measured outputs
-DEFAULT_WINDOW = 10
 
 
 def register(sub: Any) -> None:
@@ -72,7 +59,7 @@ def register(sub: Any) -> None:
         metavar="DIR",
         help="folder of the benchmark files (default ~/.nonlinear_benchmarks, the package's cache)",
     )
-    p.add_argument("--model", choices=model_names(), default="mlp", help="model (default mlp)")
+    p.add_argument("--model", choices=MODEL_NAMES, default="mlp", help="model (default mlp)")
     p.add_argument(
         "--window",
         metavar="L",
@@ -107,11 +94,11 @@ class _TrainParser(argparse.ArgumentParser):
         raise OptionError(f"canonid train rejected the options: {message}")
 
 
-def train_arguments(argv: list[str]) -> argparse.Namespace:
-    """``argv`` parsed by ``canonid train``'s own parser (its defaults included)."""
+def train_request(argv: list[str]) -> TrainRequest:
+    """``argv`` read by ``canonid train``'s own parser (its defaults included)."""
     parser = _TrainParser(prog="canonid")
     train.register(parser.add_subparsers(dest="command"))
-    return parser.parse_args(["train", *argv])
+    return train.request(parser.parse_args(["train", *argv]))
 
 
 #: canonid train options that the benchmark sets itself
@@ -133,72 +120,31 @@ def _extra_train_args(text: str) -> list[str]:
     return extra
 
 
-def _list(directory: Path | None) -> int:
-    for bench in BENCHMARKS.values():
-        parts = ", ".join(bench.test_parts)
-        print(
-            f"{bench.name}: {bench.title}; n_init = {bench.n_init}; scored in "
-            f"{bench.score_units}; test parts: {parts}"
-        )
-        for file, path in find_files(bench, directory).items():
-            alt = f" (or {', '.join(bench.csv)})" if bench.csv else ""
-            where = f"found: {path}" if path else f"missing; download from {bench.page}"
-            print(f"  {bench.folder}/{file}{alt}: {where}")
-    return 0
+def _window(text: str | None) -> int | str | None:
+    """``--window``: an integer, ``auto``, or ``None`` (the benchmark's default)."""
+    if text is None or text == "auto":
+        return text
+    if not text.isdigit():
+        raise OptionError(f"--window: expected an integer or auto, got {text!r}")
+    return int(text)
 
 
 def run(args: argparse.Namespace) -> int:
     if args.list:
-        return _list(args.dir)
+        print(benchmark_list(args.dir))
+        return 0
     if args.name is None:
-        raise OptionError(f"give a benchmark NAME ({', '.join(benchmark_names())}) or --list")
-    bench = benchmark(args.name)
-    window = args.window if args.window is not None else str(min(DEFAULT_WINDOW, bench.n_init))
-    if window.isdigit():
-        check_window(int(window), bench)
-    run_dir: Path = args.out or Path("runs") / f"{bench.name}-{args.model}"
-    argv = [str(run_dir / DATA_FILE), "--model", args.model, "--window", window]
-    argv += ["--profile", args.profile, "--out", str(run_dir)]
-    for flag, value in (("--seed", args.seed), ("--threads", args.threads)):
-        if value is not None:
-            argv += [flag, str(value)]
-    if args.no_progress:
-        argv.append("--no-progress")
-    train_args = train_arguments(argv + _extra_train_args(args.train_args))
-    if (run_dir / CHECKPOINT_FILE).exists():
-        raise CheckpointError(f"{run_dir} already holds a training run; choose another --out")
-    dataset = load_benchmark(bench.name, args.dir)
-    split = split_train_val(dataset, val_fraction=args.val_fraction, record_tails=True)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    split.save(run_dir / DATA_FILE)
-    train.run(train_args)
-
-    model = Model.load(run_dir)
-    scores, sims = score_parts(model, split, bench)
-    report = BenchmarkReport(
-        benchmark=bench.name,
-        title=bench.title,
-        definition=str(split.metadata["definition"]),
-        files=list(split.metadata["files"]),
-        model=args.model,
-        window=model.window,
-        profile=args.profile,
-        validation=str(split.metadata["validation_split"]),
-        scores=scores,
-        baselines=list(bench.baselines),
-        rule=RULE,
+        raise OptionError(f"give a benchmark NAME ({', '.join(BENCHMARKS)}) or --list")
+    extra = _extra_train_args(args.train_args) + (["--no-progress"] if args.no_progress else [])
+    request = BenchmarkRequest(
+        **{key: getattr(args, key) for key in ("name", "model", "profile", "out", "seed")},
+        files=args.dir,
+        window=_window(args.window),
+        threads=args.threads,
+        val_fraction=args.val_fraction,
+        train=train_request(extra),
     )
-    for part, sim, score in zip(split.split("test"), sims, scores, strict=True):
-        plot_part(
-            run_dir / f"benchmark-{score.test}.png",
-            part,
-            sim,
-            bench=bench,
-            dt=split.dt,
-            score=score,
-            model_label=f"{model.name} ℓ = {model.window}",
-        )
-    atomic_write_json(run_dir / REPORT_FILE, report.to_json())
+    report, run_dir = run_benchmark(request)
     print(report_table(report))
     print(f"scores written to {run_dir / REPORT_FILE}")
     return 0

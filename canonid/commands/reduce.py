@@ -12,21 +12,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _options, _paths, _progress
-from canonid.commands.evaluate import table
-from canonid.kernel.errors import DataError
-from canonid.kernel.io import read_json
-from canonid.learning import EpochReport
-from canonid.profiles import DEFAULT_PROFILE, profile_names, reduce_options
-from canonid.reduction import (
-    DEFAULT_RATES,
-    ReductionJob,
-    SweepPlan,
-    compression_sweep,
-    rate_label,
-    reduce_run,
-)
-from canonid.runfolder import METRICS_FILE
+from canonid.commands import _options, _paths
+from canonid.kernel.errors import OptionError
+from canonid.profiles import DEFAULT_PROFILE, profile_names
 
 __all__ = ["register", "run"]
 
@@ -86,7 +74,7 @@ def register(sub: Any) -> None:
         "--rates",
         type=_rate,
         nargs="+",
-        default=list(DEFAULT_RATES),
+        default=None,
         metavar="R",
         help="rates (default 0.15 0.30 … 0.90)",
     )
@@ -97,70 +85,36 @@ def register(sub: Any) -> None:
 
 
 def _one(args: argparse.Namespace) -> int:
+    from canonid.reduction import ReductionJob, rate_label, reduce_one  # torch, matplotlib
+
     if len(args.runs) != 1:
-        raise DataError(f"--compression reduces one RUN, got {len(args.runs)} (use --sweep)")
+        raise OptionError(f"--compression reduces one RUN, got {len(args.runs)} (use --sweep)")
     source: Path = args.runs[0]
     out = args.out or source.parent / f"{source.name}-{rate_label(args.compression)}"
-    _paths.check_folder(out)
+    options = ("compression", "profile", "seed", "epochs", "linear_skip", "device", "resume")
+    options += ("threads",)
     job = ReductionJob(
+        **{key: getattr(args, key) for key in options},
         source=str(source),
-        compression=args.compression,
         out=str(out),
-        profile=args.profile,
-        seed=args.seed,
-        epochs=args.epochs,
-        linear_skip=args.linear_skip,
-        device=args.device,
-        threads=None,
-        resume=args.resume,
         command=("canonid", *sys.argv[1:]),
     )
-    train_opts, red_opts = reduce_options(
-        args.profile, epochs=args.epochs, linear_skip=args.linear_skip
-    )
-    frozen = red_opts.frozen_epochs(train_opts.epochs)
-    bar = _progress.LazyBar(train_opts.epochs, "reduce", enabled=not args.no_progress)
-
-    def progress(report: EpochReport) -> None:
-        phase = "Ĥ frozen" if report.epoch <= frozen else "Ĥ fine-tuned"
-        val = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
-        recon = report.parts.get("reconstruction", float("nan"))
-        bar.show(
-            report.epoch,
-            f"{phase}, H={report.horizon}, recon={recon:.3g}, val rollout={val} "
-            f"(best {report.best_val_loss:.3g} at {report.best_epoch})",
-        )
-
-    try:
-        result = reduce_run(job, callback=progress)
-    finally:
-        bar.close()
-    print(
-        f"{result.model} (ℓ = {result.window}) reduced at r = {result.compression:.0%}: "
-        f"n̄ = {result.latent_dim} of dim z = {result.state_dim}; {result.stopped} after "
-        f"{result.epochs_run} epochs (best at {result.best_epoch})"
-    )
-    print(
-        f"{result.rollout_horizon}-step rollout MSE on the {result.split} split: reduced "
-        f"{result.rollout_mse:.4g}, full "
-        f"{result.full_rollout_mse:.4g} (ratio {result.ratio:.3g}); reconstruction MSE "
-        f"{result.reconstruction_mse:.3g} (normalised)"
-    )
-    print(table(read_json(out / METRICS_FILE, what="metrics")))
-    print(f"run written to {out}")
+    print(reduce_one(job, progress=not args.no_progress).summary())
     return 0
 
 
 def _sweep(args: argparse.Namespace) -> int:
+    from canonid.reduction import DEFAULT_RATES, SweepPlan, compression_sweep
+
     if args.resume:
-        raise DataError("--resume is for one reduction; a sweep always resumes its jobs")
+        raise OptionError("--resume is for one reduction; a sweep always resumes its jobs")
     if args.seeds < 1:
-        raise DataError(f"--seeds must be >= 1, got {args.seeds}")
-    out = _paths.check_folder(args.out or Path("runs") / "compression-sweep")
+        raise OptionError(f"--seeds must be >= 1, got {args.seeds}")
+    out = args.out or Path("runs") / "compression-sweep"
     plan = SweepPlan(
         runs=tuple(str(r) for r in args.runs),
         out=str(out),
-        rates=tuple(args.rates),
+        rates=tuple(args.rates or DEFAULT_RATES),
         seeds=tuple(range(args.seed, args.seed + args.seeds)),
         profile=args.profile,
         epochs=args.epochs,
@@ -170,10 +124,7 @@ def _sweep(args: argparse.Namespace) -> int:
         command=("canonid", *sys.argv[1:]),
     )
     sweep = compression_sweep(
-        plan,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        progress=not args.no_progress,
+        plan, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress
     )
     print(sweep.table())
     print(f"figures: {sweep.heatmap}, {sweep.reduced_mse}; results: {out / 'sweep.json'}")
@@ -181,8 +132,4 @@ def _sweep(args: argparse.Namespace) -> int:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.threads is not None and not args.sweep:
-        import torch
-
-        torch.set_num_threads(args.threads)
     return _sweep(args) if args.sweep else _one(args)

@@ -12,9 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _options, _paths
-from canonid.kernel.errors import ShapeError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
-from canonid.reproduce import reproduce, settings_from_profile
 
 __all__ = ["register", "run"]
 
@@ -71,11 +69,11 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.workers < 0:
-        raise ShapeError(f"--workers must be >= 0, got {args.workers}")
+    from canonid.reproduce import reproduce, settings_from_profile  # torch, CasADi
+
     settings = settings_from_profile(
         args.profile,
-        out=_paths.check_folder(args.out),
+        out=args.out,
         systems=args.systems,
         windows=args.windows,
         models=args.models,

@@ -26,6 +26,7 @@ from typing import Any, ClassVar
 import torch
 from torch import nn
 
+from canonid.kernel.catalog import LINEAR_PATHS
 from canonid.kernel.errors import ShapeError
 from canonid.learning.canonical import pairs_to_state, shift
 
@@ -42,11 +43,6 @@ __all__ = [
 
 #: hidden-layer activations of :func:`mlp`, by name
 ACTIVATIONS: dict[str, type[nn.Module]] = {"relu": nn.ReLU, "tanh": nn.Tanh, "silu": nn.SiLU}
-
-#: a canonical model's affine path: none; a linear skip started at zero and trained with the
-#: network, like the linear bypass of deepSI's residual networks; or started at the
-#: least-squares ARX fit with the nonlinear part's output layer at zero
-LINEAR_PATHS = ("off", "skip", "arx")
 
 
 def linear_path(value: bool | str) -> str:

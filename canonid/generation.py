@@ -1,0 +1,156 @@
+"""What ``canonid generate`` asks for, and the one call that does it: a closed-loop dataset.
+
+:func:`generate` simulates the flights of a :class:`GenerateRequest` serially, on a local Dask
+cluster or on an existing one (:func:`canonid.runner.run_jobs`; the same seed gives the same bytes
+whichever is used) through :func:`canonid.datagen.generate.generate_dataset`, and returns what
+the command prints. See :mod:`canonid.datagen.generate` for seeds, parts and resuming.
+
+The module imports no CasADi; generating loads it.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from canonid.kernel.errors import OptionError
+
+if TYPE_CHECKING:
+    from canonid.datagen.dataset import Dataset
+    from canonid.datagen.generate import FlightResult
+
+__all__ = ["GenerateRequest", "generate", "plot_flights", "scenario_names"]
+
+
+def scenario_names() -> list[str]:
+    """The systems a dataset can be generated for (imports the scenarios: CasADi)."""
+    from canonid.datagen.scenarios import scenario_names as names
+
+    return names()
+
+
+@dataclass(frozen=True, kw_only=True)
+class GenerateRequest:
+    """A dataset to generate (``None``: the system's default).
+
+    Attributes:
+        system, seed: the scenario and the root seed. counts: flights per split given.
+        noise: the measurement noise's half-width, as given (``"0.01"`` or ``"0.01,0.02"``).
+        horizon, steps: the MPC horizon; samples per flight. out: the dataset's folder.
+        workers, scheduler, resume, plot, progress: where the flights run; keep finished
+            flights; draw a few; a progress bar.
+    """
+
+    system: str
+    seed: int = 0
+    counts: Mapping[str, int] = field(default_factory=dict)
+    noise: str | None = None
+    horizon: int | None = None
+    steps: int | None = None
+    out: Path | None = None
+    workers: int = 0
+    scheduler: str | None = None
+    resume: bool = False
+    plot: bool = False
+    progress: bool = True
+
+
+def _noise(text: str | None) -> float | tuple[float, ...] | None:
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise OptionError(
+            f"--noise must be a number or numbers separated by commas, got {text!r}"
+        ) from None
+    return values[0] if len(values) == 1 else values
+
+
+def _tally(result: FlightResult) -> int:
+    return result.solver_failures
+
+
+def generate(request: GenerateRequest) -> str:
+    """Generate the dataset of ``request``; the lines that say what was written."""
+    from canonid.datagen.dataset import Dataset
+    from canonid.datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
+    from canonid.datagen.scenarios import get_scenario
+    from canonid.jobs import check_folder
+    from canonid.models.registry import get_system
+    from canonid.runner import run_jobs
+
+    system = request.system
+    get_scenario(system)  # unknown system: one-line error before anything else
+    config = GenerationConfig(
+        system=system,
+        seed=request.seed,
+        counts=dict(request.counts),
+        noise=_noise(request.noise),
+        controller_options={} if request.horizon is None else {"horizon": request.horizon},
+        T=request.steps,
+    )
+    if request.workers < 0:
+        raise OptionError(f"--workers must be >= 0, got {request.workers}")
+    out = check_folder(request.out or Path("runs") / "data" / f"{system}-s{request.seed}")
+    runner = functools.partial(
+        run_jobs,
+        workers=request.workers,
+        scheduler=request.scheduler,
+        progress=request.progress,
+        description=f"{system} flights",
+        tally=_tally,
+        tally_name="solver failures",
+        batch=FLIGHTS_PER_TASK,
+    )
+    result = generate_dataset(config, out, run_jobs=runner, resume=request.resume)
+    counts_text = ", ".join(f"{k} {v}" for k, v in result.counts.items())
+    lines = [f"dataset written to {result.path.resolve()} ({counts_text} flights)"]
+    if result.chunks is not None:
+        chunks_text = ", ".join(f"{k} {v}" for k, v in result.chunks.items())
+        length = get_scenario(system).chunk_length
+        lines.append(f"  flights cut into {length}-sample chunks: {chunks_text} chunks")
+    stand_in = get_system(system).simulated_stand_in_for
+    if stand_in:
+        lines.append(f"  SIMULATED data: {system} is a simulated stand-in for {stand_in}")
+    lines.append(
+        f"  generated {result.generated}, resumed {result.resumed}; solver failures (fell back) "
+        f"{result.solver_failures}; flights regenerated with a new seed {result.replaced}"
+    )
+    if request.plot:
+        figure = plot_flights(Dataset.load(result.path), out / "flights.png")
+        lines.append(f"  figure: {figure.resolve()}")
+    return "\n".join(lines)
+
+
+def plot_flights(dataset: Dataset, path: Path, *, n: int = 3) -> Path:
+    """Outputs against their references for the first ``n`` test (or train) flights."""
+    from matplotlib.figure import Figure  # matplotlib only when a figure is asked for
+
+    flights = (dataset.split("test") or dataset.split("train"))[:n]
+    ref_names = dataset.metadata.get("scenario", {}).get("reference_names", [])
+    fig = Figure(figsize=(4 * len(flights), 2.2 * dataset.n_y))
+    axes = fig.subplots(dataset.n_y, len(flights), squeeze=False)
+    for j, flight in enumerate(flights):
+        t = [i * dataset.dt for i in range(flight.T)]
+        for i, name in enumerate(dataset.output_names):
+            ax = axes[i, j]
+            ax.plot(t, flight.y[:, i], lw=0.8, label=f"{name} (measured)")
+            target = f"{name}_ref"
+            if flight.reference is not None:
+                if target in ref_names:
+                    col = ref_names.index(target)
+                    ax.plot(t, flight.reference[:, col], "k--", lw=0.8, label="reference")
+            if j == 0:
+                ax.set_ylabel(name)
+            if i == dataset.n_y - 1:
+                ax.set_xlabel("time [s]")
+        axes[0, j].set_title(f"flight {flight.info.get('split', '')} {flight.info.get('index', j)}")
+    axes[0, 0].legend(fontsize=7, loc="best")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    return path

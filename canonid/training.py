@@ -1,0 +1,415 @@
+"""What ``canonid train`` (and ``canonid benchmark``) ask for, and the one call that does it.
+
+A :class:`TrainRequest` holds the options as the user gave them (``None``: not given).
+:func:`train` turns it into the run's recipe (:class:`canonid.runfolder.RunRecipe`: the
+profile's options with the overrides, the network's options over :mod:`canonid.kernel.catalog`'s
+presets), or checks it against the recipe of the run it resumes (the resume rule: of the training
+options only :data:`canonid.learning.training.RESUMABLE_CHANGES` may change, the network's none),
+or trains the candidates of ``window="auto"`` / ``hidden="auto"`` (:mod:`canonid.selection`);
+it returns a :class:`TrainOutcome`, whose :meth:`~TrainOutcome.summary` the command prints.
+
+The module imports no torch: the command line reads its names for ``--help``; the training
+loads when :func:`train` runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+from canonid.kernel.errors import CheckpointError, OptionError, OutputError
+
+if TYPE_CHECKING:
+    from canonid.learning import EpochReport
+    from canonid.runfolder import RunRecipe, RunResult
+    from canonid.selection import Selection
+
+__all__ = [
+    "AUTO",
+    "TRAIN_OPTION_FIELDS",
+    "WIDTH_CANDIDATES",
+    "WINDOW_CANDIDATES",
+    "TrainOutcome",
+    "TrainRequest",
+    "check_new_run",
+    "parse_widths",
+    "train",
+]
+
+AUTO = "auto"
+#: the windows that ``window="auto"`` tries (those the data allow)
+WINDOW_CANDIDATES = (2, 5, 10, 20)
+#: the hidden widths that ``hidden="auto"`` tries (three layers, up to the default 256)
+WIDTH_CANDIDATES = ((64, 64, 64), (128, 128, 128), (256, 256, 256))
+#: the request's fields that override the profile's training options (same names)
+TRAIN_OPTION_FIELDS = (
+    "epochs",
+    "lr",
+    "batch_size",
+    "horizon",
+    "windows_per_epoch",
+    "seed",
+    "device",
+)
+#: the request's network options that are never given again to a resumed run
+_NET_FLAGS = ("residual", "feedthrough", "linear")
+
+
+@dataclass(frozen=True, kw_only=True)
+class TrainRequest:
+    """A training run as asked for; every option ``None`` (or ``False``) when not given.
+
+    Attributes:
+        data, data_options, val, val_fraction: the training data, the loader options
+            (:data:`canonid.runfolder.DATA_FLAGS`), a validation file, the share held out.
+        model, window: registry name (default ``mlp``) and window ℓ (or ``"auto"``).
+        profile: the training budget (default :data:`canonid.profiles.DEFAULT_PROFILE`).
+        epochs … device: overrides of the profile's training options (:data:`TRAIN_OPTION_FIELDS`).
+        hidden, activation, residual, feedthrough, linear, paper_options: the network's options
+            (``hidden="auto"``: select the widths).
+        out, resume: the new run's folder, or the run to continue.
+        eval_horizon, threads: the final score's rollout length; torch CPU threads.
+        workers, scheduler, progress: where a selection's candidates run; progress bars.
+        command: the command line that asked (recorded in ``run.json``).
+    """
+
+    data: str | None = None
+    data_options: Mapping[str, Any] = field(default_factory=dict)
+    val: str | None = None
+    val_fraction: float | None = None
+    model: str | None = None
+    window: int | Literal["auto"] | None = None
+    profile: str | None = None
+    epochs: int | None = None
+    lr: float | None = None
+    batch_size: int | None = None
+    horizon: int | None = None
+    windows_per_epoch: int | None = None
+    seed: int | None = None
+    device: str | None = None
+    hidden: tuple[int, ...] | Literal["auto"] | None = None
+    activation: str | None = None
+    residual: bool | None = None
+    feedthrough: bool | None = None
+    linear: str | None = None
+    paper_options: bool = False
+    out: Path | None = None
+    resume: Path | None = None
+    eval_horizon: int | None = None
+    threads: int | None = None
+    workers: int | None = None
+    scheduler: str | None = None
+    progress: bool = True
+    command: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class TrainOutcome:
+    """What :func:`train` did: one run trained (``result``) or candidates selected
+    (``selection``), into ``run_dir``, with the chosen model's ``metrics.json`` body."""
+
+    run_dir: Path
+    metrics: Mapping[str, Any]
+    result: RunResult | None = None
+    selection: Selection | None = None
+
+    def summary(self) -> str:
+        """What ``canonid train`` prints: how training ended, the scores, where the run is."""
+        from canonid.scoring import metrics_table
+
+        if self.selection is not None:
+            best = self.selection.best
+            head = [
+                self.selection.table(),
+                f"chosen: {best.name} (best validation loss {best.best_val_loss:.4g}, "
+                f"normalised, at epoch {best.best_epoch}); its run is the model of {self.run_dir}",
+            ]
+        else:
+            assert self.result is not None
+            fitted = self.result.fit
+            head = [
+                f"{self.result.recipe.model}: {fitted.stopped} after {fitted.epochs_run} epochs, "
+                f"best validation loss {fitted.best_val_loss:.4g} (normalised) at epoch "
+                f"{fitted.best_epoch}"
+            ]
+        return "\n".join([*head, metrics_table(self.metrics), f"run written to {self.run_dir}"])
+
+
+def parse_widths(text: str | None) -> tuple[int, ...] | Literal["auto"] | None:
+    """``"2048,2048"`` → ``(2048, 2048)`` (positive integers), ``"auto"``, or
+    :class:`OptionError` naming ``--hidden``."""
+    if text is None or text == AUTO:
+        return text  # type: ignore[return-value]
+    try:
+        widths = tuple(int(part) for part in text.split(","))
+    except ValueError:
+        widths = ()
+    if not widths or min(widths) < 1:
+        raise OptionError(
+            f"--hidden: expected positive integer widths separated by commas (e.g. 2048,2048), "
+            f"got {text!r}"
+        )
+    return widths
+
+
+def _flag(name: str) -> str:
+    return f"--{name.replace('_', '-')}"
+
+
+def _hidden_option(model: str) -> str:
+    """The constructor argument of ``model`` that ``hidden`` sets."""
+    from canonid.learning import NETS
+
+    option = NETS[model].hidden_option
+    if option is None:
+        raise OptionError(
+            f"--hidden does not apply to {model}: its layer sizes follow from the window "
+            "(⌈ℓ(n_u+n_y)/2⌉, as in the paper)"
+        )
+    return option
+
+
+def check_new_run(run_dir: Path, *, selection: bool = False) -> None:
+    """Refuse an output folder that holds another kind of run (a selection is continued by
+    running it again, so a selection folder is accepted for a selection)."""
+    from canonid.jobs import check_folder
+    from canonid.learning.training import CHECKPOINT_FILE
+    from canonid.selection import CANDIDATES_FILE
+
+    check_folder(run_dir)
+    if (run_dir / CHECKPOINT_FILE).exists():
+        raise OutputError(
+            f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
+        )
+    if not selection and (run_dir / CANDIDATES_FILE).exists():
+        raise OutputError(
+            f"{run_dir} holds a selection of candidates ({CANDIDATES_FILE}); choose another --out"
+        )
+
+
+def _recipe(request: TrainRequest) -> RunRecipe:
+    """The recipe of a new run: the profile's training options with the overrides, the
+    network's presets with the options given."""
+    from canonid.kernel.catalog import net_options
+    from canonid.learning import NETS
+    from canonid.learning.nets.base import CanonicalModel
+    from canonid.profiles import DEFAULT_PROFILE, train_options
+    from canonid.runfolder import DEFAULT_VAL_FRACTION, RunRecipe
+
+    if request.data is None:
+        raise OptionError("give the training DATA (or --resume RUN)")
+    if request.window is None:
+        raise OptionError("--window is required for a new run (e.g. --window 10)")
+    model = request.model or "mlp"
+    if request.val_fraction is not None and not 0 < request.val_fraction < 1:
+        raise OptionError(f"--val-fraction must be in (0, 1), got {request.val_fraction}")
+    profile = request.profile or DEFAULT_PROFILE
+    overrides = {key: getattr(request, key) for key in TRAIN_OPTION_FIELDS}
+    opts = train_options(profile, **{**overrides, "device": request.device or "auto"})
+    chosen: dict[str, Any] = {
+        key: getattr(request, key)
+        for key in ("feedthrough", "residual")
+        if getattr(request, key) is not None
+    }
+    if request.hidden is not None:
+        chosen[_hidden_option(model)] = list(request.hidden)
+    if request.activation is not None:
+        if model != "mlp":
+            raise OptionError(f"--activation applies to Ours (MLP) only, not {model}")
+        chosen["activation"] = request.activation
+    if request.linear is not None:
+        if not issubclass(NETS[model], CanonicalModel):
+            raise OptionError(
+                f"--linear applies to the canonical models (mlp, gru, arx), not {model}"
+            )
+        if model == "arx" and request.linear != "arx":
+            raise OptionError(f"--linear {request.linear}: ARX is the affine path alone (arx)")
+        chosen["linear"] = request.linear
+    return RunRecipe(
+        data=str(request.data),
+        data_options=dict(request.data_options),
+        val=request.val,
+        val_fraction=(
+            DEFAULT_VAL_FRACTION if request.val_fraction is None else request.val_fraction
+        ),
+        model=model,
+        window=int(request.window),
+        net_options=net_options(model, chosen, paper=request.paper_options),
+        profile=profile,
+        train_options=opts.to_dict(),
+        command=request.command,
+    )
+
+
+def _resume_recipe(request: TrainRequest, run_dir: Path) -> RunRecipe:
+    """The recipe of the run in ``run_dir`` with the options that may change when resuming
+    (:data:`~canonid.learning.training.RESUMABLE_CHANGES`); any other option given must match
+    the recorded one, and the training and network options may not be given at all."""
+    import inspect
+
+    from canonid.learning import NETS, TrainOptions
+    from canonid.learning.training import CHECKPOINT_FILE, RESUMABLE_CHANGES
+    from canonid.runfolder import RunRecipe
+
+    if not (run_dir / CHECKPOINT_FILE).is_file():
+        raise CheckpointError(f"{run_dir} holds no {CHECKPOINT_FILE} to resume from")
+    changeable = [key for key in TRAIN_OPTION_FIELDS if key in RESUMABLE_CHANGES]
+    fixed = [
+        _flag(key)
+        for key in (*(k for k in TRAIN_OPTION_FIELDS if k not in RESUMABLE_CHANGES), *_NET_FLAGS)
+        if getattr(request, key) is not None
+    ]
+    if request.paper_options:
+        fixed.append("--paper-options")
+    if fixed:
+        raise OptionError(
+            f"{', '.join(fixed)} cannot change when resuming "
+            f"(only {' and '.join(map(_flag, changeable))} can)"
+        )
+    recipe = RunRecipe.read(run_dir)
+    if request.out is not None and request.out.resolve() != run_dir.resolve():
+        raise OptionError(f"--out does not apply with --resume: the run continues in {run_dir}")
+    diffs = [
+        f"{key}: {getattr(recipe, key)!r} there, {value!r} here"
+        for key, value in (
+            ("model", request.model),
+            ("window", request.window),
+            ("data", request.data),
+            ("profile", request.profile),
+            ("val", request.val),
+            ("val_fraction", request.val_fraction),
+        )
+        if value is not None and getattr(recipe, key) != value
+    ]
+    recorded = recipe.data_options
+    diffs += [
+        f"{key}: {recorded.get(key)!r} there, {value!r} here"
+        for key, value in request.data_options.items()
+        if value is not None and recorded.get(key) != value
+    ]
+    if request.hidden is not None:
+        option = _hidden_option(recipe.model)
+        default = inspect.signature(NETS[recipe.model]).parameters[option].default
+        there, here = list(recipe.net_options.get(option, default)), list(request.hidden)
+        if there != here:
+            diffs.append(f"hidden widths: {there} there, {here} here")
+    if request.activation is not None:
+        there = recipe.net_options.get("activation", "relu")
+        if there != request.activation:
+            diffs.append(f"activation: {there} there, {request.activation} here")
+    if diffs:
+        raise CheckpointError(f"run {run_dir} does not match: " + "; ".join(diffs))
+    opts = dict(recipe.train_options)
+    opts.update({k: getattr(request, k) for k in changeable if getattr(request, k) is not None})
+    return dataclasses.replace(recipe, train_options=TrainOptions.from_dict(opts).to_dict())
+
+
+def _select(request: TrainRequest) -> TrainOutcome:
+    """``window="auto"`` / ``hidden="auto"``: train the candidates, keep the best on
+    validation (:mod:`canonid.selection`)."""
+    from canonid.kernel.io import read_json
+    from canonid.runfolder import METRICS_FILE
+    from canonid.selection import allowed_windows, plan_candidates, select
+
+    window_auto, hidden_auto = request.window == AUTO, request.hidden == AUTO
+    base = _recipe(
+        dataclasses.replace(
+            request,
+            window=WINDOW_CANDIDATES[0] if window_auto else request.window,
+            hidden=None if hidden_auto else request.hidden,
+        )
+    )
+    if hidden_auto:
+        _hidden_option(base.model)  # refuses a model without hidden widths
+    windows = allowed_windows(base, WINDOW_CANDIDATES) if window_auto else [base.window]
+    run_dir = request.out or Path("runs") / (
+        f"{base.model}-l{'auto' if window_auto else base.window}"
+        + ("-hauto" if hidden_auto else "")
+    )
+    check_new_run(run_dir, selection=True)
+    local = not request.workers and request.scheduler is None
+    jobs = plan_candidates(
+        base,
+        run_dir,
+        windows=windows,
+        widths=WIDTH_CANDIDATES if hidden_auto else (None,),
+        eval_horizon=request.eval_horizon,
+        threads=request.threads if request.threads is not None or local else 1,
+    )
+    run_dir.mkdir(parents=True, exist_ok=True)
+    selection = select(
+        jobs,
+        run_dir,
+        workers=request.workers or 0,
+        scheduler=request.scheduler,
+        progress=request.progress,
+    )
+    metrics = read_json(run_dir / METRICS_FILE, what="metrics")
+    return TrainOutcome(run_dir, metrics, selection=selection)
+
+
+def train(
+    request: TrainRequest, *, callback: Callable[[EpochReport], None] | None = None
+) -> TrainOutcome:
+    """Train (or resume, or select) the run that ``request`` asks for, write its run folder and
+    score it; a single run shows its epochs in a progress bar (``request.progress``) and passes
+    them to ``callback``."""
+    from canonid.jobs import torch_threads
+    from canonid.runfolder import train_run
+    from canonid.runner import EpochBar
+    from canonid.selection import CANDIDATES_FILE
+
+    for flag, value in (("--threads", request.threads), ("--eval-horizon", request.eval_horizon)):
+        if value is not None and value < 1:
+            raise OptionError(f"{flag} must be an integer >= 1, got {value}")
+    auto = [key for key in ("window", "hidden") if getattr(request, key) == AUTO]
+    if not auto and (request.workers is not None or request.scheduler is not None):
+        flag = "--workers" if request.workers is not None else "--scheduler"
+        raise OptionError(f"{flag} applies to --window auto or --hidden auto only")
+    if auto and request.resume is not None:
+        raise OptionError(
+            f"--{auto[0]} auto does not combine with --resume: run the same selection again "
+            "(same DATA, options and --out) to continue it"
+        )
+    if request.resume is not None and (request.resume / CANDIDATES_FILE).is_file():
+        raise CheckpointError(
+            f"{request.resume} holds a selection of candidates ({CANDIDATES_FILE}): run the same "
+            f"selection again to continue it, or resume one candidate's folder"
+        )
+    if auto:
+        return _select(request)
+    if request.resume is not None:
+        run_dir = request.resume
+        recipe = _resume_recipe(request, run_dir)
+    else:
+        recipe = _recipe(request)
+        run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
+        check_new_run(run_dir)
+    bar = EpochBar(f"train {recipe.model}", enabled=request.progress, dynamic_ncols=True)
+
+    def progress(report: EpochReport) -> None:
+        val_text = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
+        bar.show(
+            report.epoch,
+            report.epochs,
+            f"H={report.horizon} train={report.train_loss:.3g} val={val_text} "
+            f"best={report.best_val_loss:.3g}@{report.best_epoch}",
+        )
+        if callback is not None:
+            callback(report)
+
+    try:
+        with torch_threads(request.threads):  # a selection's candidates set their own
+            result = train_run(
+                recipe,
+                run_dir,
+                resume=request.resume is not None,
+                eval_horizon=request.eval_horizon,
+                callback=progress,
+            )
+    finally:
+        bar.close()
+    return TrainOutcome(run_dir, result.evaluation.to_json(), result=result)

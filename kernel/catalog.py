@@ -1,0 +1,62 @@
+"""What the identification models are called and the options they are built with, as plain data.
+
+The command line shows these names and defaults in ``--help`` without importing torch; the
+networks of :mod:`canonid.learning.nets` are built from them (``tests/test_layout.py`` checks
+that the names agree with the registry and the activations the networks know).
+
+``DEFAULT_NET_OPTIONS`` are the best options we know per model, chosen on validation over several
+systems (docs, "Identification": the table and the commands behind it); a model not listed keeps
+its constructor's defaults. ``PAPER_NET_OPTIONS`` are the authors' published code's
+configuration, which produced the paper's numbers (the paper's text writes ``Ĥ(z_t, u_t)``, its
+code predicts the increment of ``y`` from ``z_t`` alone); ``canonid reproduce`` trains it.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping
+from typing import Any
+
+__all__ = [
+    "ACTIVATION_NAMES",
+    "DEFAULT_NET_OPTIONS",
+    "LINEAR_PATHS",
+    "MODEL_NAMES",
+    "PAPER_NET_OPTIONS",
+    "net_options",
+]
+
+#: the registered identification models, in table order (:func:`canonid.learning.model_names`)
+MODEL_NAMES = ("mlp", "gru", "classic-gru", "masti", "arx")
+
+#: hidden-layer nonlinearities of the MLPs, by name (:data:`canonid.learning.nets.base.ACTIVATIONS`)
+ACTIVATION_NAMES = ("relu", "silu", "tanh")
+
+#: a canonical model's affine path: none; a linear skip started at zero and trained with the
+#: network, like the linear bypass of deepSI's residual networks; or started at the
+#: least-squares ARX fit with the nonlinear part's output layer at zero
+LINEAR_PATHS = ("off", "skip", "arx")
+
+DEFAULT_NET_OPTIONS: dict[str, dict[str, Any]] = {
+    "mlp": {"residual": True, "feedthrough": False, "activation": "silu", "linear": "skip"},
+    "arx": {"residual": False, "feedthrough": False},
+}
+
+PAPER_NET_OPTIONS: dict[str, dict[str, Any]] = {
+    "mlp": {
+        "hidden": [256, 256, 256],
+        "activation": "relu",
+        "residual": True,
+        "feedthrough": False,
+        "linear": "off",
+    },
+}
+
+
+def net_options(
+    model: str, overrides: Mapping[str, Any] | None = None, *, paper: bool = False
+) -> dict[str, Any]:
+    """The constructor options of ``model``: the defaults (or the paper's, ``paper=True``)
+    updated with ``overrides``."""
+    base = (PAPER_NET_OPTIONS if paper else DEFAULT_NET_OPTIONS).get(model, {})
+    return {**copy.deepcopy(base), **dict(overrides or {})}
