@@ -13,6 +13,8 @@ import re
 import sys
 from pathlib import Path
 
+from canonid.kernel.io import atomic_write_text
+
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 
 __all__ = ["load_line", "machine_description", "publish", "write_section"]
@@ -59,9 +61,7 @@ def write_section(name: str, body: str, *, command: str | None = None) -> None:
         if pattern.search(text)
         else text.rstrip() + "\n\n" + block + "\n"
     )
-    tmp = RESULTS.with_suffix(".md.tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, RESULTS)
+    atomic_write_text(RESULTS, text)
 
 
 def publish(name: str, lines: list[str], minutes: float) -> int:

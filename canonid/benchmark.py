@@ -30,7 +30,7 @@ import numpy as np
 from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
 from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.kernel.errors import OptionError, OutputError
-from canonid.kernel.io import atomic_write_json, jsonable
+from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable
 from canonid.profiles import DEFAULT_PROFILE
 from canonid.training import TrainRequest
 
@@ -181,9 +181,7 @@ def plot_part(
     )
     top.legend(loc="upper right", fontsize=8)
     fig.tight_layout()
-    out = Path(path)
-    fig.savefig(out, dpi=110)
-    return out
+    return atomic_write_figure(path, fig, dpi=110)
 
 
 def report_table(report: BenchmarkReport) -> str:

@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from canonid.kernel.errors import OptionError
+from canonid.kernel.io import atomic_write_figure
 
 if TYPE_CHECKING:
     from canonid.datagen.dataset import Dataset
@@ -151,6 +152,4 @@ def plot_flights(dataset: Dataset, path: Path, *, n: int = 3) -> Path:
         axes[0, j].set_title(f"flight {flight.info.get('split', '')} {flight.info.get('index', j)}")
     axes[0, 0].legend(fontsize=7, loc="best")
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    return path
+    return atomic_write_figure(path, fig, dpi=110)

@@ -43,7 +43,7 @@ from matplotlib.figure import Figure
 
 from canonid.jobs import Job, check_folder
 from canonid.kernel.errors import CheckpointError, DataError
-from canonid.kernel.io import atomic_write_json, read_json
+from canonid.kernel.io import atomic_write_figure, atomic_write_json, read_json
 from canonid.learning import EpochReport, Model, evaluate
 from canonid.learning.data import as_series
 from canonid.learning.evaluate import simulate_records
@@ -556,8 +556,7 @@ def compression_sweep(
 # ---------------------------------------------------------------------- figures
 def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    return Path(path)
+    return atomic_write_figure(path, fig, dpi=120)
 
 
 def _run_label(results: Sequence[ReductionResult], source: str) -> str:

@@ -10,7 +10,6 @@ budget that produced it, the machine, and a link to every artefact.
 from __future__ import annotations
 
 import datetime as _dt
-import io
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -20,7 +19,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from canonid.datagen.dataset import Dataset
-from canonid.kernel.io import atomic_write_bytes
+from canonid.kernel.io import atomic_write_figure
 from canonid.learning import Model
 from canonid.learning.evaluate import simulate_records
 from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
@@ -48,9 +47,7 @@ def _scale(system: str) -> float:
 def _save(fig: Figure, path: Path) -> Path:
     """Write ``fig`` as a PNG without a software stamp (same figure, same bytes), atomically."""
     fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=110, metadata={"Software": None})
-    return atomic_write_bytes(path, buf.getvalue())
+    return atomic_write_figure(path, fig, format="png", dpi=110, metadata={"Software": None})
 
 
 def plot_table1(cells: Sequence[Any], system: str, path: Path) -> Path:

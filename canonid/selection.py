@@ -19,8 +19,6 @@ running the same selection again continues an interrupted one.
 from __future__ import annotations
 
 import dataclasses
-import os
-import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,7 +27,7 @@ from typing import Any, ClassVar
 from canonid.datagen.loaders import data_checksum
 from canonid.jobs import StoredJob, run_job
 from canonid.kernel.errors import CheckpointError, DataError, OptionError
-from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
+from canonid.kernel.io import atomic_copy, atomic_write_json, atomic_write_text, read_json
 from canonid.learning import NETS
 from canonid.learning.training import CHECKPOINT_FILE
 from canonid.runfolder import (
@@ -319,6 +317,4 @@ def _adopt(source: Path, run_dir: Path) -> None:
     """Copy the chosen candidate's run files into ``run_dir`` (each replaced atomically)."""
     for name in ADOPTED:
         if (source / name).is_file():
-            tmp = run_dir / f".{name}.tmp"
-            shutil.copyfile(source / name, tmp)
-            os.replace(tmp, run_dir / name)
+            atomic_copy(source / name, run_dir / name)

@@ -141,11 +141,6 @@ def test_a_failed_atomic_copy_leaves_the_old_file_and_no_temporary_file(tmp_path
     assert (tmp_path / "weights.pt").read_bytes() == b"old"
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=AssertionError,
-    reason="canonid/selection.py adopts through a fixed '.NAME.tmp' until it calls atomic_copy",
-)
 def test_window_auto_adopts_the_chosen_model_without_a_fixed_temporary_name(tmp_path):
     from canonid.selection import ADOPTED, _adopt
 
