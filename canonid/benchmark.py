@@ -27,10 +27,9 @@ from typing import Any
 import numpy as np
 
 from canonid.datagen.benchmarks import Baseline, Benchmark
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.io import jsonable
 from canonid.learning import Model
-from canonid.learning.data import as_series
 from canonid.learning.evaluate import simulate_records
 from canonid.learning.training import OptionError
 
@@ -112,7 +111,7 @@ def score_parts(
     docstring), with the simulated outputs of samples ``n_init … T−1`` of each part."""
     check_window(model.window, bench)
     parts = dataset.split("test")
-    sims = simulate_records(model, as_series(parts, what="test parts"), bench.n_init)
+    sims = simulate_records(model, parts, bench.n_init)
     scores = []
     for part, sim in zip(parts, sims, strict=True):
         err = sim - part.y[bench.n_init :]

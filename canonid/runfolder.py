@@ -27,8 +27,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, TypeAlias
 
-from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.datagen.loaders import is_dataset, load_data, split_train_val
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, DataError
 from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, evaluate, fit

@@ -1,5 +1,5 @@
 """The field's standard benchmarks (nonlinearbenchmark.org) as
-:class:`canonid.datagen.dataset.Dataset`.
+:class:`canonid.kernel.dataset.Dataset`.
 
 Each entry of :data:`BENCHMARKS` reads the benchmark's own files, offline, and cuts the official
 split as the ``nonlinear_benchmarks`` package (version 1.0.1, ``benchmarks.py``) defines it: the
@@ -44,8 +44,8 @@ from typing import Any
 
 import numpy as np
 
-from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.datagen.loaders import load_csv
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError
 
 __all__ = [

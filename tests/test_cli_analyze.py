@@ -12,7 +12,7 @@ import pytest
 from canonid.analysis.linear import canonical_regressor
 from canonid.cli import main
 from canonid.commands.analyze import parse_box, parse_windows
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import SetError
 from canonid.models.registry import get_system
 from canonid.runfolder import RunRecipe

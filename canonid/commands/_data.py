@@ -8,8 +8,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from canonid.datagen.dataset import Dataset
 from canonid.datagen.loaders import is_dataset
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import DataError
 from canonid.runfolder import (
     DATA_FLAGS,

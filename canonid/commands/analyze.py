@@ -19,7 +19,7 @@ from typing import Any
 from canonid.analysis.estimate import Budget
 from canonid.analysis.report import AnalysisReport, analyze
 from canonid.commands import _data, _paths
-from canonid.datagen.dataset import Dataset
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import CanonidError, DataError, SetError
 from canonid.kernel.io import atomic_write_json, jsonable
 from canonid.models.registry import get_system

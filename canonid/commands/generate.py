@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _options, _paths
-from canonid.datagen.dataset import Dataset
 from canonid.datagen.generate import (
     FLIGHTS_PER_TASK,
     FlightResult,
@@ -21,6 +20,7 @@ from canonid.datagen.generate import (
     generate_dataset,
 )
 from canonid.datagen.scenarios import get_scenario, scenario_names
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import ShapeError
 from canonid.models.registry import get_system
 from canonid.runner import run_jobs
