@@ -295,7 +295,9 @@ def test_bad_input_is_refused_with_a_clear_error(data):
         fit_tiny(mismatched, val)
     nan = [type(train[0])(u=train[0].u, y=train[0].y.copy())]
     nan[0].y[5, 0] = np.nan
-    with pytest.raises(ShapeError, match=r"training data, trajectory 0: field .y. contains 1 non-finite"):
+    with pytest.raises(
+        ShapeError, match=r"training data, trajectory 0: field .y. contains 1 non-finite"
+    ):
         fit_tiny(nan, val)
     with pytest.raises(ShapeError, match="needs trajectories of at least 103"):
         fit_tiny(train, val, options=tiny_options(horizon=100))
