@@ -167,7 +167,9 @@ class Trajectory:
         object.__setattr__(self, "info", dict(self.info))
 
     @classmethod
-    def _trusted(cls, arrays: Mapping[str, np.ndarray], info: Mapping[str, Any]) -> Trajectory:
+    def _trusted(
+        cls, arrays: Mapping[str, np.ndarray | None], info: Mapping[str, Any]
+    ) -> Trajectory:
         """A trajectory of arrays already validated (by :func:`_validated` or as slices of a
         trajectory's), built without checking them again."""
         tr = object.__new__(cls)

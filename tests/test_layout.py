@@ -186,6 +186,24 @@ def test_importing_a_package_loads_nothing_heavy():
     assert _heavy_after(code) == set()
 
 
+def test_a_lazy_export_is_the_name_whatever_was_imported_first():
+    """Importing the module that defines an export binds the module on the package; the export
+    (``canonid.learning.evaluate``, the function of ``canonid.learning.evaluate``) still wins."""
+    code = (
+        "import importlib\n"
+        f"for package in {sorted(LAYERS.values())!r}:\n"
+        "    p = importlib.import_module(package)\n"
+        "    exports = getattr(p, '_EXPORTS', {})\n"
+        "    homes = {n: importlib.import_module(m) for n, m in exports.items()}\n"
+        "    for name, home in homes.items():\n"
+        "        assert getattr(p, name) is getattr(home, name), (package, name)\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+
+
 def test_loading_data_imports_no_casadi_torch_or_matplotlib(tmp_path):
     """A CSV file and a canonid dataset read through ``canonid.load_data`` need numpy only."""
     from canonid.kernel.dataset import Dataset
