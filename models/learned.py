@@ -36,6 +36,7 @@ import casadi as ca
 import numpy as np
 
 from canonid.kernel.canonical import cut_windows
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
 from canonid.kernel.network import CanonicalNet, GRULayer, Layer, ReducedCanonicalNet
@@ -201,7 +202,7 @@ class LearnedSystem(System):
     def from_data(
         cls,
         net: CanonicalNet | ReducedCanonicalNet,
-        trajectories: Sequence[Any],
+        trajectories: Sequence[Trajectory],
         *,
         dt: float,
         input_names: Sequence[str],
@@ -210,22 +211,17 @@ class LearnedSystem(System):
         **options: Any,
     ) -> LearnedSystem:
         """The system with X, U (and W unless given) from the training ``trajectories``
-        (objects with ``u`` ``(T, n_u)``, ``y`` ``(T, n_y)``, optionally ``y_clean``; see the
-        module docstring). Without ``W`` and without clean outputs, W is ``{0}``."""
+        (:class:`~canonid.kernel.dataset.Trajectory`, or objects with ``u``, ``y`` and optionally
+        ``y_clean``, converted once; see the module docstring). Without ``W`` and without clean
+        outputs, W is ``{0}``."""
         reg = net.regressor if isinstance(net, ReducedCanonicalNet) else net
-        items = list(trajectories)
-        if not items:
-            raise DataError("no training trajectories to take the sets X, U, W from")
-        us = [np.asarray(t.u, dtype=np.float64).reshape(len(t.u), -1) for t in items]
-        ys = [np.asarray(t.y, dtype=np.float64).reshape(len(t.y), -1) for t in items]
-        windows = np.concatenate([cut_windows(u, y, reg.window) for u, y in zip(us, ys)])
-        u_all = np.concatenate(us)
+        items = as_trajectories(trajectories, what="training trajectories (for X, U, W)")
+        windows = np.concatenate([cut_windows(t.u, t.y, reg.window) for t in items])
+        u_all = np.concatenate([t.u for t in items])
         U = Box(u_all.min(axis=0), u_all.max(axis=0))
         if W is None:
-            if all(getattr(t, "y_clean", None) is not None for t in items):
-                w = np.concatenate(
-                    [y - np.asarray(t.y_clean).reshape(y.shape) for t, y in zip(items, ys)]
-                )
+            if all(t.y_clean is not None for t in items):
+                w = np.concatenate([t.y - t.y_clean for t in items if t.y_clean is not None])
                 W = Box(w.min(axis=0), w.max(axis=0))
             else:
                 W = Box(np.zeros(reg.n_y), np.zeros(reg.n_y))
