@@ -14,36 +14,38 @@ Every estimate says whether it is a lower bound, an upper bound or an estimate
 Certified bounds rest on :mod:`canonid.analysis.interval` (outward-rounded interval arithmetic, arb
 for transcendental functions), :mod:`canonid.analysis.enclosure` (enclosures of CasADi SX functions
 and their Jacobians) and :mod:`canonid.analysis.matrix_bounds` (verified singular-value bounds).
+
+The names below are imported lazily (PEP 562): importing the package loads neither CasADi nor
+scipy.
 """
 
-from canonid.analysis.bound import BoundCheck, BoundConstants, check_bound
-from canonid.analysis.estimate import Bracket, Budget, Estimate
-from canonid.analysis.learned import ProbeResult, ResidualCheck, residual_check, state_probe
-from canonid.analysis.lipschitz import lipschitz_bracket, lipschitz_lower, lipschitz_upper
-from canonid.analysis.maps import Horizon
-from canonid.analysis.observability import alpha_bracket, alpha_lower, alpha_upper
-from canonid.analysis.reach import reachable_hulls
-from canonid.analysis.report import AnalysisReport, analyze
+from __future__ import annotations
 
-__all__ = [
-    "AnalysisReport",
-    "BoundCheck",
-    "BoundConstants",
-    "Bracket",
-    "Budget",
-    "Estimate",
-    "Horizon",
-    "ProbeResult",
-    "ResidualCheck",
-    "alpha_bracket",
-    "alpha_lower",
-    "alpha_upper",
-    "analyze",
-    "check_bound",
-    "lipschitz_bracket",
-    "lipschitz_lower",
-    "lipschitz_upper",
-    "reachable_hulls",
-    "residual_check",
-    "state_probe",
-]
+from canonid.kernel.lazy import lazy_exports
+
+_EXPORTS = {
+    "BoundCheck": "canonid.analysis.bound",
+    "BoundConstants": "canonid.analysis.bound",
+    "check_bound": "canonid.analysis.bound",
+    "Bracket": "canonid.analysis.estimate",
+    "Budget": "canonid.analysis.estimate",
+    "Estimate": "canonid.analysis.estimate",
+    "ProbeResult": "canonid.analysis.learned",
+    "ResidualCheck": "canonid.analysis.learned",
+    "residual_check": "canonid.analysis.learned",
+    "state_probe": "canonid.analysis.learned",
+    "lipschitz_bracket": "canonid.analysis.lipschitz",
+    "lipschitz_lower": "canonid.analysis.lipschitz",
+    "lipschitz_upper": "canonid.analysis.lipschitz",
+    "Horizon": "canonid.analysis.maps",
+    "alpha_bracket": "canonid.analysis.observability",
+    "alpha_lower": "canonid.analysis.observability",
+    "alpha_upper": "canonid.analysis.observability",
+    "reachable_hulls": "canonid.analysis.reach",
+    "AnalysisReport": "canonid.analysis.report",
+    "analyze": "canonid.analysis.report",
+}
+
+__all__ = sorted(_EXPORTS)
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

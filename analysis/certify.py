@@ -46,7 +46,7 @@ from canonid.analysis.interval import Interval
 from canonid.analysis.lipschitz import lipschitz_bracket
 from canonid.analysis.matrix_bounds import spectral_upper
 from canonid.analysis.network_enclosure import network_enclosure
-from canonid.kernel.network import ACTIVATIONS, CanonicalNet, Layer, ReducedNet
+from canonid.kernel.network import ACTIVATIONS, CanonicalNet, Layer, ReducedCanonicalNet
 from canonid.models.learned import LearnedSystem
 
 __all__ = ["LearnedGamma", "layer_norm_bound", "learned_gamma"]
@@ -105,7 +105,7 @@ def layer_norm_bound(system: LearnedSystem) -> Estimate:
             window=reg.window,
         )
     shift = 1.0 if reg.window >= 2 else 0.0
-    if isinstance(net, ReducedNet):
+    if isinstance(net, ReducedCanonicalNet):
         inner = _regressor_z(reg, np.ones(reg.state_dim), np.ones(reg.n_y))
         encoder = _network(net.encoder, net.encoder_skip)
         decoder = _network(net.decoder, net.decoder_skip)

@@ -306,13 +306,6 @@ class _Run:
             return g1
         return g1 + g2
 
-    def ghull(self, g1: Interval | None, g2: Interval | None) -> Interval | None:
-        if g1 is None and g2 is None:
-            return None
-        a = g1 if g1 is not None else self._zero()
-        b = g2 if g2 is not None else self._zero()
-        return a.hull(b)
-
     def gselect(
         self, first: np.ndarray, second: np.ndarray, g1: Interval | None, g2: Interval | None
     ) -> Interval | None:

@@ -97,10 +97,6 @@ class Interval:
         lo_a, hi_a = np.broadcast_arrays(lo_a, hi_a)
         return cls(lo_a.copy(), hi_a.copy())
 
-    @classmethod
-    def entire(cls, shape: tuple[int, ...]) -> Interval:
-        return cls(np.full(shape, -_INF), np.full(shape, _INF))
-
     # ------------------------------------------------------------------ queries
     @property
     def shape(self) -> tuple[int, ...]:

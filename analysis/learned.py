@@ -2,9 +2,11 @@
 
 The identification layer exports a regressor ``H(z, u) -> y``: ``z`` of shape
 ``(N, ℓ(n_u+n_y))`` in the :mod:`canonid.kernel.canonical` ordering, ``u`` ``(N, n_u)``, ``y``
-``(N, n_y)``, physical units. Trajectories are duck-typed: objects with ``u`` ``(T, n_u)``,
-``y`` ``(T, n_y)`` and, where available, ``y_clean`` (noise-free outputs) and ``x`` (true states),
-following the dataset time convention (sample ``t`` holds ``x[t]``, ``u[t]``, ``y[t]``).
+``(N, n_y)``, physical units. Trajectories are the kernel's
+:class:`~canonid.kernel.dataset.Trajectory` (``u`` ``(T, n_u)``, ``y`` ``(T, n_y)`` and, where
+available, ``y_clean`` (noise-free outputs) and ``x`` (true states), following the dataset time
+convention: sample ``t`` holds ``x[t]``, ``u[t]``, ``y[t]``); other objects with ``.u`` and
+``.y`` are converted once (:func:`~canonid.kernel.dataset.as_trajectories`).
 
 Rows. For window ``ℓ`` a trajectory of ``T`` samples gives rows ``t = ℓ, …, T−1``:
 ``z_t`` holds samples ``t−ℓ … t−1``, the target is ``y_t``, the true state ``x_t``, the state at
@@ -27,13 +29,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
 from canonid.analysis.bound import BoundConstants
 from canonid.analysis.maps import check_window
 from canonid.kernel.canonical import cut_windows
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.models.sets import Box
 
@@ -49,16 +52,6 @@ __all__ = [
 
 Regressor = Callable[[np.ndarray, np.ndarray], np.ndarray]
 _QUANTILES = (0.5, 0.9, 0.99, 1.0)
-
-
-class _Trajectory(Protocol):
-    """What a trajectory must offer (``y_clean`` and ``x`` are read when present)."""
-
-    @property
-    def u(self) -> np.ndarray: ...
-
-    @property
-    def y(self) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -80,24 +73,17 @@ class WindowRows:
         return int(self.z.shape[0])
 
 
-def window_rows(trajectories: Sequence[_Trajectory], window: int) -> WindowRows:
+def window_rows(trajectories: Sequence[Trajectory], window: int) -> WindowRows:
     """Cut every trajectory into the rows of the module docstring and stack them."""
     ell = check_window(window)
-    if len(trajectories) == 0:
-        raise DataError("no trajectories given")
+    trajectories = as_trajectories(trajectories, what="trajectories")
     parts: dict[str, list[np.ndarray]] = {
         k: [] for k in ("z", "u", "y", "x", "x0", "wn", "ww", "id")
     }
-    has_x = all(getattr(tr, "x", None) is not None for tr in trajectories)
-    has_w = all(getattr(tr, "y_clean", None) is not None for tr in trajectories)
+    has_x = all(tr.x is not None for tr in trajectories)
+    has_w = all(tr.y_clean is not None for tr in trajectories)
     for i, tr in enumerate(trajectories):
-        u = np.asarray(tr.u, dtype=np.float64)
-        y = np.asarray(tr.y, dtype=np.float64)
-        u = u.reshape(len(u), -1)
-        y = y.reshape(len(y), -1)
-        if u.shape[0] != y.shape[0]:
-            raise ShapeError(f"trajectory {i}: u has {u.shape[0]} samples, y has {y.shape[0]}")
-        steps = u.shape[0]
+        u, y, steps = tr.u, tr.y, tr.T
         if steps <= ell:
             raise ShapeError(f"trajectory {i} has {steps} samples, window ℓ = {ell} needs more")
         parts["z"].append(cut_windows(u, y, ell)[:-1])  # rows t = ℓ … T−1
@@ -105,13 +91,12 @@ def window_rows(trajectories: Sequence[_Trajectory], window: int) -> WindowRows:
         parts["y"].append(y[ell:])
         parts["id"].append(np.full(steps - ell, i))
         if has_x:
-            x = np.asarray(tr.x, dtype=np.float64)  # type: ignore[attr-defined]
-            x = x.reshape(steps, -1)
-            parts["x"].append(x[ell:])
-            parts["x0"].append(x[: steps - ell])
+            assert tr.x is not None
+            parts["x"].append(tr.x[ell:])
+            parts["x0"].append(tr.x[: steps - ell])
         if has_w:
-            clean = np.asarray(tr.y_clean, dtype=np.float64)  # type: ignore[attr-defined]
-            w = y - clean.reshape(y.shape)
+            assert tr.y_clean is not None
+            w = y - tr.y_clean
             sq = np.concatenate([[0.0], np.cumsum(np.sum(w**2, axis=1))])
             parts["wn"].append(np.linalg.norm(w[ell:], axis=1))
             window_sq = sq[ell:steps] - sq[: steps - ell]  # Σ_{k=t−ℓ}^{t−1} ‖w_k‖²
@@ -200,7 +185,7 @@ def _call_regressor(regressor: Regressor, z: np.ndarray, u: np.ndarray, n_y: int
 
 def residual_check(
     regressor: Regressor,
-    trajectories: Sequence[_Trajectory],
+    trajectories: Sequence[Trajectory],
     constants: BoundConstants,
     *,
     X: Box | None = None,
@@ -303,8 +288,8 @@ def _features(rows: WindowRows, reduced: Sequence[np.ndarray] | None, name: str)
 
 
 def state_probe(
-    train: Sequence[_Trajectory],
-    test: Sequence[_Trajectory],
+    train: Sequence[Trajectory],
+    test: Sequence[Trajectory],
     *,
     window: int,
     constants: BoundConstants | None = None,

@@ -38,6 +38,7 @@ from canonid.analysis.lipschitz import lipschitz_bracket, lipschitz_lower
 from canonid.analysis.maps import check_window
 from canonid.analysis.observability import alpha_bracket
 from canonid.analysis.reach import ReachableHulls, reach
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import DataError, SetError
 from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable, read_json
 from canonid.models.base import System
@@ -247,13 +248,20 @@ class AnalysisReport:
         return BoundConstants(window, r.gamma_f.upper, r.alpha.lower, r.gamma_h.upper)
 
     def learned_checks(
-        self, models: Sequence[Exported], train: Sequence[Any], test: Sequence[Any]
+        self,
+        models: Sequence[Exported],
+        train: Sequence[Trajectory],
+        test: Sequence[Trajectory],
     ) -> LearnedChecks:
         """Checks of learned models with this report's certified constants and X: for each
         model (numpy ``H(z, u)`` and ``window``) its one-step residual on ``test`` against the
         noise-induced level (:func:`canonid.analysis.learned.residual_check`); for each of their
         windows, when ``train`` is given and every trajectory carries its states, an affine probe
-        z_t → x_t against Proposition 2's bound (:func:`canonid.analysis.learned.state_probe`)."""
+        z_t → x_t against Proposition 2's bound (:func:`canonid.analysis.learned.state_probe`).
+        Objects with ``.u``, ``.y`` that are not trajectories are converted once
+        (:func:`~canonid.kernel.dataset.as_trajectories`)."""
+        test = as_trajectories(test, what="test data")
+        train = as_trajectories(train, what="training data") if train else ()
         residuals = [
             residual_check(m.H, test, self.constants(int(m.window)), X=self.X) for m in models
         ]

@@ -85,8 +85,8 @@ from _results import write_section  # noqa: E402
 from nonlinear_benchmarks import Input_output_data  # noqa: E402
 
 import canonid.learning.training  # noqa: E402
-from canonid.datagen.dataset import Dataset  # noqa: E402
-from canonid.learning import Model, Normalisation, as_series, evaluate, fit  # noqa: E402
+from canonid.kernel.dataset import Dataset  # noqa: E402
+from canonid.learning import Model, Normalisation, evaluate, fit  # noqa: E402
 from canonid.profiles import train_options  # noqa: E402
 
 WINDOW, HORIZON, VAL_STRIDE = 10, 100, 5
@@ -320,7 +320,7 @@ def train_deepsi(ds: Dataset, turns: TakeTurns, budget: float, curve: Curve) -> 
         return [Input_output_data(u=t.u, y=t.y) for t in ds.split(split)]
 
     train, val = records("train"), ds.split("val")
-    norm = Normalisation.fit(as_series(ds.split("train")))
+    norm = Normalisation.fit(ds.split("train"))
     n_u, n_y = train[0].u.shape[1], train[0].y.shape[1]
     _, _, auto_norm = deepSI.get_nu_ny_and_auto_norm(train)
     torch.manual_seed(0)

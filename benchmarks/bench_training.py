@@ -35,9 +35,9 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _results import write_section  # noqa: E402
 
-from canonid.datagen.dataset import Dataset  # noqa: E402
+from canonid.kernel.dataset import Dataset  # noqa: E402
 from canonid.learning import build_net, fit, model_names  # noqa: E402
-from canonid.learning.data import Normalisation, WindowBank, as_series  # noqa: E402
+from canonid.learning.data import Normalisation, WindowBank  # noqa: E402
 from canonid.profiles import train_options  # noqa: E402
 
 WINDOW, HORIZON = 10, 50
@@ -137,8 +137,8 @@ def batched_rollouts(ds: Dataset) -> str:
     from canonid.learning import Model
 
     torch.set_num_threads(1)
-    train = as_series(ds.split("train"))
-    test = as_series(ds.split("test"))
+    train = ds.split("train")
+    test = ds.split("test")
     torch.manual_seed(0)
     model = Model(
         build_net("mlp", window=WINDOW, n_u=1, n_y=1, residual=True), Normalisation.fit(train)
@@ -217,7 +217,7 @@ def main() -> int:
         )
         return 1
     ds = Dataset.load(args.data)
-    train = as_series(ds.split("train"))
+    train = ds.split("train")
     bank = WindowBank(train, Normalisation.fit(train))
     parts = [
         f"Tank dataset `{args.data.name}` ({len(train)} training trajectories), "

@@ -68,7 +68,7 @@ def overrides_of(pairs: Sequence[str], flag: str = "--set") -> dict[str, Any]:
 def run_generated(
     system: str, seed: int, overrides: dict[str, Any], net: dict[str, Any]
 ) -> dict[str, Any]:
-    from canonid.datagen import Dataset
+    from canonid.kernel.dataset import Dataset
     from canonid.learning import evaluate, fit
     from canonid.profiles import stage_train_options
 

@@ -33,7 +33,7 @@ from _data import ensure_dataset  # noqa: E402
 from _results import RESULTS, write_section  # noqa: E402
 from bench_deepsi import WARM_UP, Curve, run_turns, train_ours  # noqa: E402
 
-from canonid.datagen.dataset import Dataset  # noqa: E402
+from canonid.kernel.dataset import Dataset  # noqa: E402
 from canonid.profiles import train_options  # noqa: E402
 
 RES = {"residual": True, "feedthrough": False}

@@ -31,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np
 
 from benchmarks._results import write_section
-from canonid.datagen.dataset import Dataset
+from canonid.kernel.dataset import Dataset
 
 #: paper, Table 1, 3D Drone, Ours (MLP), ×1e-2, for ℓ = 5, 10, 15, 20, 25, 30 (real data)
 PAPER_3D_DRONE_MLP = {5: 15.2, 10: 14.2, 15: 13.6, 20: 13.5, 25: 13.6, 30: 13.1}

@@ -1,6 +1,6 @@
 """canonid: learn reduced nonlinear state-space models with the output-error canonical method.
 
-The names a Python user needs, from the four library packages (``models``, ``datagen``,
+The names a Python user needs, from the library packages (``kernel``, ``models``, ``datagen``,
 ``learning``, ``analysis``) in one place; the CLI, experiment profiles, sweeps and reports live
 in this package's modules. A typical session::
 
@@ -17,8 +17,10 @@ in this package's modules. A typical session::
 
 Systems and data
     :func:`get_system`, :func:`system_names` (the registry), :class:`Dataset`,
-    :class:`Trajectory`, :func:`load_data` (a dataset, CSV file or folder, or ``.npz``),
-    :class:`GenerationConfig` and :func:`generate_dataset` (closed-loop data).
+    :class:`Trajectory` (the one trajectory type every function takes; other objects with
+    ``.u``, ``.y`` are converted once, ``Trajectory.of(obj)``), :func:`load_data` (a dataset,
+    CSV file or folder, or ``.npz``), :class:`GenerationConfig` and :func:`generate_dataset`
+    (closed-loop data).
 Identification (torch)
     :func:`fit` (by default the options ``canonid train`` uses: :func:`train_options` of the
     ``quick`` profile) with :class:`TrainOptions`, :class:`Model` (``Model.load(run_dir)``,
@@ -27,8 +29,13 @@ Analysis
     :func:`analyze` → :class:`AnalysisReport`; every number is an :class:`Estimate` that says
     whether it is a lower bound, an upper bound or an estimate.
 
-The names load on first use (PEP 562), so ``import canonid`` imports neither torch nor CasADi;
-``canonid.fit`` imports torch, ``canonid.get_system`` CasADi.
+Errors
+    Every error canonid raises on purpose is a :class:`CanonidError` (and the closest built-in
+    type, e.g. ``ValueError``), whose message names the argument, file or field at fault.
+
+The names load on first use (PEP 562), so ``import canonid`` imports neither numpy, torch nor
+CasADi; ``canonid.load_data`` needs numpy only, ``canonid.fit`` imports torch,
+``canonid.get_system`` CasADi.
 """
 
 from __future__ import annotations
@@ -44,8 +51,8 @@ _EXPORTS = {
     "CanonidError": "canonid.kernel.errors",
     "get_system": "canonid.models.registry",
     "system_names": "canonid.models.registry",
-    "Dataset": "canonid.datagen.dataset",
-    "Trajectory": "canonid.datagen.dataset",
+    "Dataset": "canonid.kernel.dataset",
+    "Trajectory": "canonid.kernel.dataset",
     "load_data": "canonid.datagen.loaders",
     "GenerationConfig": "canonid.datagen.generate",
     "generate_dataset": "canonid.datagen.generate",
@@ -87,9 +94,9 @@ if TYPE_CHECKING:  # what the lazy names are, for type checkers and editors
     from canonid.analysis.estimate import Estimate
     from canonid.analysis.report import AnalysisReport, analyze
     from canonid.api import fit
-    from canonid.datagen.dataset import Dataset, Trajectory
     from canonid.datagen.generate import GenerationConfig, generate_dataset
     from canonid.datagen.loaders import load_data
+    from canonid.kernel.dataset import Dataset, Trajectory
     from canonid.kernel.errors import CanonidError
     from canonid.learning.evaluate import evaluate
     from canonid.learning.model import Model

@@ -9,19 +9,21 @@ gets the command line's model.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from canonid.profiles import DEFAULT_PROFILE, train_options
 
 if TYPE_CHECKING:
+    from canonid.kernel.dataset import Trajectory
     from canonid.learning.training import FitResult, TrainOptions
 
 __all__ = ["fit"]
 
 
 def fit(
-    train: Any,
-    val: Any,
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
     *,
     model: str = "mlp",
     window: int,

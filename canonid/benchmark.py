@@ -23,12 +23,12 @@ import os
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import OptionError, OutputError
 from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable
 from canonid.profiles import DEFAULT_PROFILE
@@ -121,12 +121,11 @@ def score_parts(
 ) -> tuple[list[PartScore], list[np.ndarray]]:
     """Official scores of ``model`` on every test part of ``dataset`` (see the module
     docstring), with the simulated outputs of samples ``n_init … T−1`` of each part."""
-    from canonid.learning.data import as_series
     from canonid.learning.evaluate import simulate_records
 
     check_window(model.window, bench)
     parts = dataset.split("test")
-    sims = simulate_records(model, as_series(parts, what="test parts"), bench.n_init)
+    sims = simulate_records(model, parts, bench.n_init)
     scores = []
     for part, sim in zip(parts, sims, strict=True):
         err = sim - part.y[bench.n_init :]
@@ -224,7 +223,7 @@ class BenchmarkRequest:
     name: str
     files: Path | None = None
     model: str = "mlp"
-    window: int | str | None = None
+    window: int | Literal["auto"] | None = None
     profile: str = DEFAULT_PROFILE
     out: Path | None = None
     seed: int | None = None

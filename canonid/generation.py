@@ -20,8 +20,8 @@ from canonid.kernel.errors import OptionError
 from canonid.kernel.io import atomic_write_figure
 
 if TYPE_CHECKING:
-    from canonid.datagen.dataset import Dataset
     from canonid.datagen.generate import FlightResult
+    from canonid.kernel.dataset import Dataset
 
 __all__ = ["GenerateRequest", "generate", "plot_flights", "scenario_names"]
 
@@ -77,10 +77,10 @@ def _tally(result: FlightResult) -> int:
 
 def generate(request: GenerateRequest) -> str:
     """Generate the dataset of ``request``; the lines that say what was written."""
-    from canonid.datagen.dataset import Dataset
     from canonid.datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
     from canonid.datagen.scenarios import get_scenario
     from canonid.jobs import check_folder
+    from canonid.kernel.dataset import Dataset
     from canonid.models.registry import get_system
     from canonid.runner import run_jobs
 

@@ -42,11 +42,11 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
 from canonid.jobs import Job, check_folder
+from canonid.kernel.dataset import as_trajectories
 from canonid.kernel.errors import CheckpointError, DataError
 from canonid.kernel.io import atomic_write_figure, atomic_write_json, read_json
-from canonid.learning import EpochReport, Model, evaluate
-from canonid.learning.data import as_series
-from canonid.learning.evaluate import simulate_records
+from canonid.learning import EpochReport, Model
+from canonid.learning.evaluate import evaluate, simulate_records
 from canonid.learning.model import check_same
 from canonid.learning.nets import ReducedNet, check_reducible
 from canonid.learning.reduction import (
@@ -655,7 +655,7 @@ def _plot_reduced_vs_full(
 ) -> Path:
     """Open-loop simulations of the full and the reduced model from sample ``n_init`` on the
     first ``count`` test records, one row per output."""
-    records = [s for s in as_series(list(trajs), what="test data") if s.T > n_init][:count]
+    records = [s for s in as_trajectories(trajs, what="test data") if s.T > n_init][:count]
     sims_full = simulate_records(full, records, n_init)
     sims_red = simulate_records(reduced, records, n_init)
     n_y = full.n_y

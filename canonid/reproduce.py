@@ -58,10 +58,10 @@ import numpy as np
 
 from canonid import learned
 from canonid.analysis.report import AnalysisReport
-from canonid.datagen.dataset import Dataset
 from canonid.datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
 from canonid.datagen.scenarios import scenario_names
 from canonid.jobs import check_folder
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import CheckpointError, DataError, OptionError
 from canonid.kernel.io import atomic_write_json, jsonable, read_json
 from canonid.learning import Model, model_names

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from canonid.datagen.dataset import Dataset
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.io import atomic_write_figure
 from canonid.learning import Model
 from canonid.learning.evaluate import simulate_records

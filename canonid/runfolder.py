@@ -27,12 +27,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, TypeAlias
 
-from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.datagen.loaders import is_dataset, load_data, split_train_val
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, DataError
 from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
-from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, evaluate, fit
-from canonid.learning.evaluate import default_n_init
+from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, fit
+from canonid.learning.evaluate import default_n_init, evaluate
 from canonid.learning.plots import plot_rollouts, plot_training_curve
 from canonid.learning.training import CHECKPOINT_FILE
 

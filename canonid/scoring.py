@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 from canonid.kernel.errors import DataError, OptionError
 
 if TYPE_CHECKING:
-    from canonid.datagen.dataset import Dataset
+    from canonid.kernel.dataset import Dataset
     from canonid.runfolder import RunEvaluation
 
 __all__ = [

@@ -88,9 +88,12 @@ def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
             )
         return _learned_only(request)
     system = get_system(request.system)
-    if request.window is None and request.windows is None:
+    if request.window is not None:
+        windows = [request.window]
+    elif request.windows is not None:
+        windows = parse_windows(request.windows)
+    else:
         raise OptionError("one of --window L or --windows A-B is required with a SYSTEM")
-    windows = [request.window] if request.window is not None else parse_windows(request.windows)
     budget = _check_numbers(request)
     if request.data is not None and request.run is None:
         raise OptionError("--data applies to --run RUN only")
@@ -305,6 +308,9 @@ def _learned_gamma_record(model: Any, request: AnalyzeRequest, budget: Budget) -
     from canonid.learned import learned_system
     from canonid.runfolder import recipe_of
 
+    run = request.run
+    if run is None:  # only called for a run's model
+        raise OptionError("the learned model's γ_f needs --run RUN")
     if not hasattr(model, "network"):
         return {"available": False, "why": "the model does not export its weights"}
     try:
@@ -312,8 +318,8 @@ def _learned_gamma_record(model: Any, request: AnalyzeRequest, budget: Budget) -
     except CanonidError as exc:  # only canonical models export
         return {"available": False, "why": str(exc)}
     # the training hull: the run's own training data when its recipe names them
-    own = recipe_of(request.run) is not None
-    system = learned_system(request.run, data=None if own else request.data).system
+    own = recipe_of(run) is not None
+    system = learned_system(run, data=None if own else request.data).system
     gamma = learned_gamma(system, budget=budget, tol=request.tol, seed=request.seed)
     return {"available": True, "state_dim": system.n_x, **gamma.to_dict()}
 

@@ -1,5 +1,5 @@
 """The field's standard benchmarks (nonlinearbenchmark.org) as
-:class:`canonid.datagen.dataset.Dataset`.
+:class:`canonid.kernel.dataset.Dataset`.
 
 Each entry of :data:`BENCHMARKS` reads the benchmark's own files, offline, and cuts the official
 split as the ``nonlinear_benchmarks`` package (version 1.0.1, ``benchmarks.py``) defines it: the
@@ -51,8 +51,8 @@ from typing import Any
 
 import numpy as np
 
-from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.datagen.loaders import load_csv
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError
 
 __all__ = [
@@ -309,7 +309,7 @@ _COLUMNS = (
 
 # Champneys et al. (2024), the baseline study: each method's figure per column of _COLUMNS, as
 # printed in the paper, in each benchmark's scoring units
-_CHAMPNEYS_ROWS = {
+_CHAMPNEYS_ROWS: dict[str, tuple[str | None, ...]] = {
     "LTI state space": ("6.96", "14.4", "6.58", "43.4", "5.53", "0.588", "0.224", "0.384"),
     "LTI ARX": ("6.95", "14.2", "6.59", "43.4", "12.6", "0.685", "0.291", "0.331"),
     "polynomial NARX": ("0.640", "2.25", "0.571", "27.3", "5.17", "0.413", "0.10", "0.141"),
@@ -324,7 +324,7 @@ _CHAMPNEYS_ROWS = {
 
 # The same paper's table of the best published results: (method, its own source) → figure per
 # column of _COLUMNS, None where the method has no published figure on that part
-_BEST_PUBLISHED_ROWS = {
+_BEST_PUBLISHED_ROWS: dict[tuple[str, str], tuple[str | None, ...]] = {
     ("DT SUBNET", "Beintema et al., 2021"): (
         "0.36", "1.4", "0.32", "0.241", None, "0.37", "0.169", "0.117",
     ),

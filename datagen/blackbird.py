@@ -90,7 +90,7 @@ import numpy as np
 import scipy
 
 from canonid.datagen.chunks import cut_chunks
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError
 from canonid.kernel.io import sha256_file
 
@@ -493,9 +493,9 @@ def load_blackbird(
     seed: int = 0,
     gyro_units: Literal["rad/s", "deg/s"] = "rad/s",
 ) -> Dataset:
-    """Load every Blackbird flight below ``root`` into a :class:`~canonid.datagen.dataset.Dataset`.
+    """Load every Blackbird flight below ``root`` into a :class:`~canonid.kernel.dataset.Dataset`.
 
-    Each chunk becomes one :class:`~canonid.datagen.dataset.Trajectory` (``info``: ``flight`` id,
+    Each chunk becomes one :class:`~canonid.kernel.dataset.Trajectory` (``info``: ``flight`` id,
     ``chunk`` index, ``chunk_start`` sample of the flight's 50 Hz record, ``t0_ns`` start of the
     record on the bag clock, ``max_gap_s``); all chunks of a flight land in the same split.
     The metadata marks the data as real (``real_data: True``, ``simulated: False``) and records

@@ -7,9 +7,7 @@ chunk never shares a sample with another one (and, split by record, never with a
 
 from __future__ import annotations
 
-from typing import Any
-
-from canonid.datagen.dataset import Trajectory
+from canonid.kernel.dataset import Trajectory
 from canonid.kernel.errors import DataError
 
 __all__ = ["chunk_bounds", "cut_chunks"]
@@ -29,9 +27,7 @@ def cut_chunks(trajectory: Trajectory, chunk_length: int) -> tuple[Trajectory, .
     chunk's ``info`` is the record's, plus ``chunk`` (its index) and ``chunk_start`` (the
     record's sample at which it starts).
     """
-    chunks = []
-    for c, (a, b) in enumerate(chunk_bounds(trajectory.T, chunk_length)):
-        info: dict[str, Any] = {**trajectory.info, "chunk": c, "chunk_start": a}
-        fields = {k: v[a:b] for k, v in trajectory.arrays().items()}
-        chunks.append(Trajectory(**fields, info=info))
-    return tuple(chunks)
+    return tuple(
+        trajectory.part(a, b, chunk=c, chunk_start=a)
+        for c, (a, b) in enumerate(chunk_bounds(trajectory.T, chunk_length))
+    )

@@ -56,9 +56,9 @@ import numpy as np
 
 from canonid.datagen.chunks import cut_chunks
 from canonid.datagen.controllers.base import Controller
-from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.datagen.scenarios import Scenario, get_scenario
 from canonid.datagen.simulate import Excitation, noise_box, simulate_closed_loop
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.kernel.io import atomic_write_json, read_json
 from canonid.models.base import System

@@ -1,7 +1,7 @@
-"""User data → :class:`canonid.datagen.dataset.Dataset`: CSV files, ``.npz`` arrays and objects
+"""User data → :class:`canonid.kernel.dataset.Dataset`: CSV files, ``.npz`` arrays and objects
 shaped like ``nonlinear_benchmarks.Input_output_data``.
 
-Every loader reads the project's time convention (see :mod:`canonid.datagen.dataset`): row ``t``
+Every loader reads the project's time convention (see :mod:`canonid.kernel.dataset`): row ``t``
 holds ``u[t]`` and ``y[t]``, where ``u[t]`` acts after ``y[t]`` is measured. Loaded data go into one
 split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
 
@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.kernel.io import read_json, read_npz, sha256_file
 
@@ -63,17 +63,7 @@ def _check_dt(dt: Any, where: str) -> float:
 
 def _trajectory(u: Any, y: Any, where: str, y_clean: Any = None) -> Trajectory:
     try:
-        ua, ya = np.asarray(u, dtype=np.float64), np.asarray(y, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"{where}: u and y must be numeric arrays ({exc})") from None
-    ua = ua[:, None] if ua.ndim == 1 else ua
-    ya = ya[:, None] if ya.ndim == 1 else ya
-    if ua.ndim != 2 or ya.ndim != 2:
-        raise DataError(f"{where}: u and y must be (T, n) arrays, got {ua.shape} and {ya.shape}")
-    if ua.shape[0] != ya.shape[0]:
-        raise DataError(f"{where}: u has {ua.shape[0]} samples but y has {ya.shape[0]}")
-    try:
-        return Trajectory(u=ua, y=ya, y_clean=y_clean)
+        return Trajectory(u=u, y=y, y_clean=y_clean)
     except ShapeError as exc:
         raise DataError(f"{where}: {exc}") from None
 
@@ -446,18 +436,13 @@ def split_train_val(
         new_train, new_val = train[: len(train) - n_val], train[len(train) - n_val :]
         how = f"last {n_val} of {len(train)} experiments"
     else:
-
-        def part(tr: Trajectory, start: int, stop: int) -> Trajectory:
-            arrays = {k: v[start:stop] for k, v in tr.arrays().items()}
-            return Trajectory(**arrays, info={**tr.info, "samples": [start, stop]})
-
         heads, tails = [], []
         for i, tr in enumerate(train):
             cut = int((1 - val_fraction) * tr.T)
             if cut < 2 or tr.T - cut < 2:
                 raise DataError(f"record {i} of {tr.T} samples is too short to split")
-            heads.append(part(tr, 0, cut))
-            tails.append(part(tr, cut, tr.T))
+            heads.append(tr.part(0, cut, samples=[0, cut]))
+            tails.append(tr.part(cut, tr.T, samples=[cut, tr.T]))
         new_train, new_val = tuple(heads), tuple(tails)
         share = f"the last {val_fraction:.0%} of"
         how = (

@@ -5,7 +5,7 @@ gives the same reference, so a flight's reference is fixed by its seed alone.
 
 Time convention: row ``t`` of a reference is the target for sample ``t`` (time ``t · dt``),
 ``t = 0 … T−1``, the same indexing as the trajectory it is tracked in (see
-:mod:`canonid.datagen.dataset`).
+:mod:`canonid.kernel.dataset`).
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """Closed-loop simulation of a true system under a data-generation controller.
 
-Time convention (the one of :mod:`canonid.datagen.dataset`): for ``t = 0 … T−1``
+Time convention (the one of :mod:`canonid.kernel.dataset`): for ``t = 0 … T−1``
 
 * ``x[t]`` is the true state (``x[0] = x0``);
 * the controller sees the true state, ``c[t] = controller(t, x[t]).u``;

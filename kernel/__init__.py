@@ -1,5 +1,6 @@
 """The kernel under every layer: errors, atomic file I/O, argument validators, lazy exports, the
-canonical state's shift and a trained network as numpy arrays.
+one trajectory and dataset type, the canonical state's shift and a trained network as numpy
+arrays.
 
 It needs numpy only — no CasADi, torch or scipy — so each layer above (``canonid.models``,
 ``canonid.datagen``, ``canonid.learning``, ``canonid.analysis`` and the application layer in
@@ -16,6 +17,9 @@ _EXPORTS = {
     "CheckpointError": "canonid.kernel.errors",
     "DataError": "canonid.kernel.errors",
     "OptionError": "canonid.kernel.errors",
+    "Dataset": "canonid.kernel.dataset",
+    "Trajectory": "canonid.kernel.dataset",
+    "as_trajectories": "canonid.kernel.dataset",
     "OutputError": "canonid.kernel.errors",
     "SetError": "canonid.kernel.errors",
     "ShapeError": "canonid.kernel.errors",

@@ -5,9 +5,26 @@ from __future__ import annotations
 import importlib
 import sys
 from collections.abc import Callable, Mapping
-from typing import Any
+from types import ModuleType
+from typing import Any, cast
 
 __all__ = ["lazy_exports"]
+
+
+class _LazyPackage(ModuleType):
+    """A package whose exported names win over its submodules of the same name.
+
+    Importing a submodule binds it as an attribute of its package: without this class,
+    ``canonid.learning.evaluate`` would become the module once anything imported
+    ``canonid.learning.evaluate``, and the function before that.
+    """
+
+    _lazy_exports: Mapping[str, str] = {}
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if isinstance(value, ModuleType) and self._lazy_exports.get(name) == value.__name__:
+            value = getattr(value, name)  # the import system binding the defining submodule
+        super().__setattr__(name, value)
 
 
 def lazy_exports(
@@ -15,17 +32,20 @@ def lazy_exports(
 ) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
     """The module-level ``__getattr__`` and ``__dir__`` of ``package`` that import each name of
     ``exports`` (name → module defining it) the first time it is used, and keep it."""
+    module = sys.modules[package]
+    module.__class__ = _LazyPackage
+    cast(_LazyPackage, module)._lazy_exports = dict(exports)
 
     def __getattr__(name: str) -> Any:
         try:
-            module = exports[name]
+            home = exports[name]
         except KeyError:
             raise AttributeError(f"module {package!r} has no attribute {name!r}") from None
-        value = getattr(importlib.import_module(module), name)
-        setattr(sys.modules[package], name, value)
+        value = getattr(importlib.import_module(home), name)
+        setattr(module, name, value)
         return value
 
     def __dir__() -> list[str]:
-        return sorted(set(vars(sys.modules[package])) | set(exports))
+        return sorted(set(vars(module)) | set(exports))
 
     return __getattr__, __dir__

@@ -27,9 +27,10 @@ one with ``activation="linear"``. A :class:`GRULayer` is one layer of a GRU (PyT
 
 and ``Ĥ(z, u) = y_mean + y_std ⊙ ỹ`` in physical units.
 
-:class:`ReducedNet` adds the auto-encoder of :mod:`canonid.learning.nets.reduced` around it:
-``E(z̃) = encoder(z̃) (+ encoder_skip(z̃))`` and ``D(x̄) = decoder(x̄) (+ decoder_skip(x̄))``, and
-the reduced model ``x̄_{t+1} = E(Ā D(x̄_t) + B̄ ũ_t + S̄ Ĥ̃(D(x̄_t), ũ_t))``,
+:class:`ReducedCanonicalNet` adds the auto-encoder of :mod:`canonid.learning.nets.reduced`
+(whose torch module is ``ReducedNet``) around it: ``E(z̃) = encoder(z̃) (+ encoder_skip(z̃))``
+and ``D(x̄) = decoder(x̄) (+ decoder_skip(x̄))``, and the reduced model
+``x̄_{t+1} = E(Ā D(x̄_t) + B̄ ũ_t + S̄ Ĥ̃(D(x̄_t), ũ_t))``,
 ``ȳ_t = y_mean + y_std ⊙ Ĥ̃(D(x̄_t), ũ_t)`` (``x̄`` has no units).
 """
 
@@ -44,7 +45,7 @@ import numpy as np
 from canonid.kernel.errors import ShapeError
 from canonid.kernel.validate import require_finite
 
-__all__ = ["ACTIVATIONS", "CanonicalNet", "GRULayer", "Layer", "ReducedNet"]
+__all__ = ["ACTIVATIONS", "CanonicalNet", "GRULayer", "Layer", "ReducedCanonicalNet"]
 
 #: activation name → an upper bound of |σ'| over R, for Lipschitz bounds (SiLU's slope peaks at
 #: 1.0998 near x = 2.4, rounded up here)
@@ -270,7 +271,7 @@ class CanonicalNet:
 
 
 @dataclass(frozen=True)
-class ReducedNet:
+class ReducedCanonicalNet:
     """A :class:`CanonicalNet` with the auto-encoder of the reduced model (module docstring).
 
     Attributes:

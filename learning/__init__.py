@@ -1,7 +1,8 @@
 """Identification with torch: canonical state, the four models, output-error training,
 evaluation and the numpy export. Never imports CasADi or datagen.
 
-Typical use (``train``, ``val``, ``test``: sequences of objects with ``.u``, ``.y``)::
+Typical use (``train``, ``val``, ``test``: sequences of :class:`canonid.kernel.dataset.Trajectory`,
+or of any objects with ``.u``, ``.y``)::
 
     from canonid.learning import TrainOptions, evaluate, fit
 
@@ -9,36 +10,36 @@ Typical use (``train``, ``val``, ``test``: sequences of objects with ``.u``, ``.
     scores = evaluate(result.model, test, horizon=100)
     H = result.model.export()          # numpy: H.H(z, u), H.simulate(u, y_burn_in)
     reduced = reduce_model(result.model, train, val, compression=0.6).model   # n̄ states
+
+The names below are imported lazily (PEP 562): importing the package does not load torch.
 """
 
-from canonid.learning.data import Normalisation, Series, as_series
-from canonid.learning.evaluate import Evaluation, Scores, evaluate
-from canonid.learning.export import NumpyModel
-from canonid.learning.model import Model
-from canonid.learning.nets import NETS, SequenceModel, UnknownModelError, build_net, model_names
-from canonid.learning.reduction import ReductionOptions, latent_size, reduce_model
-from canonid.learning.training import EpochReport, FitResult, OptionError, TrainOptions, fit
+from __future__ import annotations
 
-__all__ = [
-    "NETS",
-    "EpochReport",
-    "Evaluation",
-    "FitResult",
-    "Model",
-    "Normalisation",
-    "NumpyModel",
-    "OptionError",
-    "ReductionOptions",
-    "Scores",
-    "SequenceModel",
-    "Series",
-    "TrainOptions",
-    "UnknownModelError",
-    "as_series",
-    "build_net",
-    "evaluate",
-    "fit",
-    "latent_size",
-    "model_names",
-    "reduce_model",
-]
+from canonid.kernel.lazy import lazy_exports
+
+_EXPORTS = {
+    "Normalisation": "canonid.learning.data",
+    "Evaluation": "canonid.learning.evaluate",
+    "Scores": "canonid.learning.evaluate",
+    "evaluate": "canonid.learning.evaluate",
+    "NumpyModel": "canonid.learning.export",
+    "Model": "canonid.learning.model",
+    "NETS": "canonid.learning.nets",
+    "SequenceModel": "canonid.learning.nets",
+    "UnknownModelError": "canonid.learning.nets",
+    "build_net": "canonid.learning.nets",
+    "model_names": "canonid.learning.nets",
+    "ReductionOptions": "canonid.learning.reduction",
+    "latent_size": "canonid.learning.reduction",
+    "reduce_model": "canonid.learning.reduction",
+    "EpochReport": "canonid.learning.training",
+    "FitResult": "canonid.learning.training",
+    "OptionError": "canonid.learning.training",
+    "TrainOptions": "canonid.learning.training",
+    "fit": "canonid.learning.training",
+}
+
+__all__ = sorted(_EXPORTS)
+
+__getattr__, __dir__ = lazy_exports(__name__, _EXPORTS)

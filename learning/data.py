@@ -1,9 +1,10 @@
-"""Trajectories as the learning layer sees them, their normalisation and their sub-windows.
+"""The normalisation of trajectories and their sub-windows, as the learning layer sees them.
 
-The learning API is duck-typed: a trajectory is any object with arrays ``.u`` ``(T, n_u)`` and
-``.y`` ``(T, n_y)`` (measured outputs) and, optionally, ``.y_clean`` ``(T, n_y)`` (noise-free
-outputs, used only for reporting). :class:`canonid.datagen.dataset.Trajectory` is one, but this
-layer never imports datagen.
+Trajectories are the kernel's :class:`canonid.kernel.dataset.Trajectory`: the public functions of
+this layer (:func:`canonid.learning.fit`, :func:`canonid.learning.evaluate`, …) turn what they are
+given into them once (:func:`canonid.kernel.dataset.as_trajectories`, which also accepts any
+objects with ``.u`` and ``.y``); the code below trusts them. ``y_clean`` is used only for
+reporting.
 
 Time alignment (the project's convention): sample ``t`` holds ``u[t]`` and ``y[t]``; a model with
 window ℓ predicting ``y[t]`` sees samples ``t−ℓ … t−1`` and, with feedthrough, ``u[t]``.
@@ -22,75 +23,12 @@ from typing import Any
 import numpy as np
 import torch
 
-from canonid.kernel.errors import DataError, ShapeError
-from canonid.kernel.validate import require_finite
+from canonid.kernel.dataset import Trajectory
+from canonid.kernel.errors import DataError
 
-__all__ = ["Normalisation", "Series", "WindowBank", "as_series", "window_starts"]
+__all__ = ["Normalisation", "WindowBank", "window_starts"]
 
 _STD_FLOOR = 1e-12
-
-
-@dataclass(frozen=True)
-class Series:
-    """One validated trajectory in physical units (float64).
-
-    Attributes:
-        u: inputs ``(T, n_u)``.
-        y: measured outputs ``(T, n_y)``.
-        y_clean: noise-free outputs ``(T, n_y)`` or ``None``.
-    """
-
-    u: np.ndarray
-    y: np.ndarray
-    y_clean: np.ndarray | None = None
-
-    @property
-    def T(self) -> int:
-        return int(self.u.shape[0])
-
-
-def _as_2d(value: Any, what: str) -> np.ndarray:
-    try:
-        arr = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ShapeError(f"{what} must be a numeric array, got {type(value).__name__}") from exc
-    if arr.ndim == 1:
-        arr = arr[:, None]
-    if arr.ndim != 2:
-        raise ShapeError(f"{what} must have shape (T, n), got {arr.shape}")
-    return require_finite(arr, what)
-
-
-def as_series(data: Any, *, what: str = "data") -> list[Series]:
-    """Validate ``data`` (one trajectory or a sequence of them) into a list of :class:`Series`.
-
-    Every trajectory must have ``u`` and ``y`` of equal length, finite values, and the same
-    ``n_u`` and ``n_y`` as the others; errors name the trajectory and the field.
-    """
-    items: Sequence[Any] = [data] if hasattr(data, "u") and hasattr(data, "y") else list(data)
-    if not items:
-        raise DataError(f"{what}: no trajectories")
-    out: list[Series] = []
-    for i, item in enumerate(items):
-        where = f"{what}, trajectory {i}"
-        if not (hasattr(item, "u") and hasattr(item, "y")):
-            raise DataError(f"{where}: expected an object with arrays .u and .y")
-        u = _as_2d(item.u, f"{where}: u")
-        y = _as_2d(item.y, f"{where}: y")
-        if u.shape[0] != y.shape[0]:
-            raise ShapeError(f"{where}: u has {u.shape[0]} samples but y has {y.shape[0]}")
-        y_clean = getattr(item, "y_clean", None)
-        if y_clean is not None:
-            y_clean = _as_2d(y_clean, f"{where}: y_clean")
-            if y_clean.shape != y.shape:
-                raise ShapeError(f"{where}: y_clean {y_clean.shape} differs from y {y.shape}")
-        if out and (u.shape[1] != out[0].u.shape[1] or y.shape[1] != out[0].y.shape[1]):
-            raise ShapeError(
-                f"{where}: has n_u={u.shape[1]}, n_y={y.shape[1]}; trajectory 0 has "
-                f"n_u={out[0].u.shape[1]}, n_y={out[0].y.shape[1]}"
-            )
-        out.append(Series(u=u, y=y, y_clean=y_clean))
-    return out
 
 
 @dataclass(frozen=True)
@@ -109,9 +47,9 @@ class Normalisation:
     dy_std: np.ndarray
 
     @classmethod
-    def fit(cls, series: Iterable[Series]) -> Normalisation:
+    def fit(cls, trajectories: Iterable[Trajectory]) -> Normalisation:
         """Statistics over every sample of the given (training) trajectories."""
-        items = list(series)
+        items = list(trajectories)
         u = np.concatenate([s.u for s in items])
         y = np.concatenate([s.y for s in items])
         dy = np.concatenate([np.diff(s.y, axis=0) for s in items])
@@ -194,23 +132,23 @@ class WindowBank:
     """Normalised trajectories stored end to end, for fast gathering of sub-windows.
 
     Args:
-        series: the trajectories (physical units).
+        trajectories: the trajectories (physical units).
         norm: the normalisation applied to them.
         dtype, device: of the stored tensors.
     """
 
     def __init__(
         self,
-        series: Sequence[Series],
+        trajectories: Sequence[Trajectory],
         norm: Normalisation,
         *,
         dtype: torch.dtype = torch.float32,
         device: torch.device | str = "cpu",
     ) -> None:
-        self.lengths = [s.T for s in series]
+        self.lengths = [tr.T for tr in trajectories]
         self.offsets = np.concatenate([[0], np.cumsum(self.lengths)[:-1]]).astype(np.int64)
-        u = np.concatenate([norm.norm_u(s.u) for s in series])
-        y = np.concatenate([norm.norm_y(s.y) for s in series])
+        u = np.concatenate([norm.norm_u(tr.u) for tr in trajectories])
+        y = np.concatenate([norm.norm_y(tr.y) for tr in trajectories])
         self.u = torch.as_tensor(u, dtype=dtype, device=device)
         self.y = torch.as_tensor(y, dtype=dtype, device=device)
 

@@ -34,9 +34,9 @@ from typing import Any
 
 import numpy as np
 
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import ShapeError
 from canonid.kernel.io import jsonable
-from canonid.learning.data import Series, as_series
 from canonid.learning.model import Model
 
 __all__ = ["Evaluation", "Scores", "default_n_init", "evaluate", "simulate_records"]
@@ -148,22 +148,22 @@ def _numbers(values: Any) -> list[float | None]:
 
 
 def _rollouts(
-    model: Model, series: Sequence[Series], horizon: int, stride: int
+    model: Model, records: Sequence[Trajectory], horizon: int, stride: int
 ) -> tuple[np.ndarray, list[tuple[int, int]]]:
     ell = model.window
     span = ell + horizon
-    starts = [(i, s) for i, tr in enumerate(series) for s in range(0, tr.T - span + 1, stride)]
+    starts = [(i, s) for i, tr in enumerate(records) for s in range(0, tr.T - span + 1, stride)]
     if not starts:
         raise ShapeError(
             f"no test trajectory holds window ℓ = {ell} plus horizon {horizon} = {span} samples "
-            f"(longest has {max(tr.T for tr in series)}); lower the horizon"
+            f"(longest has {max(tr.T for tr in records)}); lower the horizon"
         )
-    u = np.stack([series[i].u[s : s + span] for i, s in starts])
-    y0 = np.stack([series[i].y[s : s + ell] for i, s in starts])
+    u = np.stack([records[i].u[s : s + span] for i, s in starts])
+    y0 = np.stack([records[i].y[s : s + ell] for i, s in starts])
     return model.predict(u, y0), starts
 
 
-def simulate_records(model: Model, series: Sequence[Series], n_init: int) -> list[np.ndarray]:
+def simulate_records(model: Model, records: Sequence[Trajectory], n_init: int) -> list[np.ndarray]:
     """Open-loop simulation of each record from its samples ``n_init−ℓ … n_init−1``; returns the
     predictions of samples ``n_init … T−1`` per record (empty for records of ≤ n_init samples).
 
@@ -173,20 +173,20 @@ def simulate_records(model: Model, series: Sequence[Series], n_init: int) -> lis
     a group's work (one sequential pass over the longest record instead of one per length).
     """
     ell = model.window
-    out: list[np.ndarray] = [np.zeros((0, model.n_y)) for _ in series]
-    todo = sorted((i for i, tr in enumerate(series) if tr.T > n_init), key=lambda i: -series[i].T)
+    out: list[np.ndarray] = [np.zeros((0, model.n_y)) for _ in records]
+    todo = sorted((i for i, tr in enumerate(records) if tr.T > n_init), key=lambda i: -records[i].T)
     while todo:
-        T = series[todo[0]].T
-        group = [i for i in todo if 2 * series[i].T >= T]
-        todo = [i for i in todo if 2 * series[i].T < T]
-        pad = [((0, T - series[i].T), (0, 0)) for i in group]
+        T = records[todo[0]].T
+        group = [i for i in todo if 2 * records[i].T >= T]
+        todo = [i for i in todo if 2 * records[i].T < T]
+        pad = [((0, T - records[i].T), (0, 0)) for i in group]
         u = np.stack(
-            [np.pad(series[i].u[n_init - ell :], p, mode="edge") for i, p in zip(group, pad)]
+            [np.pad(records[i].u[n_init - ell :], p, mode="edge") for i, p in zip(group, pad)]
         )
-        y0 = np.stack([series[i].y[n_init - ell : n_init] for i in group])
+        y0 = np.stack([records[i].y[n_init - ell : n_init] for i in group])
         pred = model.predict(u, y0)
         for j, i in enumerate(group):
-            out[i] = pred[j, : series[i].T - n_init]
+            out[i] = pred[j, : records[i].T - n_init]
     return out
 
 
@@ -237,7 +237,7 @@ def _scores(
 
 def evaluate(
     model: Model,
-    data: Any,
+    data: Sequence[Trajectory],
     *,
     horizon: int = 100,
     stride: int = 1,
@@ -248,37 +248,39 @@ def evaluate(
 
     Args:
         model: a trained :class:`canonid.learning.model.Model`.
-        data: test trajectories (objects with ``.u``, ``.y`` and optionally ``.y_clean``).
+        data: test trajectories (:class:`~canonid.kernel.dataset.Trajectory`, or any objects
+            with ``.u``, ``.y`` and optionally ``.y_clean``, converted once by
+            :func:`~canonid.kernel.dataset.as_trajectories`).
         horizon: ``H`` of the paper metric (paper: 100).
         stride: stride of the rollout start times.
         n_init: samples reserved for initialisation in the simulation scores (default
             :func:`default_n_init`; must be ≥ ℓ).
         output_names: labels for the per-output lists (default ``y1, y2, …``).
     """
-    series = as_series(data, what="test data")
+    test = as_trajectories(data, what="test data")
     ell = model.window
-    if (series[0].u.shape[1], series[0].y.shape[1]) != (model.n_u, model.n_y):
+    if (test[0].n_u, test[0].n_y) != (model.n_u, model.n_y):
         raise ShapeError(
-            f"test data have n_u={series[0].u.shape[1]}, n_y={series[0].y.shape[1]}; the model "
+            f"test data have n_u={test[0].n_u}, n_y={test[0].n_y}; the model "
             f"has n_u={model.n_u}, n_y={model.n_y}"
         )
     if isinstance(horizon, bool) or horizon < 1 or stride < 1:
         raise ShapeError(f"horizon and stride must be >= 1, got {horizon} and {stride}")
-    n_init = default_n_init(ell, [tr.T for tr in series]) if n_init is None else int(n_init)
+    n_init = default_n_init(ell, [tr.T for tr in test]) if n_init is None else int(n_init)
     if n_init < ell:
         raise ShapeError(f"n_init = {n_init} must be at least the window ℓ = {ell}")
-    records = [tr for tr in series if tr.T > n_init]
+    records = [tr for tr in test if tr.T > n_init]
     if not records:
         raise ShapeError(
             f"no test trajectory is longer than n_init = {n_init} samples "
-            f"(longest has {max(tr.T for tr in series)}); lower n_init"
+            f"(longest has {max(tr.T for tr in test)}); lower n_init"
         )
-    pred_roll, starts = _rollouts(model, series, horizon, stride)
-    sims = simulate_records(model, series, n_init)
-    measured = _scores(pred_roll, starts, sims, [tr.y for tr in series], ell, n_init)
+    pred_roll, starts = _rollouts(model, test, horizon, stride)
+    sims = simulate_records(model, test, n_init)
+    measured = _scores(pred_roll, starts, sims, [tr.y for tr in test], ell, n_init)
     clean = None
-    if all(tr.y_clean is not None for tr in series):
-        targets = [tr.y_clean for tr in series if tr.y_clean is not None]
+    if all(tr.y_clean is not None for tr in test):
+        targets = [tr.y_clean for tr in test if tr.y_clean is not None]
         clean = _scores(pred_roll, starts, sims, targets, ell, n_init)
     return Evaluation(
         measured=measured,

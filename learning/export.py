@@ -39,13 +39,14 @@ from.
 
 ``network()`` returns the weights themselves as plain numpy (:mod:`canonid.kernel.network`): a
 :class:`~canonid.kernel.network.CanonicalNet` for Ours (MLP) and Ours (GRU), a
-:class:`~canonid.kernel.network.ReducedNet` for their reduced models. :mod:`canonid.models.learned`
-builds CasADi expressions from it; the other models raise :class:`NotExportableError`.
+:class:`~canonid.kernel.network.ReducedCanonicalNet` for their reduced models.
+:mod:`canonid.models.learned` builds CasADi expressions from it; the other models raise
+:class:`NotExportableError`.
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import torch
@@ -54,11 +55,18 @@ from torch import nn
 from canonid.kernel import network as plain
 from canonid.kernel.errors import CanonidError, ShapeError
 from canonid.kernel.validate import require_finite
-from canonid.learning.nets import ALL_NETS, ARX, OursGRU, OursMLP, ReducedNet, build_net
+from canonid.learning.data import Normalisation
+from canonid.learning.nets import (
+    ALL_NETS,
+    ARX,
+    OursGRU,
+    OursMLP,
+    ReducedNet,
+    SequenceModel,
+    build_net,
+)
 from canonid.learning.nets.base import ACTIVATIONS
-
-if TYPE_CHECKING:  # canonid.learning.model imports this module for Model.export()
-    from canonid.learning.model import Model
+from canonid.learning.rollout import simulate
 
 __all__ = ["NotExportableError", "NumpyModel", "ReducedNumpyModel"]
 
@@ -135,20 +143,19 @@ def _batch(name: str, value: Any, cols: int) -> tuple[np.ndarray, bool]:
 
 
 class NumpyModel:
-    """Numpy callables ``H`` and ``simulate`` of a trained :class:`canonid.learning.model.Model`."""
+    """Numpy callables ``H`` and ``simulate`` of a trained network and its normalisation (what
+    :meth:`canonid.learning.model.Model.export` returns)."""
 
-    def __init__(self, model: Model) -> None:
-        net = build_net(model.name, **model.net.config())
+    def __init__(self, trained: SequenceModel, norm: Normalisation) -> None:
+        net = build_net(trained.name, **trained.config())  # a float64 twin on the CPU
         net.to(dtype=torch.float64)
-        net.load_state_dict({k: v.detach().cpu() for k, v in model.net.state_dict().items()})
+        net.load_state_dict({k: v.detach().cpu() for k, v in trained.state_dict().items()})
         net.eval()
         self._net = net
-        self._model = type(model)(net, model.norm, info=model.info)  # the float64 twin
-        norm = model.norm
-        self.name: str = model.name
-        self.window: int = model.window
-        self.n_u: int = model.n_u
-        self.n_y: int = model.n_y
+        self.name: str = net.name
+        self.window: int = net.window
+        self.n_u: int = net.n_u
+        self.n_y: int = net.n_y
         self.feedthrough: bool = net.feedthrough
         ell = self.window
         self._z_mean = np.tile(np.concatenate([norm.u_mean, norm.y_mean]), ell)
@@ -183,9 +190,9 @@ class NumpyModel:
 
     def simulate(self, u: Any, y_burn_in: Any) -> np.ndarray:
         """Open-loop simulation after a measured burn-in (see the module docstring)."""
-        return self._model.simulate(u, y_burn_in)
+        return simulate(self._net, self._norm, u, y_burn_in)
 
-    def network(self) -> plain.CanonicalNet | plain.ReducedNet:
+    def network(self) -> plain.CanonicalNet | plain.ReducedCanonicalNet:
         """The weights as plain numpy (see the module docstring).
 
         Raises:
@@ -228,10 +235,10 @@ class ReducedNumpyModel(NumpyModel):
 
     _net: ReducedNet
 
-    def __init__(self, model: Model) -> None:
-        if not isinstance(model.net, ReducedNet):
-            raise ShapeError(f"ReducedNumpyModel needs a reduced model, got {model.name!r}")
-        super().__init__(model)
+    def __init__(self, trained: SequenceModel, norm: Normalisation) -> None:
+        if not isinstance(trained, ReducedNet):
+            raise ShapeError(f"ReducedNumpyModel needs a reduced model, got {trained.name!r}")
+        super().__init__(trained, norm)
         self.latent_dim: int = self._net.latent_dim
 
     def __repr__(self) -> str:
@@ -252,10 +259,10 @@ class ReducedNumpyModel(NumpyModel):
             raise ShapeError(f"x has {xa.shape[0]} rows but u has {ua.shape[0]}")
         return torch.from_numpy(xa), torch.from_numpy(self._norm.norm_u(ua)), single
 
-    def network(self) -> plain.ReducedNet:
+    def network(self) -> plain.ReducedCanonicalNet:
         """The regressor and the auto-encoder as plain numpy (see the module docstring)."""
         net = self._net
-        return plain.ReducedNet(
+        return plain.ReducedCanonicalNet(
             regressor=self._regressor(net.regressor),
             latent_dim=net.latent_dim,
             encoder=_layers(net.encoder, "relu"),

@@ -18,28 +18,29 @@ from collections.abc import Sequence
 import numpy as np
 import torch
 
+from canonid.kernel.dataset import Trajectory
 from canonid.kernel.errors import ShapeError
-from canonid.learning.data import Normalisation, Series
+from canonid.learning.data import Normalisation
 from canonid.learning.nets.base import CanonicalModel
 
 __all__ = ["initialise_linear", "least_squares", "regressors"]
 
 
 def regressors(
-    series: Sequence[Series], norm: Normalisation, *, window: int, feedthrough: bool
+    trajectories: Sequence[Trajectory], norm: Normalisation, *, window: int, feedthrough: bool
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(X, y, y_prev)``: the rows ``x_t`` of the module docstring for every trajectory and
     ``t = ℓ … T−1`` in order, with the normalised ``y_t`` and ``y_{t−1}`` beside them."""
     xs, ys, prev = [], [], []
-    for s in series:
-        if s.T <= window:
+    for tr in trajectories:
+        if tr.T <= window:
             continue
-        un, yn = norm.norm_u(s.u), norm.norm_y(s.y)
+        un, yn = norm.norm_u(tr.u), norm.norm_y(tr.y)
         pairs = np.concatenate([un, yn], axis=1)  # (T, p), one [u_i; y_i] per row
         p = pairs.shape[1]
         # row k of the view holds samples k … k+ℓ−1, i.e. z_{k+ℓ}
         z = np.lib.stride_tricks.sliding_window_view(pairs, (window, p))[:, 0]
-        z = z.reshape(-1, window * p)[: s.T - window]
+        z = z.reshape(-1, window * p)[: tr.T - window]
         xs.append(np.concatenate([z, un[window:]], axis=1) if feedthrough else z)
         ys.append(yn[window:])
         prev.append(yn[window - 1 : -1])
@@ -49,7 +50,7 @@ def regressors(
 
 
 def least_squares(
-    series: Sequence[Series],
+    trajectories: Sequence[Trajectory],
     norm: Normalisation,
     *,
     window: int,
@@ -58,21 +59,23 @@ def least_squares(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(L, c)``, ``L`` ``(n_y, dim x)`` and ``c`` ``(n_y,)``: the least-squares fit of the module
     docstring (``residual_scale`` given: the residual model's target)."""
-    x, y, y_prev = regressors(series, norm, window=window, feedthrough=feedthrough)
+    x, y, y_prev = regressors(trajectories, norm, window=window, feedthrough=feedthrough)
     target = y if residual_scale is None else (y - y_prev) / residual_scale
     design = np.concatenate([x, np.ones((x.shape[0], 1))], axis=1)
     theta, *_ = np.linalg.lstsq(design, target, rcond=None)
     return theta[:-1].T.copy(), theta[-1].copy()
 
 
-def initialise_linear(net: CanonicalModel, series: Sequence[Series], norm: Normalisation) -> None:
+def initialise_linear(
+    net: CanonicalModel, trajectories: Sequence[Trajectory], norm: Normalisation
+) -> None:
     """Set ``net``'s affine path to the least-squares fit and its nonlinear output layer to zero,
     so that ``net`` starts as the ARX model (``net`` must have the affine path)."""
     if net.affine is None:
         raise ShapeError(f"{net.name}: the model has no affine path (linear='off')")
     scale = net.residual_scale.detach().cpu().numpy().astype(np.float64) if net.residual else None
     L, c = least_squares(
-        series, norm, window=net.window, feedthrough=net.feedthrough, residual_scale=scale
+        trajectories, norm, window=net.window, feedthrough=net.feedthrough, residual_scale=scale
     )
     with torch.no_grad():
         net.affine.weight.copy_(torch.as_tensor(L))

@@ -28,10 +28,10 @@ import torch
 
 from canonid.kernel.errors import CanonidError, CheckpointError, DataError, ShapeError
 from canonid.kernel.io import atomic_write_bytes, atomic_write_json, read_json
-from canonid.kernel.validate import require_finite
 from canonid.learning.data import Normalisation
 from canonid.learning.export import NumpyModel, ReducedNumpyModel
 from canonid.learning.nets import ALL_NETS, ReducedNet, SequenceModel, build_net
+from canonid.learning.rollout import rollout_physical, simulate
 
 __all__ = [
     "MODEL_FORMAT_VERSION",
@@ -40,7 +40,6 @@ __all__ = [
     "check_same",
     "load_state",
     "read_weights",
-    "rollout_physical",
 ]
 
 MODEL_FORMAT_VERSION = 1
@@ -56,19 +55,6 @@ def check_same(found: Mapping[str, Any], expected: Mapping[str, Any], *, what: s
     ]
     if diffs:
         raise CheckpointError(f"{what} does not match: " + "; ".join(diffs))
-
-
-def _as_batch(value: Any, cols: int, name: str) -> tuple[np.ndarray, bool]:
-    """``(N, T, cols)`` float64 from ``(T, cols)`` or ``(N, T, cols)`` (1-D: SISO ``(T,)``)."""
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.ndim == 1 and cols == 1:
-        arr = arr[:, None]
-    single = arr.ndim == 2
-    if single:
-        arr = arr[None]
-    if arr.ndim != 3 or arr.shape[2] != cols:
-        raise ShapeError(f"{name} must have shape (T, {cols}) or (N, T, {cols}), got {arr.shape}")
-    return require_finite(arr, name), single
 
 
 class Model:
@@ -122,25 +108,14 @@ class Model:
         ``u`` is ``(T, n_u)`` and ``y_burn_in`` ``(ℓ, n_y)`` → ``(T − ℓ, n_y)``; or batched,
         ``(N, T, n_u)`` and ``(N, ℓ, n_y)`` → ``(N, T − ℓ, n_y)``.
         """
-        ua, single = _as_batch(u, self.n_u, "u")
-        ya, _ = _as_batch(y_burn_in, self.n_y, "y_burn_in")
-        if ya.shape[0] != ua.shape[0] or ya.shape[1] != self.window:
-            raise ShapeError(
-                f"y_burn_in must hold the ℓ = {self.window} measured outputs of each of the "
-                f"{ua.shape[0]} sequence(s), shape ({ua.shape[0]}, {self.window}, {self.n_y}); "
-                f"got {ya.shape}"
-            )
-        if ua.shape[1] < self.window:
-            raise ShapeError(
-                f"u has {ua.shape[1]} samples, fewer than the window ℓ = {self.window}"
-            )
-        out = self.predict(ua, ya)
-        return out[0] if single else out
+        return simulate(self.net, self.norm, u, y_burn_in)
 
     def export(self) -> NumpyModel:
         """A plain numpy object for the analysis layer (see :mod:`canonid.learning.export`): a
         ``ReducedNumpyModel`` for a reduced model, else a ``NumpyModel``."""
-        return ReducedNumpyModel(self) if isinstance(self.net, ReducedNet) else NumpyModel(self)
+        if isinstance(self.net, ReducedNet):
+            return ReducedNumpyModel(self.net, self.norm)
+        return NumpyModel(self.net, self.norm)
 
     # ------------------------------------------------------------------ storage
     def save(self, folder: str | os.PathLike[str]) -> Path:
@@ -203,39 +178,6 @@ class Model:
         net = build_net(name, **net_config)
         load_state(net, state, where=str(folder / WEIGHTS_FILE))
         return cls(net, norm, info=config.get("info", {}))
-
-
-def rollout_physical(
-    net: SequenceModel,
-    norm: Normalisation,
-    u: np.ndarray,
-    y_burn_in: np.ndarray,
-    *,
-    batch_size: int = 4096,
-) -> np.ndarray:
-    """Run ``net.rollout`` on physical-unit arrays in batches, in the network's own dtype and
-    device, without gradients: ``u`` ``(N, T, n_u)``, ``y_burn_in`` ``(N, ℓ, n_y)`` →
-    ``(N, T − ℓ, n_y)`` float64."""
-    ell = net.window
-    param = next(net.parameters())
-    out = np.empty((u.shape[0], u.shape[1] - ell, net.n_y))
-    if out.shape[1] == 0:
-        return out
-    was_training = net.training
-    net.eval()
-    try:
-        with torch.no_grad():
-            for lo in range(0, u.shape[0], batch_size):
-                sl = slice(lo, lo + batch_size)
-                un = torch.as_tensor(norm.norm_u(u[sl]), dtype=param.dtype, device=param.device)
-                yn = torch.as_tensor(
-                    norm.norm_y(y_burn_in[sl]), dtype=param.dtype, device=param.device
-                )
-                pred = net.rollout(un[:, :ell], yn, un[:, ell:])
-                out[sl] = pred.cpu().double().numpy()
-    finally:
-        net.train(was_training)
-    return norm.denorm_y(out)
 
 
 def load_weights(

@@ -16,8 +16,8 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.io import atomic_write_figure
-from canonid.learning.data import as_series
 from canonid.learning.evaluate import simulate_records
 from canonid.learning.model import Model
 
@@ -49,7 +49,7 @@ def plot_training_curve(history: Sequence[Mapping[str, Any]], path: str | os.Pat
 
 def plot_rollouts(
     model: Model,
-    data: Any,
+    data: Sequence[Trajectory],
     path: str | os.PathLike[str],
     *,
     n_init: int,
@@ -60,23 +60,23 @@ def plot_rollouts(
     """Open-loop simulation of the first ``count`` records from sample ``n_init`` (burn-in on the
     measured samples ``n_init−ℓ … n_init−1``), against the measured and, if present, noise-free
     outputs; one row per output, one column per record."""
-    series = [s for s in as_series(data, what="plotted data") if s.T > n_init][:count]
-    sims = simulate_records(model, series, n_init)
+    records = [tr for tr in as_trajectories(data, what="plotted data") if tr.T > n_init][:count]
+    sims = simulate_records(model, records, n_init)
     names = list(output_names or (f"y{i + 1}" for i in range(model.n_y)))
-    fig = Figure(figsize=(4.2 * len(series), 2.4 * model.n_y))
+    fig = Figure(figsize=(4.2 * len(records), 2.4 * model.n_y))
     axes = fig.subplots(
         model.n_y,
-        len(series),
+        len(records),
         squeeze=False,
         sharex="col",
     )
-    for j, (s, sim) in enumerate(zip(series, sims)):
-        t = np.arange(s.T) * dt
+    for j, (tr, sim) in enumerate(zip(records, sims)):
+        t = np.arange(tr.T) * dt
         for i in range(model.n_y):
             ax = axes[i, j]
-            ax.plot(t, s.y[:, i], ".", ms=2, color="0.55", label="measured")
-            if s.y_clean is not None:
-                ax.plot(t, s.y_clean[:, i], color="k", lw=1, label="noise-free")
+            ax.plot(t, tr.y[:, i], ".", ms=2, color="0.55", label="measured")
+            if tr.y_clean is not None:
+                ax.plot(t, tr.y_clean[:, i], color="k", lw=1, label="noise-free")
             ax.plot(t[n_init:], sim[:, i], color="C3", lw=1.2, label=f"{model.name} (open loop)")
             ax.axvline(t[n_init], color="C0", ls="--", lw=0.8)
             if j == 0:

@@ -30,8 +30,8 @@ import numpy as np
 import torch
 
 from canonid.kernel.canonical import cut_windows
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import ShapeError
-from canonid.learning.data import as_series
 from canonid.learning.model import Model
 from canonid.learning.nets import ReducedNet, SequenceModel
 from canonid.learning.nets.reduced import NotReducibleError, check_reducible
@@ -150,8 +150,8 @@ def _weights_sha256(net: torch.nn.Module) -> str:
 
 def reduce_model(
     model: Model,
-    train: Any,
-    val: Any,
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
     *,
     compression: float,
     options: TrainOptions | None = None,
@@ -165,8 +165,9 @@ def reduce_model(
 
     Args:
         model: a trained Ours (MLP) or Ours (GRU) model (:class:`canonid.learning.model.Model`).
-        train, val: trajectories in physical units (objects with ``.u``, ``.y``); they are
-            normalised with ``model``'s statistics.
+        train, val: trajectories in physical units (as for
+            :func:`canonid.learning.training.fit`); they are normalised with ``model``'s
+            statistics.
         compression: ``r`` in (0, 1); the reduced state has :func:`latent_size` entries.
         options: training options (sub-windows, curriculum, epochs, learning rate, seed, ...).
         reduction: :class:`ReductionOptions` (defaults if ``None``).
@@ -189,6 +190,7 @@ def reduce_model(
     latent = latent_size(state_dim, compression)
     frozen = red.frozen_epochs(opts.epochs)
     full_net = model.net
+    train = as_trajectories(train, what="training data")
 
     start = principal_directions(model, train, latent) if red.linear_skip else None
 
@@ -232,20 +234,22 @@ def reduce_model(
     return result
 
 
-def _normalised_windows(model: Model, data: Any) -> np.ndarray:
+def _normalised_windows(model: Model, data: Sequence[Trajectory]) -> np.ndarray:
     """Every window ``z_t`` (``t = ℓ … T``) of every trajectory, normalised by ``model``."""
     norm, ell = model.norm, model.window
     windows = [
-        cut_windows(norm.norm_u(s.u), norm.norm_y(s.y), ell)
-        for s in as_series(data, what="data")
-        if s.T >= ell
+        cut_windows(norm.norm_u(tr.u), norm.norm_y(tr.y), ell)
+        for tr in as_trajectories(data, what="data")
+        if tr.T >= ell
     ]
     if not windows:
         raise ShapeError(f"no trajectory holds a window of ℓ = {ell} samples")
     return np.concatenate(windows)
 
 
-def principal_directions(model: Model, data: Any, count: int) -> tuple[np.ndarray, np.ndarray]:
+def principal_directions(
+    model: Model, data: Sequence[Trajectory], count: int
+) -> tuple[np.ndarray, np.ndarray]:
     """Mean ``(ℓp,)`` and the ``count`` leading principal directions ``(count, ℓp)``
     (orthonormal rows, by singular value decomposition) of the normalised windows of ``data``
     (every ``z_t`` of every trajectory, as :func:`reconstruction_mse` uses)."""
@@ -257,7 +261,7 @@ def principal_directions(model: Model, data: Any, count: int) -> tuple[np.ndarra
     return mean, vt[:count]
 
 
-def reconstruction_mse(model: Model, data: Any) -> float:
+def reconstruction_mse(model: Model, data: Sequence[Trajectory]) -> float:
     """Mean squared auto-encoder error ``‖z − D(E(z))‖² / dim z`` of a reduced ``model`` over
     every window ``z_t`` (``t = ℓ … T``, samples ``t−ℓ … t−1``) of every trajectory in ``data``,
     in normalised units (each input and output channel divided by its training standard
@@ -265,12 +269,7 @@ def reconstruction_mse(model: Model, data: Any) -> float:
     net = model.net
     if not isinstance(net, ReducedNet):
         raise NotReducibleError(f"reconstruction_mse needs a reduced model, got {model.name!r}")
-    series = as_series(data, what="data")
-    norm, ell = model.norm, model.window
-    windows = [cut_windows(norm.norm_u(s.u), norm.norm_y(s.y), ell) for s in series if s.T >= ell]
-    if not windows:
-        raise ShapeError(f"no trajectory holds a window of ℓ = {ell} samples")
-    z = np.concatenate(windows)
+    z = _normalised_windows(model, data)
     param = next(net.parameters())
     with torch.no_grad():
         zt = torch.as_tensor(z, dtype=param.dtype, device=param.device)

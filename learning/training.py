@@ -67,9 +67,10 @@ from typing import Any
 import numpy as np
 import torch
 
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
-from canonid.learning.data import Normalisation, Series, WindowBank, as_series
+from canonid.learning.data import Normalisation, WindowBank
 from canonid.learning.linear import initialise_linear
 from canonid.learning.model import Model, check_same, load_state
 from canonid.learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
@@ -269,13 +270,13 @@ def resolve_device(name: str) -> torch.device:
     return torch.device(name)
 
 
-def data_fingerprint(*groups: Sequence[Series]) -> str:
+def data_fingerprint(*groups: Sequence[Trajectory]) -> str:
     """SHA-256 of the float64 bytes of every ``u`` and ``y`` (to match a run with its data)."""
     h = hashlib.sha256()
     for group in groups:
         h.update(f"group:{len(group)}".encode())
-        for s in group:
-            for arr in (s.u, s.y):
+        for tr in group:
+            for arr in (tr.u, tr.y):
                 h.update(str(arr.shape).encode())
                 h.update(np.ascontiguousarray(arr).tobytes())
     return h.hexdigest()
@@ -301,11 +302,11 @@ def validation_loss(
     return total / count
 
 
-def _check_lengths(series: Sequence[Series], window: int, what: str) -> None:
-    for i, s in enumerate(series):
-        if s.T < window + 1:
+def _check_lengths(trajectories: Sequence[Trajectory], window: int, what: str) -> None:
+    for i, tr in enumerate(trajectories):
+        if tr.T < window + 1:
             raise ShapeError(
-                f"{what}, trajectory {i}: has {s.T} samples; window ℓ = {window} needs at least "
+                f"{what}, trajectory {i}: has {tr.T} samples; window ℓ = {window} needs at least "
                 f"ℓ + 1 = {window + 1} (ℓ to burn in, one to predict)"
             )
 
@@ -580,8 +581,8 @@ class _Run:
 
 
 def fit(
-    train: Any,
-    val: Any,
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
     *,
     model: str = "mlp",
     window: int,
@@ -595,8 +596,10 @@ def fit(
     """Train model ``model`` with window ``window`` by output error.
 
     Args:
-        train, val: trajectories (objects with ``.u``, ``.y``; see :mod:`canonid.learning.data`), in
-            physical units. Normalisation statistics come from ``train`` only.
+        train, val: trajectories in physical units (:class:`~canonid.kernel.dataset.Trajectory`,
+            or any objects with ``.u``, ``.y``: they are converted once by
+            :func:`~canonid.kernel.dataset.as_trajectories`). Normalisation statistics come from
+            ``train`` only.
         model: a registry name (:func:`canonid.learning.nets.model_names`).
         window: ℓ.
         options: :class:`TrainOptions` (defaults if ``None``).
@@ -616,19 +619,19 @@ def fit(
     """
     if model not in NETS:
         raise UnknownModelError(f"unknown model {model!r}; expected one of {list(NETS)}")
-    train_s = as_series(train, what="training data")
+    train = as_trajectories(train, what="training data")
     options_all = preset_net_options(model, net_options)
 
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
         net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
         if isinstance(net, CanonicalModel) and net.linear == "arx":
-            initialise_linear(net, train_s, norm)
+            initialise_linear(net, train, norm)
         return net
 
     return fit_net(
         build,
-        train_s,
+        train,
         val,
         window=window,
         options=options,
@@ -641,8 +644,8 @@ def fit(
 
 def fit_net(
     build: Callable[[Normalisation], SequenceModel],
-    train: Any,
-    val: Any,
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
     *,
     window: int,
     norm: Normalisation | None = None,
@@ -667,12 +670,12 @@ def fit_net(
             after a resume; it must depend on nothing but its arguments.
     """
     opts = options or TrainOptions()
-    train_s = as_series(train, what="training data")
-    val_s = as_series(val, what="validation data")
-    n_u, n_y = train_s[0].u.shape[1], train_s[0].y.shape[1]
-    if (val_s[0].u.shape[1], val_s[0].y.shape[1]) != (n_u, n_y):
+    train = as_trajectories(train, what="training data")
+    val = as_trajectories(val, what="validation data")
+    n_u, n_y = train[0].n_u, train[0].n_y
+    if (val[0].n_u, val[0].n_y) != (n_u, n_y):
         raise ShapeError(
-            f"validation data have n_u={val_s[0].u.shape[1]}, n_y={val_s[0].y.shape[1]}; "
+            f"validation data have n_u={val[0].n_u}, n_y={val[0].n_y}; "
             f"training data have n_u={n_u}, n_y={n_y}"
         )
     if norm is not None and (norm.n_u, norm.n_y) != (n_u, n_y):
@@ -680,22 +683,22 @@ def fit_net(
             f"the normalisation is for n_u={norm.n_u}, n_y={norm.n_y}; the training data have "
             f"n_u={n_u}, n_y={n_y}"
         )
-    _check_lengths(train_s, window, "training data")
-    _check_lengths(val_s, window, "validation data")
-    longest = max(s.T for s in train_s)
+    _check_lengths(train, window, "training data")
+    _check_lengths(val, window, "validation data")
+    longest = max(tr.T for tr in train)
     if longest < window + opts.horizon:
         raise ShapeError(
             f"window ℓ = {window} plus training rollout horizon {opts.horizon} needs "
             f"trajectories of at least {window + opts.horizon} samples; the longest training "
             f"trajectory has {longest} (lower the horizon)"
         )
-    opts = _fit_validation_horizon(opts, window, max(s.T for s in val_s))
+    opts = _fit_validation_horizon(opts, window, max(tr.T for tr in val))
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:
         raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")
     device = resolve_device(opts.device)
-    norm = norm if norm is not None else Normalisation.fit(train_s)
-    fingerprint = data_fingerprint(train_s, val_s)
+    norm = norm if norm is not None else Normalisation.fit(train)
+    fingerprint = data_fingerprint(train, val)
 
     with torch.random.fork_rng(devices=[device.index or 0] if device.type == "cuda" else []):
         torch.manual_seed(opts.seed)
@@ -713,8 +716,8 @@ def fit_net(
         state = _Run(
             net,
             opts,
-            WindowBank(train_s, norm, device=device),
-            WindowBank(val_s, norm, device=device),
+            WindowBank(train, norm, device=device),
+            WindowBank(val, norm, device=device),
             identity_all,
             before_epoch,
         )

@@ -26,10 +26,17 @@ __all__ = ["Linearisation", "SimResult", "System"]
 
 @dataclass(frozen=True)
 class SimResult:
-    """Open-loop simulation of ``T`` steps.
+    """Open-loop simulation of ``T`` steps of a true system (:meth:`System.simulate`, or
+    ``N`` at once, :meth:`System.simulate_batch`, with a leading axis of ``N``).
 
     ``x[t]`` and ``y[t] = h(x[t], u[t])`` for ``t = 0 … T-1``; ``x_final = x[T]`` is the state
     after the last input.
+
+    Not a :class:`~canonid.kernel.dataset.Trajectory`: it is what the system does, not a record
+    of an experiment. ``y`` is noise-free (a trajectory's ``y`` is measured, its ``y_clean`` is
+    this), the inputs stay with the caller, ``x_final`` lies one step past the ``T`` samples a
+    trajectory holds, and the batched form is ``(N, T, ·)``. A record of it is
+    ``Trajectory(u=u, y=sim.y + w, y_clean=sim.y, x=sim.x)`` for a measurement noise ``w``.
     """
 
     x: np.ndarray

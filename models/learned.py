@@ -14,10 +14,10 @@ ordering) and
     f(z, u) = Ā z + B̄ u + S̄ Ĥ(z, u),      h(z, u) = Ĥ(z, u),
 
 the shift written as a concatenation (drop the oldest pair, append ``[u; Ĥ(z, u)]``). For a
-:class:`~canonid.kernel.network.ReducedNet` the state is the reduced ``x̄_t`` (no units) and ``f``,
-``h`` are the reduced model's step and output (see :mod:`canonid.kernel.network`). Either way
-``x[t]`` is filled from a measured window by :meth:`LearnedSystem.state_of_window` — the canonical
-state is measured by construction, no observer is needed.
+:class:`~canonid.kernel.network.ReducedCanonicalNet` the state is the reduced ``x̄_t`` (no units)
+and ``f``, ``h`` are the reduced model's step and output (see :mod:`canonid.kernel.network`).
+Either way ``x[t]`` is filled from a measured window by :meth:`LearnedSystem.state_of_window` —
+the canonical state is measured by construction, no observer is needed.
 
 Sets (:meth:`LearnedSystem.from_data`): X is the box hull of the states of the training windows
 (every ``z_t`` of every training trajectory, or its encoding ``x̄``), U the hull of the training
@@ -36,9 +36,10 @@ import casadi as ca
 import numpy as np
 
 from canonid.kernel.canonical import cut_windows
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
-from canonid.kernel.network import CanonicalNet, GRULayer, Layer, ReducedNet
+from canonid.kernel.network import CanonicalNet, GRULayer, Layer, ReducedCanonicalNet
 from canonid.kernel.validate import as_matrix
 from canonid.models.base import Linearisation, System
 from canonid.models.sets import Box
@@ -117,7 +118,7 @@ class LearnedSystem(System):
     """A trained canonical model (or reduced model) as a system (see the module docstring).
 
     Args:
-        net: the exported weights (:class:`CanonicalNet` or :class:`ReducedNet`).
+        net: the exported weights (:class:`CanonicalNet` or :class:`ReducedCanonicalNet`).
         dt: the sampling time of the data it was trained on, seconds.
         input_names, output_names: signal names from the data.
         input_units, output_units: their units (``"-"`` when not given).
@@ -129,7 +130,7 @@ class LearnedSystem(System):
 
     def __init__(
         self,
-        net: CanonicalNet | ReducedNet,
+        net: CanonicalNet | ReducedCanonicalNet,
         *,
         dt: float,
         input_names: Sequence[str],
@@ -141,12 +142,13 @@ class LearnedSystem(System):
         output_units: Sequence[str] | None = None,
         name: str = "learned",
     ) -> None:
-        if not isinstance(net, (CanonicalNet, ReducedNet)):
+        if not isinstance(net, (CanonicalNet, ReducedCanonicalNet)):
             raise ShapeError(
-                f"LearnedSystem needs a CanonicalNet or ReducedNet, got {type(net).__name__}"
+                "LearnedSystem needs a CanonicalNet or ReducedCanonicalNet, got "
+                f"{type(net).__name__}"
             )
         self.network = net
-        self.regressor = reg = net.regressor if isinstance(net, ReducedNet) else net
+        self.regressor = reg = net.regressor if isinstance(net, ReducedCanonicalNet) else net
         input_units = tuple(input_units or ("-",) * len(input_names))
         output_units = tuple(output_units or ("-",) * len(output_names))
         if (len(input_names), len(output_names)) != (reg.n_u, reg.n_y):
@@ -154,7 +156,7 @@ class LearnedSystem(System):
                 f"{name}: the model has n_u={reg.n_u}, n_y={reg.n_y}; got {len(input_names)} "
                 f"input and {len(output_names)} output names"
             )
-        if isinstance(net, ReducedNet):
+        if isinstance(net, ReducedCanonicalNet):
             states = tuple(f"xbar{i}" for i in range(net.latent_dim))
             units = ("-",) * net.latent_dim
             kind = f"reduced canonical model, n̄ = {net.latent_dim}"
@@ -199,8 +201,8 @@ class LearnedSystem(System):
     @classmethod
     def from_data(
         cls,
-        net: CanonicalNet | ReducedNet,
-        trajectories: Sequence[Any],
+        net: CanonicalNet | ReducedCanonicalNet,
+        trajectories: Sequence[Trajectory],
         *,
         dt: float,
         input_names: Sequence[str],
@@ -209,27 +211,22 @@ class LearnedSystem(System):
         **options: Any,
     ) -> LearnedSystem:
         """The system with X, U (and W unless given) from the training ``trajectories``
-        (objects with ``u`` ``(T, n_u)``, ``y`` ``(T, n_y)``, optionally ``y_clean``; see the
-        module docstring). Without ``W`` and without clean outputs, W is ``{0}``."""
-        reg = net.regressor if isinstance(net, ReducedNet) else net
-        items = list(trajectories)
-        if not items:
-            raise DataError("no training trajectories to take the sets X, U, W from")
-        us = [np.asarray(t.u, dtype=np.float64).reshape(len(t.u), -1) for t in items]
-        ys = [np.asarray(t.y, dtype=np.float64).reshape(len(t.y), -1) for t in items]
-        windows = np.concatenate([cut_windows(u, y, reg.window) for u, y in zip(us, ys)])
-        u_all = np.concatenate(us)
+        (:class:`~canonid.kernel.dataset.Trajectory`, or objects with ``u``, ``y`` and optionally
+        ``y_clean``, converted once; see the module docstring). Without ``W`` and without clean
+        outputs, W is ``{0}``."""
+        reg = net.regressor if isinstance(net, ReducedCanonicalNet) else net
+        items = as_trajectories(trajectories, what="training trajectories (for X, U, W)")
+        windows = np.concatenate([cut_windows(t.u, t.y, reg.window) for t in items])
+        u_all = np.concatenate([t.u for t in items])
         U = Box(u_all.min(axis=0), u_all.max(axis=0))
         if W is None:
-            if all(getattr(t, "y_clean", None) is not None for t in items):
-                w = np.concatenate(
-                    [y - np.asarray(t.y_clean).reshape(y.shape) for t, y in zip(items, ys)]
-                )
+            if all(t.y_clean is not None for t in items):
+                w = np.concatenate([t.y - t.y_clean for t in items if t.y_clean is not None])
                 W = Box(w.min(axis=0), w.max(axis=0))
             else:
                 W = Box(np.zeros(reg.n_y), np.zeros(reg.n_y))
         states = windows
-        if isinstance(net, ReducedNet):
+        if isinstance(net, ReducedCanonicalNet):
             zn = ca.SX.sym("zn", reg.state_dim)
             encode = ca.Function("encode", [zn], [_encode_reduced(net, zn)])
             normalised = (windows - reg.z_mean) / reg.z_std
@@ -249,11 +246,11 @@ class LearnedSystem(System):
     @property
     def reduced(self) -> bool:
         """Whether the state is a reduced model's ``x̄`` (else the canonical ``z_t``)."""
-        return isinstance(self.network, ReducedNet)
+        return isinstance(self.network, ReducedCanonicalNet)
 
     # ------------------------------------------------------------------ symbolic definition
     def _state_expr(self, z: ca.SX) -> ca.SX:
-        if isinstance(self.network, ReducedNet):
+        if isinstance(self.network, ReducedCanonicalNet):
             return _encode_reduced(self.network, (z - self._z_mean) / self._z_std)
         return z
 
@@ -261,7 +258,7 @@ class LearnedSystem(System):
         reg = self.regressor
         un = (u - reg.u_mean) / reg.u_std
         p = reg.n_u + reg.n_y
-        if isinstance(self.network, ReducedNet):
+        if isinstance(self.network, ReducedCanonicalNet):
             zn = _skip(self.network.decoder, self.network.decoder_skip, x)
             y = regressor_expr(reg, zn, un)
             return _encode_reduced(self.network, ca.vertcat(zn[p:], un, y))
@@ -271,7 +268,7 @@ class LearnedSystem(System):
     def _h_expr(self, x: ca.SX, u: ca.SX) -> ca.SX:
         reg = self.regressor
         un = (u - reg.u_mean) / reg.u_std
-        if isinstance(self.network, ReducedNet):
+        if isinstance(self.network, ReducedCanonicalNet):
             zn = _skip(self.network.decoder, self.network.decoder_skip, x)
         else:
             zn = (x - self._z_mean) / self._z_std
@@ -282,7 +279,7 @@ class LearnedSystem(System):
         """:meth:`System.linearise`; for an MLP canonical model in numpy (same numbers, much
         faster for wide networks), else by CasADi."""
         net = self.network
-        if isinstance(net, ReducedNet) or net.recurrent:
+        if isinstance(net, ReducedCanonicalNet) or net.recurrent:
             return super().linearise(x, u)
         xm = as_matrix(x, self.n_x, f"{self.name}: states x")
         um = as_matrix(u, self.n_u, f"{self.name}: inputs u", rows=xm.shape[0])
@@ -361,7 +358,7 @@ def _mlp_linearisation(net: CanonicalNet, x: np.ndarray, u: np.ndarray) -> Linea
     return Linearisation(f=f, h=y, f_x=f_x, f_u=f_u, h_x=y_z, h_u=y_u)
 
 
-def _encode_reduced(net: ReducedNet, zn: ca.SX) -> ca.SX:
+def _encode_reduced(net: ReducedCanonicalNet, zn: ca.SX) -> ca.SX:
     return _skip(net.encoder, net.encoder_skip, zn)
 
 

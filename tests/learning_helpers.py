@@ -32,7 +32,7 @@ def trajectories(system, n: int, T: int, *, noise: float, seed: int, hold: int =
 def siso_dataset_file(folder, T: int = 110):
     """A canonid dataset of :func:`damped_siso` (3 train, 1 val, 2 test records of ``T``
     samples, noise 0.01, ``y_clean`` kept) saved in ``folder``; returns its path."""
-    from canonid.datagen.dataset import Dataset, Trajectory
+    from canonid.kernel.dataset import Dataset, Trajectory
 
     system = damped_siso()
 

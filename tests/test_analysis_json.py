@@ -14,7 +14,7 @@ from hypothesis import strategies as st
 from canonid.analysis.estimate import Budget, Estimate
 from canonid.analysis.linear import canonical_regressor
 from canonid.analysis.report import AnalysisReport, analyze
-from canonid.datagen.dataset import Trajectory
+from canonid.kernel.dataset import Trajectory
 from canonid.kernel.errors import DataError, SetError
 from canonid.kernel.io import jsonable
 from canonid.models.registry import get_system

@@ -21,8 +21,8 @@ from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
 from canonid.cli import main
-from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.datagen.loaders import load_data
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CanonidError
 
 TRAIN = ["--model", "mlp", "--window", "2", "--epochs", "1", "--device", "cpu", "--no-progress"]

@@ -15,11 +15,11 @@ import scipy.io
 from canonid.benchmark import score_parts
 from canonid.cli import main
 from canonid.datagen.benchmarks import BENCHMARKS, benchmark, load_benchmark
-from canonid.datagen.dataset import Dataset
 from canonid.datagen.loaders import split_train_val
+from canonid.kernel.dataset import Dataset, as_trajectories
 from canonid.kernel.errors import DataError
 from canonid.learning import Model
-from canonid.learning.data import Normalisation, as_series
+from canonid.learning.data import Normalisation
 from canonid.learning.evaluate import simulate_records
 from canonid.learning.nets import build_net
 
@@ -245,7 +245,7 @@ def test_every_training_record_gives_its_tail_to_validation(tmp_path):
 
 def _untrained(window: int, data: Dataset) -> Model:
     net = build_net("mlp", window=window, n_u=1, n_y=1, hidden=[8])
-    return Model(net, Normalisation.fit(as_series(data.split("train"))))
+    return Model(net, Normalisation.fit(data.split("train")))
 
 
 def test_scores_never_see_outputs_after_n_init_and_match_the_formula(tmp_path):
@@ -264,7 +264,7 @@ def test_scores_never_see_outputs_after_n_init_and_match_the_formula(tmp_path):
     y = part.y.copy()
     y[n:] += 1.0
     y[: n - ell] -= 1.0
-    hidden = as_series(SimpleNamespace(u=part.u, y=y))
+    hidden = as_trajectories(SimpleNamespace(u=part.u, y=y))
     np.testing.assert_array_equal(simulate_records(model, hidden, n)[0], sims[0])
 
 
@@ -273,7 +273,7 @@ def test_records_of_different_lengths_simulate_as_they_would_alone(tmp_path):
     ds = load_benchmark("silverbox", tmp_path)
     model = _untrained(4, ds)
     cut = zip(ds.split("test"), (900, 600, 200))
-    parts = as_series([SimpleNamespace(u=p.u[:n], y=p.y[:n]) for p, n in cut])
+    parts = as_trajectories([SimpleNamespace(u=p.u[:n], y=p.y[:n]) for p, n in cut])
     together = simulate_records(model, parts, 50)
     for part, sim in zip(parts, together):
         (alone,) = simulate_records(model, [part], 50)

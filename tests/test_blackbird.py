@@ -28,7 +28,7 @@ from canonid.datagen.blackbird import (
     split_flights,
 )
 from canonid.datagen.chunks import chunk_bounds
-from canonid.datagen.dataset import Dataset
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import DataError
 
 #: an epoch-sized bag time (ns): timestamps must survive int64 → seconds without rounding loss

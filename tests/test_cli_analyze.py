@@ -11,7 +11,7 @@ import pytest
 
 from canonid.analysis.linear import canonical_regressor
 from canonid.cli import main
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import OptionError
 from canonid.models.registry import get_system
 from canonid.runfolder import RunRecipe

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from canonid.cli import main
-from canonid.datagen.dataset import Dataset
+from canonid.kernel.dataset import Dataset
 
 
 def test_generate_tank_prints_where_the_dataset_went(tmp_path, capsys):

@@ -12,7 +12,7 @@ import pytest
 from learning_helpers import damped_siso, trajectories
 
 from canonid.cli import main
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.learning import Model
 from canonid.reduction import SweepPlan, compression_sweep
 

@@ -240,7 +240,7 @@ def test_evaluate_on_the_command_line_and_in_python_score_alike(dataset_path, tm
     `canonid evaluate` and `canonid.evaluate` both start the simulation scores at sample 39
     (max(ℓ, min(50, T − 1))) and give the same numbers."""
     import canonid
-    from canonid.datagen.dataset import Dataset
+    from canonid.kernel.dataset import Dataset
 
     run = tmp_path / "run"
     common = ["--window", "3", "--epochs", "1", "--device", "cpu", "--no-progress"]

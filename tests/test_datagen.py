@@ -11,7 +11,6 @@ from hypothesis import strategies as st
 
 from canonid.datagen.controllers.base import Controller, ControlStep
 from canonid.datagen.controllers.pid import PID
-from canonid.datagen.dataset import Dataset
 from canonid.datagen.generate import (
     FlightJob,
     GenerationConfig,
@@ -23,6 +22,7 @@ from canonid.datagen.generate import (
 from canonid.datagen.references import drone2d_reference, tank_reference
 from canonid.datagen.scenarios import Scenario, get_scenario, scenario_names
 from canonid.datagen.simulate import Excitation, noise_box, simulate_closed_loop
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import DataError, SetError, ShapeError, UnknownSystemError
 from canonid.models.registry import get_system
 from canonid.models.tank import Tank

@@ -22,9 +22,10 @@ from learning_helpers import damped_siso, trajectories
 from matplotlib.figure import Figure
 
 import canonid.datagen.controllers._compiled as compiled
+from canonid.kernel.dataset import as_trajectories
 from canonid.kernel.errors import CheckpointError, OutputError
 from canonid.kernel.io import atomic_copy, atomic_write_figure
-from canonid.learning import Model, Normalisation, as_series, build_net
+from canonid.learning import Model, Normalisation, build_net
 from canonid.learning import model as model_module
 from canonid.learning.plots import plot_rollouts, plot_training_curve
 
@@ -56,7 +57,7 @@ def siso_data():
 
 def _small_mlp(data, *, window: int = 3, hidden=(16, 16)) -> Model:
     torch.manual_seed(0)
-    series = as_series(data)
+    series = as_trajectories(data)
     net = build_net("mlp", window=window, n_u=1, n_y=1, hidden=list(hidden))
     return Model(net, Normalisation.fit(series))
 
@@ -211,7 +212,7 @@ def test_a_crafted_config_is_refused_before_anything_is_built(
     name, field, value, says, siso_data, tmp_path, no_real_build
 ):
     torch.manual_seed(0)
-    series = as_series(siso_data)
+    series = as_trajectories(siso_data)
     net = build_net(name, window=3, n_u=1, n_y=1, **SAVED[name])
     Model(net, Normalisation.fit(series)).save(tmp_path / "run")
     config_file = tmp_path / "run" / "config.json"

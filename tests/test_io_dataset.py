@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
 import canonid.kernel.io as io
-from canonid.datagen.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory, as_trajectories
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.kernel.io import npz_bytes
 
@@ -118,12 +119,47 @@ def test_nan_in_stored_arrays_is_refused(tmp_path, rng):
 
 
 def test_trajectory_validation():
-    with pytest.raises(ShapeError, match="'y'"):
+    with pytest.raises(ShapeError, match="u has 5 samples but y has 4"):
         Trajectory(u=np.zeros((5, 1)), y=np.zeros((4, 1)))
     with pytest.raises(ShapeError, match="'y_clean'"):
         Trajectory(u=np.zeros((5, 1)), y=np.zeros((5, 1)), y_clean=np.zeros((5, 2)))
     with pytest.raises(ShapeError, match="non-finite"):
         Trajectory(u=np.full((5, 1), np.nan), y=np.zeros((5, 1)))
+
+
+def test_a_trajectory_passes_the_edge_as_it_is_other_objects_are_validated_once():
+    tr = Trajectory(u=np.zeros((5, 1)), y=np.ones(5))
+    assert Trajectory.of(tr) is tr
+    assert as_trajectories(tr) == (tr,) and as_trajectories([tr, tr])[1] is tr
+    other = SimpleNamespace(u=np.arange(6.0), y=np.ones((6, 2)), x=np.zeros((6, 3)), info=None)
+    (converted,) = as_trajectories([other])
+    assert isinstance(converted, Trajectory)
+    assert converted.u.shape == (6, 1) and converted.x.shape == (6, 3) and converted.info == {}
+    assert converted.y_clean is None and converted.reference is None
+    bad = SimpleNamespace(u=np.zeros((5, 1)), y=np.array([[0.0], [np.nan], [0], [0], [0]]))
+    with pytest.raises(ShapeError, match=r"^test data, trajectory 1: field 'y' contains 1 non-"):
+        as_trajectories([tr, bad], what="test data")
+    with pytest.raises(ShapeError, match="trajectory 1: has n_u=2, n_y=1; trajectory 0 has n_u=1"):
+        as_trajectories([tr, SimpleNamespace(u=np.zeros((5, 2)), y=np.zeros(5))])
+    with pytest.raises(DataError, match=r"trajectory 0: expected an object with arrays \.u and"):
+        as_trajectories([np.zeros(5)])
+    with pytest.raises(DataError, match="data: no trajectories"):
+        as_trajectories([])
+    with pytest.raises(DataError, match="expected a trajectory or a sequence of them, got int"):
+        as_trajectories(3)
+
+
+def test_a_part_of_a_trajectory_slices_every_field_and_adds_to_its_info():
+    x = np.arange(20.0).reshape(10, 2)
+    tr = Trajectory(u=np.arange(10.0), y=np.arange(10.0) + 1, x=x, info={"seed": 3})
+    part = tr.part(2, 6, samples=[2, 6])
+    assert part.T == 4 and part.info == {"seed": 3, "samples": [2, 6]}
+    np.testing.assert_array_equal(part.x, x[2:6])
+    np.testing.assert_array_equal(part.y[:, 0], [3.0, 4.0, 5.0, 6.0])
+    assert part.y_clean is None and tr.info == {"seed": 3}
+    for start, stop in ((3, 3), (-1, 4), (0, 11)):
+        with pytest.raises(ShapeError, match="not a part of a trajectory of 10"):
+            tr.part(start, stop)
 
 
 def test_dataset_refuses_mixed_dimensions(rng):

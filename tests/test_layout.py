@@ -8,8 +8,9 @@ learning, analysis} → models → kernel; the three middle layers do not import
 imports none of CasADi, torch or scipy. Inside the application the command line is the top floor:
 only ``canonid.cli`` and the commands import ``canonid.commands``. No module imports a private
 name of another layer, no module names a folder as a top-level package (only ``canonid`` is
-installed), and no modules import each other (counting imports inside functions, not those for
-type checkers only).
+installed), and no modules import each other (counting imports inside functions and those for
+type checkers only). Importing a package costs nothing until a name of it is used, and reading
+data (a CSV file, a canonid dataset) loads neither CasADi, torch nor matplotlib.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -85,11 +87,9 @@ def _imports(path: Path) -> list[tuple[str, list[str]]]:
 
 
 def _dependencies(module: str) -> set[str]:
-    """The project modules ``module`` imports (a ``from package import module`` counts)."""
-    deps = set()
-    for target, names in _imports(MODULES[module]):
-        deps.update(m for m in (target, *(f"{target}.{n}" for n in names)) if m in MODULES)
-    return deps - {module}
+    """The project modules ``module`` imports (a ``from package import module`` counts), for
+    type checkers too: two modules that name each other's types still need each other."""
+    return {m for m in _imported_modules(MODULES[module]) if m in MODULES} - {module}
 
 
 def _imported_modules(path: Path) -> set[str]:
@@ -163,6 +163,63 @@ def test_package_imports_without(package, blocked):
         [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300
     )
     assert res.returncode == 0, res.stderr[-2000:]
+
+
+def _heavy_after(code: str) -> set[str]:
+    """The heavy packages a fresh interpreter holds after running ``code``."""
+    probe = (
+        f"{code}\n"
+        "import sys\n"
+        "heavy = ('numpy', 'scipy', 'casadi', 'torch', 'matplotlib')\n"
+        "print(' '.join(m for m in heavy if m in sys.modules))\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+    return set(res.stdout.split())
+
+
+def test_importing_a_package_loads_nothing_heavy():
+    """Every package ``__init__`` exports its names lazily (:mod:`canonid.kernel.lazy`)."""
+    code = "\n".join(f"import {name}" for name in LAYERS.values())
+    assert _heavy_after(code) == set()
+
+
+def test_a_lazy_export_is_the_name_whatever_was_imported_first():
+    """Importing the module that defines an export binds the module on the package; the export
+    (``canonid.learning.evaluate``, the function of ``canonid.learning.evaluate``) still wins."""
+    code = (
+        "import importlib\n"
+        f"for package in {sorted(LAYERS.values())!r}:\n"
+        "    p = importlib.import_module(package)\n"
+        "    exports = getattr(p, '_EXPORTS', {})\n"
+        "    homes = {n: importlib.import_module(m) for n, m in exports.items()}\n"
+        "    for name, home in homes.items():\n"
+        "        assert getattr(p, name) is getattr(home, name), (package, name)\n"
+    )
+    res = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300
+    )
+    assert res.returncode == 0, res.stderr[-2000:]
+
+
+def test_loading_data_imports_no_casadi_torch_or_matplotlib(tmp_path):
+    """A CSV file and a canonid dataset read through ``canonid.load_data`` need numpy only."""
+    from canonid.kernel.dataset import Dataset
+
+    rows = "".join(f"{0.1 * t},{t % 3},{t % 5}\n" for t in range(20))
+    (tmp_path / "run.csv").write_text("time,u,y\n" + rows, encoding="utf-8")
+    Dataset.from_arrays(np.arange(12.0), np.ones(12), dt=0.5).save(tmp_path / "ds" / "dataset.npz")
+    code = (
+        "import canonid\n"
+        f"csv = canonid.load_data({str(tmp_path / 'run.csv')!r}, inputs=['u'], outputs=['y'],"
+        " dt=0.1)\n"
+        "assert [tr.T for tr in csv.split('train')] == [20]\n"
+        f"ds = canonid.load_data({str(tmp_path / 'ds')!r})\n"
+        "assert ds.dt == 0.5 and ds.split('train')[0].T == 12\n"
+    )
+    assert _heavy_after(code) == {"numpy"}
 
 
 def test_layout_is_the_design_card():

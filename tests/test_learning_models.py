@@ -9,8 +9,9 @@ from learning_helpers import damped_siso, trajectories
 
 from canonid.kernel.canonical import cut_windows
 from canonid.kernel.canonical import shift as np_shift
+from canonid.kernel.dataset import as_trajectories
 from canonid.kernel.errors import CheckpointError, ShapeError
-from canonid.learning import Model, Normalisation, as_series, build_net, model_names
+from canonid.learning import Model, Normalisation, build_net, model_names
 from canonid.learning.canonical import pairs_to_state
 from canonid.learning.nets import CanonicalModel, UnknownModelError
 from canonid.models.linear import linear_example
@@ -30,7 +31,7 @@ def small_net(name: str, *, window: int = 3, n_u: int = 1, n_y: int = 1, seed: i
 
 
 def small_model(name: str, data, *, window: int = 3, seed: int = 0, **kw) -> Model:
-    series = as_series(data)
+    series = as_trajectories(data)
     net = small_net(
         name, window=window, n_u=series[0].u.shape[1], n_y=series[0].y.shape[1], seed=seed, **kw
     )
@@ -77,7 +78,7 @@ def test_paper_sizes_are_the_defaults():
 
 @pytest.mark.parametrize("name", model_names())
 def test_one_training_step_lowers_the_loss_on_a_fixed_batch(name, mimo_data):
-    norm = Normalisation.fit(as_series(mimo_data))
+    norm = Normalisation.fit(as_trajectories(mimo_data))
     net = small_net(name, n_u=2, n_y=2)
     u, y = batch(mimo_data, 3, 6, norm)
     opt = torch.optim.Adam(net.parameters(), lr=1e-4)
@@ -93,7 +94,7 @@ def test_one_training_step_lowers_the_loss_on_a_fixed_batch(name, mimo_data):
 
 @pytest.mark.parametrize("name", model_names())
 def test_first_rollout_step_is_the_one_step_map(name, mimo_data):
-    norm = Normalisation.fit(as_series(mimo_data))
+    norm = Normalisation.fit(as_trajectories(mimo_data))
     net = small_net(name, n_u=2, n_y=2).eval()
     u, y = batch(mimo_data, 3, 4, norm)
     with torch.no_grad():
@@ -232,7 +233,7 @@ def test_simulate_refuses_bad_shapes(siso_data):
 
 
 def test_normalisation_is_training_statistics_saved_as_json(mimo_data, tmp_path):
-    series = as_series(mimo_data)
+    series = as_trajectories(mimo_data)
     norm = Normalisation.fit(series)
     y = np.concatenate([s.y for s in series])
     np.testing.assert_allclose(norm.y_mean, y.mean(axis=0))

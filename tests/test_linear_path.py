@@ -14,8 +14,9 @@ from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
 from canonid.kernel.canonical import cut_windows
+from canonid.kernel.dataset import as_trajectories
 from canonid.learning import NETS, TrainOptions, evaluate, fit
-from canonid.learning.data import Normalisation, as_series
+from canonid.learning.data import Normalisation
 from canonid.learning.linear import least_squares, regressors
 from canonid.learning.nets.base import LINEAR_PATHS, linear_path
 from canonid.learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS, net_options
@@ -43,8 +44,8 @@ def options(**kw) -> TrainOptions:
 
 def test_the_regression_rows_are_the_canonical_windows():
     tr = trajectories(damped_siso(), 1, 30, noise=0.01, seed=4)[0]
-    norm = Normalisation.fit(as_series([tr]))
-    x, y, y_prev = regressors(as_series([tr]), norm, window=3, feedthrough=True)
+    norm = Normalisation.fit(as_trajectories([tr]))
+    x, y, y_prev = regressors(as_trajectories([tr]), norm, window=3, feedthrough=True)
     z = cut_windows(norm.norm_u(tr.u), norm.norm_y(tr.y), 3)[:-1]  # z_t for t = 3 … T−1
     np.testing.assert_array_equal(x[:, :-1], z)
     np.testing.assert_array_equal(x[:, -1:], norm.norm_u(tr.u)[3:])
@@ -55,7 +56,7 @@ def test_the_regression_rows_are_the_canonical_windows():
 @pytest.mark.parametrize("residual", [False, True])
 def test_the_least_squares_start_is_the_systems_arx_model(residual):
     """Noise-free data of a second-order system: the fit recovers its difference equation."""
-    data = as_series(trajectories(damped_siso(), 4, 80, noise=0.0, seed=1))
+    data = as_trajectories(trajectories(damped_siso(), 4, 80, noise=0.0, seed=1))
     norm = Normalisation.fit(data)
     scale = norm.dy_std / norm.y_std if residual else None
     L, c = least_squares(data, norm, window=2, feedthrough=False, residual_scale=scale)
@@ -76,7 +77,7 @@ def test_the_arx_model_takes_no_gradient_step_and_holds_the_least_squares_fit(tm
     res = fit(train, val, model="arx", window=2, options=options(), run_dir=tmp_path)
     assert res.stopped == "least_squares" and res.epochs_run == 0
     assert [row["epoch"] for row in res.history] == [0]
-    L, c = least_squares(as_series(train), res.model.norm, window=2, feedthrough=False)
+    L, c = least_squares(as_trajectories(train), res.model.norm, window=2, feedthrough=False)
     affine = res.model.net.affine
     np.testing.assert_allclose(affine.weight.detach().numpy(), L, rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(affine.bias.detach().numpy(), c, rtol=1e-5, atol=1e-6)
@@ -177,7 +178,7 @@ def test_validation_is_capped_by_a_seeded_subset():
     from canonid.learning.training import _validation_starts
 
     tr = trajectories(damped_siso(), 2, 400, noise=0.0, seed=1)
-    series = as_series(tr)
+    series = as_trajectories(tr)
     bank = WindowBank(series, Normalisation.fit(series))
     full = _validation_starts(bank, 30, options())
     capped = _validation_starts(bank, 30, options(val_windows=20))
@@ -239,7 +240,7 @@ def test_the_skip_keeps_its_random_start_and_the_arx_path_starts_at_least_square
         ).model.net
         for path in ("skip", "arx")
     }
-    series = as_series(train)
+    series = as_trajectories(train)
     L, c = least_squares(series, Normalisation.fit(series), window=3, feedthrough=False)
     arx, skip = fitted["arx"], fitted["skip"]
     np.testing.assert_allclose(arx.affine.weight.detach().numpy(), L, rtol=1e-5, atol=1e-6)

@@ -7,7 +7,6 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from canonid.datagen.dataset import Dataset
 from canonid.datagen.loaders import (
     data_checksum,
     from_io_data,
@@ -16,6 +15,7 @@ from canonid.datagen.loaders import (
     load_npz,
     split_train_val,
 )
+from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import DataError
 from canonid.kernel.io import write_npz
 

@@ -10,9 +10,9 @@ import pytest
 
 from canonid.cli import main
 from canonid.datagen.chunks import chunk_bounds, cut_chunks
-from canonid.datagen.dataset import Dataset, Trajectory
 from canonid.datagen.generate import FlightJob, GenerationConfig, generate_dataset, run_flight
 from canonid.datagen.scenarios import get_scenario
+from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.runner import run_jobs
 

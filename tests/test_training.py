@@ -98,10 +98,11 @@ def test_best_on_validation_is_kept(data, ema_decay):
     vals = [row["val_loss"] for row in res.history]
     assert res.best_val_loss == min(vals)
     assert res.best_epoch == int(np.argmin(vals))
-    from canonid.learning.data import WindowBank, as_series
+    from canonid.kernel.dataset import as_trajectories
+    from canonid.learning.data import WindowBank
     from canonid.learning.training import validation_loss  # the kept weights reproduce it
 
-    bank = WindowBank(as_series(val), res.model.norm)
+    bank = WindowBank(as_trajectories(val), res.model.norm)
     again = validation_loss(res.model.net, bank, bank.starts(3 + 8), 8)
     assert again == pytest.approx(res.best_val_loss, rel=1e-5)
 
@@ -294,7 +295,9 @@ def test_bad_input_is_refused_with_a_clear_error(data):
         fit_tiny(mismatched, val)
     nan = [type(train[0])(u=train[0].u, y=train[0].y.copy())]
     nan[0].y[5, 0] = np.nan
-    with pytest.raises(ShapeError, match=r"training data, trajectory 0: y contains 1 non-finite"):
+    with pytest.raises(
+        ShapeError, match=r"training data, trajectory 0: field .y. contains 1 non-finite"
+    ):
         fit_tiny(nan, val)
     with pytest.raises(ShapeError, match="needs trajectories of at least 103"):
         fit_tiny(train, val, options=tiny_options(horizon=100))

@@ -98,7 +98,18 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    options = ("system", "window", "windows", "trials", "budget", "boxes", "X", "U", "W", "tol")
+    options: tuple[str, ...] = (
+        "system",
+        "window",
+        "windows",
+        "trials",
+        "budget",
+        "boxes",
+        "X",
+        "U",
+        "W",
+        "tol",
+    )
     options += ("seed", "run", "learned_gamma", "data", "out")
     request = AnalyzeRequest(**{k: getattr(args, k) for k in options}, progress=not args.quiet)
     outcome = run_analysis(request)

@@ -21,7 +21,7 @@ from __future__ import annotations
 import argparse
 import shlex
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any, Literal, NoReturn
 
 from canonid.benchmark import (
     BENCHMARKS,
@@ -120,11 +120,13 @@ def _extra_train_args(text: str) -> list[str]:
     return extra
 
 
-def _window(text: str | None) -> int | str | None:
+def _window(text: str | None) -> int | Literal["auto"] | None:
     """``--window``: an integer, ``auto``, or ``None`` (the benchmark's default)."""
-    if text is None or text == "auto":
-        return text
-    if not text.isdigit():
+    if text is None:
+        return None
+    if text == "auto":
+        return "auto"
+    if not (text.isascii() and text.isdigit()):  # '²'.isdigit() is true, int('²') fails
         raise OptionError(f"--window: expected an integer or auto, got {text!r}")
     return int(text)
 

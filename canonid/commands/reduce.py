@@ -91,7 +91,15 @@ def _one(args: argparse.Namespace) -> int:
         raise OptionError(f"--compression reduces one RUN, got {len(args.runs)} (use --sweep)")
     source: Path = args.runs[0]
     out = args.out or source.parent / f"{source.name}-{rate_label(args.compression)}"
-    options = ("compression", "profile", "seed", "epochs", "linear_skip", "device", "resume")
+    options: tuple[str, ...] = (
+        "compression",
+        "profile",
+        "seed",
+        "epochs",
+        "linear_skip",
+        "device",
+        "resume",
+    )
     options += ("threads",)
     job = ReductionJob(
         **{key: getattr(args, key) for key in options},

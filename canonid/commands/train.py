@@ -187,7 +187,15 @@ def _window_arg(text: str) -> int | str:
 
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
-    options = ("data", "model", "window", "profile", "val", "val_fraction", "activation")
+    options: tuple[str, ...] = (
+        "data",
+        "model",
+        "window",
+        "profile",
+        "val",
+        "val_fraction",
+        "activation",
+    )
     options += ("residual", "feedthrough", "linear", "paper_options", "out", "resume")
     options += ("eval_horizon", "threads", "workers", "scheduler", *TRAIN_OPTION_FIELDS)
     return TrainRequest(

@@ -1,4 +1,10 @@
-"""The dataset type shared by generation, identification, analysis and the CLI.
+"""The trajectory and dataset types that every layer takes: generation, identification,
+analysis and the application.
+
+Validation happens once: constructing a :class:`Trajectory` checks its shapes and finiteness,
+and :class:`Dataset` the dimensions its trajectories share. Data from elsewhere (any objects with
+``.u`` and ``.y``) become trajectories at the edge of a public function, through
+:func:`as_trajectories` (or :meth:`Trajectory.of` for one); inside, code trusts the type.
 
 Time alignment (the convention of every layer)
 -----------------------------------------------
@@ -31,7 +37,7 @@ from canonid.kernel.errors import DataError, ShapeError
 from canonid.kernel.io import atomic_write_json, read_json, read_npz, sha256_file, write_npz
 from canonid.kernel.validate import as_matrix
 
-__all__ = ["FORMAT_VERSION", "Dataset", "Trajectory"]
+__all__ = ["FORMAT_VERSION", "Dataset", "Trajectory", "as_trajectories"]
 
 FORMAT_VERSION = 1
 _FIELDS = ("u", "y", "y_clean", "x", "reference")
@@ -93,9 +99,50 @@ def _check_header(header: Mapping[str, Any], where: Path) -> None:
         )
 
 
+def _validated(fields: Mapping[str, Any], where: str) -> dict[str, np.ndarray | None]:
+    """The arrays of a trajectory (``u``, ``y`` and those of ``y_clean``, ``x``, ``reference``
+    given) as finite float64 ``(T, n)`` arrays, a 1-D array read as one column; errors begin with
+    ``where`` and name the field."""
+
+    def columns(name: str) -> np.ndarray:
+        try:
+            arr = np.asarray(fields[name], dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ShapeError(f"{where}: field {name!r} must be a numeric array ({exc})") from None
+        return arr[:, None] if arr.ndim == 1 else arr
+
+    u, y = columns("u"), columns("y")
+    u = as_matrix(u, u.shape[1] if u.ndim == 2 else -1, f"{where}: field 'u'")
+    y = as_matrix(y, y.shape[1] if y.ndim == 2 else -1, f"{where}: field 'y'")
+    if len(u) != len(y):
+        raise ShapeError(f"{where}: u has {len(u)} samples but y has {len(y)}")
+    if len(u) == 0:
+        raise ShapeError(f"{where}: no samples (T = 0)")
+    out: dict[str, np.ndarray | None] = {"u": u, "y": y}
+    for name in ("y_clean", "x", "reference"):
+        value = fields.get(name)
+        if value is None:
+            out[name] = None
+            continue
+        arr = columns(name)
+        cols = arr.shape[1] if arr.ndim == 2 else -1
+        if name == "y_clean" and cols != y.shape[1]:
+            raise ShapeError(
+                f"{where}: field 'y_clean' must have shape ({len(u)}, {y.shape[1]}), "
+                f"got {arr.shape}"
+            )
+        out[name] = as_matrix(arr, cols, f"{where}: field {name!r}", rows=len(u))
+    return out
+
+
 @dataclass(frozen=True)
 class Trajectory:
     """One experiment (a flight, a run) of ``T`` samples; see the module docstring for alignment.
+
+    The one trajectory type of every layer. Constructing one validates it (shapes, lengths,
+    finiteness) and is the only place that does: code that receives a ``Trajectory`` trusts it.
+    Objects of another type that have ``.u`` and ``.y`` become one through :meth:`of` (or a
+    sequence of them through :func:`as_trajectories`), at the edge of a public function.
 
     Attributes:
         u: inputs, ``(T, n_u)``.
@@ -114,35 +161,37 @@ class Trajectory:
     info: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        u = np.asarray(self.u, dtype=np.float64)
-        y = np.asarray(self.y, dtype=np.float64)
-        if u.ndim == 1:
-            u = u[:, None]
-        if y.ndim == 1:
-            y = y[:, None]
-        u = as_matrix(u, u.shape[1] if u.ndim == 2 else -1, "trajectory field 'u'")
-        y = as_matrix(y, y.shape[1] if y.ndim == 2 else -1, "trajectory field 'y'", rows=len(u))
-        if len(u) == 0:
-            raise ShapeError("trajectory has no samples (T = 0)")
-        object.__setattr__(self, "u", u)
-        object.__setattr__(self, "y", y)
-        for name in ("y_clean", "x", "reference"):
-            value = getattr(self, name)
-            if value is None:
-                continue
-            arr = np.asarray(value, dtype=np.float64)
-            if arr.ndim == 1:
-                arr = arr[:, None]
-            cols = arr.shape[1] if arr.ndim == 2 else -1
-            if name == "y_clean" and cols != y.shape[1]:
-                raise ShapeError(
-                    f"trajectory field 'y_clean' must have shape ({len(u)}, {y.shape[1]}), "
-                    f"got {arr.shape}"
-                )
-            object.__setattr__(
-                self, name, as_matrix(arr, cols, f"trajectory field {name!r}", rows=len(u))
-            )
+        arrays = _validated({k: getattr(self, k) for k in _FIELDS}, "trajectory")
+        for name, value in arrays.items():
+            object.__setattr__(self, name, value)
         object.__setattr__(self, "info", dict(self.info))
+
+    @classmethod
+    def _trusted(
+        cls, arrays: Mapping[str, np.ndarray | None], info: Mapping[str, Any]
+    ) -> Trajectory:
+        """A trajectory of arrays already validated (by :func:`_validated` or as slices of a
+        trajectory's), built without checking them again."""
+        tr = object.__new__(cls)
+        for name in _FIELDS:
+            object.__setattr__(tr, name, arrays.get(name))
+        object.__setattr__(tr, "info", dict(info))
+        return tr
+
+    @classmethod
+    def of(cls, obj: Any, *, where: str = "trajectory") -> Trajectory:
+        """``obj`` itself if it is a :class:`Trajectory`; else the trajectory of its arrays
+        ``.u``, ``.y`` and, where it has them, ``.y_clean``, ``.x``, ``.reference`` (and a mapping
+        ``.info``), validated once here. Errors begin with ``where``."""
+        if isinstance(obj, cls):
+            return obj
+        if not (hasattr(obj, "u") and hasattr(obj, "y")):
+            raise DataError(
+                f"{where}: expected an object with arrays .u and .y, got {type(obj).__name__}"
+            )
+        arrays = _validated({k: getattr(obj, k, None) for k in _FIELDS}, where)
+        info = getattr(obj, "info", None)
+        return cls._trusted(arrays, info if isinstance(info, Mapping) else {})
 
     @property
     def T(self) -> int:
@@ -159,6 +208,48 @@ class Trajectory:
     def arrays(self) -> dict[str, np.ndarray]:
         """The fields that are present, by name."""
         return {k: getattr(self, k) for k in _FIELDS if getattr(self, k) is not None}
+
+    def part(self, start: int, stop: int, **info: Any) -> Trajectory:
+        """Samples ``start … stop−1`` of every field, ``info`` added to this trajectory's (a
+        part of a valid trajectory is valid: nothing is checked again but its length)."""
+        if not 0 <= start < stop <= self.T:
+            raise ShapeError(
+                f"samples [{start}, {stop}) are not a part of a trajectory of {self.T}"
+            )
+        parts = {k: v[start:stop] for k, v in self.arrays().items()}
+        return Trajectory._trusted(parts, {**self.info, **info})
+
+
+def as_trajectories(data: Any, *, what: str = "data") -> tuple[Trajectory, ...]:
+    """``data`` (one trajectory or a sequence of them) as a tuple of :class:`Trajectory`.
+
+    The edge of every public function that takes trajectories: a :class:`Trajectory` passes as
+    it is, any other object with ``.u`` and ``.y`` is validated once (:meth:`Trajectory.of`).
+    There must be at least one, all with the ``n_u`` and ``n_y`` of the first; errors begin with
+    ``what`` and name the trajectory.
+    """
+    if hasattr(data, "u") and hasattr(data, "y"):
+        items = [data]
+    else:
+        try:
+            items = list(data)
+        except TypeError:
+            raise DataError(
+                f"{what}: expected a trajectory or a sequence of them, got {type(data).__name__}"
+            ) from None
+    if not items:
+        raise DataError(f"{what}: no trajectories")
+    out = tuple(
+        Trajectory.of(item, where=f"{what}, trajectory {i}") for i, item in enumerate(items)
+    )
+    n_u, n_y = out[0].n_u, out[0].n_y
+    for i, tr in enumerate(out):
+        if (tr.n_u, tr.n_y) != (n_u, n_y):
+            raise ShapeError(
+                f"{what}, trajectory {i}: has n_u={tr.n_u}, n_y={tr.n_y}; trajectory 0 has "
+                f"n_u={n_u}, n_y={n_y}"
+            )
+    return out
 
 
 @dataclass(frozen=True)
