@@ -22,7 +22,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from canonid.kernel.errors import ShapeError
 
@@ -59,6 +58,8 @@ def quadrotor_reference(
         speed_limit: largest allowed ``|v|`` per axis along the spline [m/s].
         max_draws: redraws allowed before giving up.
     """
+    from scipy.interpolate import CubicSpline  # scipy loads with the first reference
+
     lo_n, hi_n = waypoints
     if steps < 2 or not 2 <= lo_n <= hi_n:
         raise ShapeError(

@@ -11,7 +11,6 @@ Time convention: row ``t`` of a reference is the target for sample ``t`` (time `
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import CubicSpline
 
 from canonid.kernel.errors import ShapeError
 
@@ -52,6 +51,8 @@ def tank_reference(
     the knots is evaluated at samples ``0 … T−1``; a draw whose spline goes below ``low`` there is
     redrawn with the next numbers of ``rng``.
     """
+    from scipy.interpolate import CubicSpline  # scipy loads with the first reference
+
     T = _require_positive_int(T, "T", minimum=2)
     n = _require_positive_int(n_waypoints, "n_waypoints", minimum=3)
     if not (high > low):
@@ -86,6 +87,8 @@ def drone2d_reference(
     ``t·dt``, ``t = 0 … T−1``; velocities are the spline's derivative at the same times; the
     angle and angular-rate targets are 0.
     """
+    from scipy.interpolate import CubicSpline  # scipy loads with the first reference
+
     T = _require_positive_int(T, "T", minimum=2)
     lo, hi = (int(v) for v in n_waypoints)
     if not (3 <= lo <= hi):

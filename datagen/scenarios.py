@@ -11,14 +11,10 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from types import MappingProxyType
-from typing import Any, cast
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
-from canonid.datagen.controllers.base import Controller
-from canonid.datagen.controllers.nmpc import NMPC
-from canonid.datagen.controllers.pid import PID
-from canonid.datagen.controllers.quadrotor_cascade import QuadrotorCascade
 from canonid.datagen.quadrotor_reference import (
     QUADROTOR_REFERENCE_NAMES,
     quadrotor_initial_state,
@@ -31,16 +27,19 @@ from canonid.datagen.references import (
     tank_reference,
 )
 from canonid.kernel.errors import ShapeError, UnknownSystemError
-from canonid.models.base import System
-from canonid.models.drone2d import Drone2D
-from canonid.models.quadrotor import Quadrotor
+
+# The systems and controllers (CasADi) load when a scenario builds one, not with the names:
+# `canonid generate --help` lists the scenarios without CasADi.
+if TYPE_CHECKING:
+    from canonid.datagen.controllers.base import Controller
+    from canonid.models.base import System
 
 __all__ = ["Scenario", "get_scenario", "register_scenario", "scenario_names"]
 
 #: reference sampler: ``(system, rng, T) -> (T, n_r)`` array
-ReferenceSampler = Callable[[System, np.random.Generator, int], np.ndarray]
+ReferenceSampler = Callable[["System", np.random.Generator, int], np.ndarray]
 #: controller factory: ``(system, options) -> Controller``; options are the user's overrides
-ControllerFactory = Callable[[System, Mapping[str, Any]], Controller]
+ControllerFactory = Callable[["System", Mapping[str, Any]], "Controller"]
 
 
 @dataclass(frozen=True)
@@ -133,6 +132,8 @@ def _zero_state(system: System, reference: np.ndarray) -> np.ndarray:
 
 
 def _tank_pid(system: System, options: Mapping[str, Any]) -> Controller:
+    from canonid.datagen.controllers.pid import PID
+
     return PID(kp=4.0, ki=0.6, kd=4.0, state_index=1)
 
 
@@ -153,6 +154,9 @@ def _reference_start(system: System, reference: np.ndarray) -> np.ndarray:
 
 
 def _drone2d_nmpc(system: System, options: Mapping[str, Any]) -> Controller:
+    from canonid.datagen.controllers.nmpc import NMPC
+    from canonid.models.drone2d import Drone2D
+
     if not isinstance(system, Drone2D):
         raise ShapeError(f"the planar-drone NMPC needs a Drone2D, got {system!r}")
     hover = system.hover_speed
@@ -176,6 +180,9 @@ def _quadrotor_start(system: System, reference: np.ndarray) -> np.ndarray:
 
 
 def _quadrotor_cascade(system: System, options: Mapping[str, Any]) -> Controller:
+    from canonid.datagen.controllers.quadrotor_cascade import QuadrotorCascade
+    from canonid.models.quadrotor import Quadrotor
+
     return QuadrotorCascade(cast(Quadrotor, system))  # it checks the type itself
 
 
