@@ -171,13 +171,28 @@ def _read_mat(path: Path, names: Sequence[str]) -> dict[str, np.ndarray]:
     if missing:
         found = sorted(k for k in content if not k.startswith("__"))
         raise DataError(f"{path}: no variable(s) {missing}; it holds {found}")
-    out = {}
-    for n in names:
-        try:
-            out[n] = np.asarray(content[n], dtype=np.float64)
-        except (TypeError, ValueError):
-            raise DataError(f"{path}: variable {n!r} is not numeric") from None
-    return out
+    return {n: _real(content[n], path, n) for n in names}
+
+
+def _real(value: Any, path: Path, name: str) -> np.ndarray:
+    """A MATLAB variable as float64: text, and complex values with an imaginary part other than
+    zero, are refused rather than converted (``float('4.0')`` or dropping ``.imag`` would hide
+    a wrong file)."""
+    kind = getattr(value, "dtype", np.dtype(object)).kind
+    if kind in "US":
+        shown = "".join(str(v) for v in np.ravel(value))
+        raise DataError(f"{path}: variable {name!r} is text ({shown!r:.40}); expected numbers")
+    if kind == "c":
+        imag = np.abs(value.imag)
+        if np.any(imag != 0):
+            raise DataError(
+                f"{path}: variable {name!r} holds complex values (imaginary parts up to "
+                f"{float(np.max(imag)):.3g}); expected real numbers"
+            )
+        value = value.real
+    if kind not in "biufc":
+        raise DataError(f"{path}: variable {name!r} is not numeric (MATLAB cell or struct)")
+    return np.asarray(value, dtype=np.float64)
 
 
 def _vector(arr: np.ndarray, path: Path, name: str) -> np.ndarray:
@@ -257,9 +272,34 @@ def _wiener_hammerstein(found: Mapping[str, Path]) -> tuple[float, list[_Part], 
     arrays = _read_mat(path, ["uBenchMark", "yBenchMark", "fs"])
     u, y = _pair(path, arrays, "uBenchMark", "yBenchMark")
     _need(path, "uBenchMark", u, 184_000)
-    dt = 1.0 / _scalar(arrays["fs"], path, "fs")
+    fs = _scalar(arrays["fs"], path, "fs")
+    dt = 1.0 / fs
+    if not math.isfinite(dt):
+        raise DataError(
+            f"{path}: variable 'fs' = {fs!r} gives no finite sampling time 1/fs; expected the "
+            "sampling frequency in Hz (51200 for this benchmark)"
+        )
     train = [_cut("train", u, y, path, 5_200, 105_200)]
     return dt, train, [_cut("test", u, y, path, 105_200, 184_000)]
+
+
+EMPS_N_INIT = 20
+#: how far a step of EMPS's clock ``t`` may be from ``t[1] − t[0]``, relative to it: rounding
+#: (even of a clock stored in single precision) passes, a missing or repeated sample does not
+EMPS_STEP_TOLERANCE = 1e-2
+
+
+def _uniform(t: np.ndarray, dt: float, path: Path) -> None:
+    """Refuse a clock ``t`` whose steps are not all ``dt`` (the step the official split uses)."""
+    steps = np.diff(t)
+    off = np.flatnonzero(np.abs(steps - dt) > EMPS_STEP_TOLERANCE * dt)
+    if off.size:
+        k = int(off[0]) + 1
+        raise DataError(
+            f"{path}: variable 't' is not uniformly sampled: t[{k}] − t[{k - 1}] = "
+            f"{steps[k - 1]:.6g} s but t[1] − t[0] = {dt:.6g} s (every step within "
+            f"{EMPS_STEP_TOLERANCE:.0%} of it expected)"
+        )
 
 
 def _emps(found: Mapping[str, Path]) -> tuple[float, list[_Part], list[_Part]]:
@@ -272,9 +312,13 @@ def _emps(found: Mapping[str, Path]) -> tuple[float, list[_Part], list[_Part]]:
         arrays = _read_mat(path, ["qm", "t", "vir"])
         u, y = _pair(path, arrays, "vir", "qm")
         t = _vector(arrays["t"], path, "t")
+        if len(t) != len(u):
+            raise DataError(f"{path}: variable 't' has {len(t)} samples but 'vir' has {len(u)}")
+        _need(path, "vir", u, EMPS_N_INIT + 1)
         dt = float(t[1] - t[0])
         if not dt > 0:
             raise DataError(f"{path}: variable 't' must increase, got t[1] − t[0] = {dt}")
+        _uniform(t, dt, path)
         parts.append(_cut(name, u, y, path, 0, len(u)))
         dts.append(dt)
     if not math.isclose(dts[0], dts[1], rel_tol=1e-6):
@@ -432,7 +476,7 @@ _REGISTRY = (
         input_names=("vir",),
         output_names=("qm",),
         units={"vir": "N", "qm": "m"},
-        n_init=20,
+        n_init=EMPS_N_INIT,
         test_parts=("DATA_EMPS_PULSES",),
         score_units="mm",
         score_scale=1000.0,

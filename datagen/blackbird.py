@@ -81,6 +81,7 @@ import importlib.metadata
 import logging
 import math
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -90,6 +91,7 @@ import numpy as np
 import scipy
 
 from canonid.datagen.chunks import cut_chunks
+from canonid.datagen.loaders import plain_float, regular_file
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError
 from canonid.kernel.io import sha256_file
@@ -168,8 +170,7 @@ class FlightSignals:
 
 
 def _read_rows(path: Path) -> tuple[list[str], list[list[str]]]:
-    if not path.is_file():
-        raise DataError(f"Blackbird file not found: {path}")
+    regular_file(path, "Blackbird file")
     try:
         with path.open(newline="", encoding="utf-8") as fh:
             rows = list(csv.reader(fh))
@@ -205,12 +206,10 @@ def _xyz_after(header: list[str], marker: str, path: Path) -> list[int]:
 
 def _timestamp(field: str, path: Path, line: int) -> int:
     text = field.strip()
-    try:
+    if re.fullmatch(r"[+-]?[0-9]+", text):  # ASCII digits: `int` alone also reads 1_000, １２
         return int(text)
-    except ValueError:
-        pass
     try:
-        value = float(text)
+        value = plain_float(text)
     except ValueError:
         raise DataError(
             f"{path}, line {line}: timestamp {text!r} is not a number of nanoseconds"
@@ -222,7 +221,7 @@ def _timestamp(field: str, path: Path, line: int) -> int:
 
 def _number(field: str, path: Path, line: int, what: str) -> float:
     try:
-        value = float(field)
+        value = plain_float(field)
     except ValueError:
         raise DataError(f"{path}, line {line}: {what} {field.strip()!r} is not a number") from None
     if not math.isfinite(value):

@@ -9,7 +9,9 @@ split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
   them. Either every file is one experiment, or ``experiment_column`` names a column whose value
   identifies the experiment of each row (experiments in order of first appearance, rows in file
   order; the rows of one experiment must be contiguous). ``dt`` (seconds) is required: CSV files
-  carry no sampling time. Files are UTF-8 text.
+  carry no sampling time. Files are UTF-8 text, read as a stream; each column read is named
+  once in the header and every cell of it is a finite number in plain notation (ASCII digits,
+  optional sign, decimal point and exponent: not ``1_000`` or ``１２``, which ``float`` reads).
 * :func:`load_npz` — arrays ``u`` and ``y``, each ``(T, n)`` for one experiment or ``(N, T, n)``
   for ``N`` of equal length, or pairs ``u_0, y_0, u_1, y_1, …`` for experiments of any length;
   optional ``y_clean`` (same layout) and a scalar ``dt`` (else the ``dt`` argument).
@@ -20,12 +22,16 @@ split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
 
 from __future__ import annotations
 
+import codecs
 import csv
 import hashlib
 import io
+import itertools
 import math
+import operator
 import os
 import re
+import stat
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -43,6 +49,8 @@ __all__ = [
     "load_csv",
     "load_data",
     "load_npz",
+    "plain_float",
+    "regular_file",
     "split_train_val",
 ]
 
@@ -99,28 +107,159 @@ def _dataset(
         raise DataError(f"{where}: {exc}") from None
 
 
+# -------------------------------------------------------------------------------------- files
+_NOT_REGULAR = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+)
+
+
+def regular_file(path: Path, what: str) -> Path:
+    """``path`` if it is a regular file (or a link to one); else a :class:`DataError` saying
+    what it is instead: reading a FIFO or a device could block, or never end."""
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        raise DataError(f"{what} not found: {path}") from None
+    except OSError as exc:
+        raise DataError(f"{path}: cannot be read ({exc.strerror})") from None
+    if not stat.S_ISREG(mode):
+        kind = next((name for test, name in _NOT_REGULAR if test(mode)), "a special file")
+        raise DataError(f"{path} is {kind}, not a regular file; expected a {what}")
+    return path
+
+
 # ---------------------------------------------------------------------------------------- CSV
+#: rows whose cells are converted to float64 at once: the chunk's Python strings (~70 bytes a
+#: cell) are all the loader holds besides the arrays, so memory follows the numbers, not the text
+_CHUNK_ROWS = 1 << 15
+
+#: a number in plain notation: ASCII digits, an optional sign, point and exponent. ``float``
+#: accepts more (``1_000``, non-ASCII digits such as ``１２``), which a CSV file should not hold
+_NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+#: the spellings of NaN and infinity that ``float`` reads: refused as not finite, not as text
+_NON_FINITE = re.compile(r"[+-]?(?:nan|inf|infinity)", re.IGNORECASE)
+#: a character outside plain notation and the spaces around it: a chunk of cells without one
+#: needs no check per cell, as ``float`` then accepts exactly the cells of plain notation
+_NOT_PLAIN = re.compile(r"[^0-9eE+\-. \t]")
+_EXPECTED = "expected plain decimal notation such as 12, -0.5 or 1.5e-3"
+
+
+def plain_float(text: str) -> float:
+    """``float(text)`` of a number in plain notation, or of a spelling of NaN or infinity (for
+    the caller to refuse as not finite); a ValueError for anything else ``float`` would read
+    (``1_000``, ``１２``, ``٣``). Spaces around the number are ignored."""
+    text = text.strip()
+    if _NUMBER.fullmatch(text) or _NON_FINITE.fullmatch(text):
+        return float(text)
+    raise ValueError(f"{text!r} is not a number in plain notation")
+
+
+def _cell(cell: str, path: Path, line: int, column: str) -> float:
+    """One cell as a finite float, or a :class:`DataError` naming its line and column."""
+    where = f"{path}, line {line}, column {column!r}: {cell.strip()!r}"
+    try:
+        value = plain_float(cell)
+    except ValueError:
+        raise DataError(f"{where} is not a number ({_EXPECTED})") from None
+    if not math.isfinite(value):
+        raise DataError(f"{where} is not finite")
+    return value
+
+
+class _Table:
+    """The picked cells of the data rows, converted to one float64 ``(rows, columns)`` array a
+    chunk at a time."""
+
+    def __init__(self, path: Path, columns: Sequence[str]) -> None:
+        self.path, self.columns = path, list(columns)
+        self.cells: list[tuple[str, ...]] = []  # the pending chunk: one tuple per row
+        self.lines: list[int] = []  # its rows' line numbers, for the messages
+        self.blocks: list[np.ndarray] = []
+        self.rows = 0
+
+    def add(self, cells: tuple[str, ...], line: int) -> None:
+        self.cells.append(cells)
+        self.lines.append(line)
+        self.rows += 1
+        if len(self.cells) == _CHUNK_ROWS:
+            self.flush()
+
+    def flush(self) -> None:
+        """Convert the pending chunk (its first bad cell, in file order, raises)."""
+        cells, lines = self.cells, self.lines
+        self.cells, self.lines = [], []
+        if cells:
+            self.blocks.append(self._convert(cells, lines))
+
+    def _convert(self, cells: list[tuple[str, ...]], lines: list[int]) -> np.ndarray:
+        block = self._plain(cells)
+        if block is None:  # cell by cell, in file order, so that the first bad cell is named
+            block = np.empty((len(cells), len(self.columns)))
+            for i, (row, line) in enumerate(zip(cells, lines)):
+                for j, (cell, column) in enumerate(zip(row, self.columns)):
+                    block[i, j] = _cell(cell, self.path, line, column)
+        return block
+
+    def _plain(self, cells: list[tuple[str, ...]]) -> np.ndarray | None:
+        """The chunk as floats if every cell is a finite number in plain notation (one search
+        per column tells, then ``float`` maps the column); else None."""
+        block = np.empty((len(cells), len(self.columns)))
+        for j, column in enumerate(zip(*cells)):
+            if _NOT_PLAIN.search("".join(column)):
+                return None
+            try:
+                block[:, j] = np.fromiter(map(float, column), np.float64, len(column))
+            except ValueError:  # a malformed number such as "1e" or "1.2.3", or an empty cell
+                return None
+        return block if np.isfinite(block).all() else None
+
+    def array(self) -> np.ndarray:
+        self.flush()
+        return self.blocks[0] if len(self.blocks) == 1 else np.concatenate(self.blocks)
+
+
+def _first_bad_utf8_line(path: Path) -> int:
+    """The line of the first byte of ``path`` that is not UTF-8, read in blocks."""
+    decoder = codecs.getincrementaldecoder("utf-8")()
+    newlines = 0
+    with path.open("rb") as f:
+        for block in itertools.chain(iter(lambda: f.read(1 << 20), b""), [b""]):
+            try:
+                decoder.decode(block, final=not block)
+            except UnicodeDecodeError as exc:
+                # exc.object: the bytes held back from the last block (no newline) + this one
+                return newlines + exc.object[: exc.start].count(b"\n") + 1
+            newlines += block.count(b"\n")
+    return newlines + 1
+
+
+#: one experiment of a CSV file: its key (the experiment column's value) and rows [start, stop)
+_Run = tuple[str, int, int]
+
+
 def _read_csv(
     path: Path, columns: Sequence[str], experiment_column: str | None
-) -> tuple[list[str], np.ndarray]:
-    if not path.is_file():
-        raise DataError(f"CSV file not found: {path}")
-    raw = path.read_bytes()
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = raw.count(b"\n", 0, exc.start) + 1
-        raise DataError(f"{path}, line {line}: not UTF-8 text") from None
-    reader = csv.reader(io.StringIO(text, newline=""))
-    try:
-        return _parse_csv(path, reader, columns, experiment_column)
-    except csv.Error as exc:
-        raise DataError(f"{path}, line {reader.line_num}: not CSV text ({exc})") from None
+) -> tuple[list[_Run], np.ndarray]:
+    """Stream ``path`` (UTF-8 CSV) into the float64 table of ``columns`` and its experiments."""
+    regular_file(path, "CSV file")
+    with path.open("rb") as raw:
+        text = io.TextIOWrapper(raw, encoding="utf-8-sig", newline="")
+        reader = csv.reader(text)
+        try:
+            return _parse_csv(path, reader, columns, experiment_column)
+        except csv.Error as exc:
+            raise DataError(f"{path}, line {reader.line_num}: not CSV text ({exc})") from None
+        except UnicodeDecodeError:
+            raise DataError(f"{path}, line {_first_bad_utf8_line(path)}: not UTF-8 text") from None
 
 
 def _parse_csv(
     path: Path, reader: Any, columns: Sequence[str], experiment_column: str | None
-) -> tuple[list[str], np.ndarray]:
+) -> tuple[list[_Run], np.ndarray]:
     try:
         header = [h.strip() for h in next(reader)]
     except StopIteration:
@@ -129,42 +268,44 @@ def _parse_csv(
     missing = [c for c in wanted if c not in header]
     if missing:
         raise DataError(f"{path}: no column(s) {missing}; the header has {header}")
-    index = [header.index(c) for c in columns]
-    exp_index = header.index(experiment_column) if experiment_column else None
-    ids: list[str] = []
-    first_line: dict[str, int] = {}
-    rows: list[list[float]] = []
-    for row in reader:
-        line = reader.line_num
-        if not row or all(not cell.strip() for cell in row):
-            continue
-        if len(row) != len(header):
-            raise DataError(f"{path}, line {line}: {len(row)} fields, the header has {len(header)}")
-        values = []
-        for col, j in zip(columns, index):
-            cell = row[j].strip()
-            try:
-                value = float(cell)
-            except ValueError:
-                raise DataError(
-                    f"{path}, line {line}, column {col!r}: {cell!r} is not a number"
-                ) from None
-            if not math.isfinite(value):
-                raise DataError(f"{path}, line {line}, column {col!r}: {cell!r} is not finite")
-            values.append(value)
-        key = row[exp_index].strip() if exp_index is not None else ""
-        if ids and key != ids[-1] and key in first_line:
+    for name in dict.fromkeys(wanted):
+        places = [str(i + 1) for i, h in enumerate(header) if h == name]
+        if len(places) > 1:
             raise DataError(
-                f"{path}, line {line}: experiment {key!r} (column {experiment_column!r}) "
-                f"started on line {first_line[key]} and other experiments came between; "
-                "each experiment's rows must be contiguous, in time order"
+                f"{path}: the header names column {name!r} {len(places)} times (columns "
+                f"{', '.join(places[:-1])} and {places[-1]}); a column read must be named once"
             )
-        first_line.setdefault(key, line)
-        rows.append(values)
-        ids.append(key)
-    if not rows:
+    pick = operator.itemgetter(*(header.index(c) for c in columns))  # ≥ 2 columns: a tuple
+    exp_index = header.index(experiment_column) if experiment_column else None
+    width = len(header)
+    table = _Table(path, columns)
+    starts: list[tuple[str, int]] = []  # (key, first row) of each experiment, in file order
+    first_line: dict[str, int] = {}
+    try:
+        for row in reader:
+            if not row or not (row[0].strip() or "".join(row).strip()):
+                continue  # a blank line, or one of empty fields
+            line = reader.line_num
+            if len(row) != width:
+                raise DataError(f"{path}, line {line}: {len(row)} fields, the header has {width}")
+            key = "" if exp_index is None else row[exp_index].strip()
+            if not starts or key != starts[-1][0]:
+                if key in first_line:
+                    raise DataError(
+                        f"{path}, line {line}: experiment {key!r} (column {experiment_column!r}) "
+                        f"started on line {first_line[key]} and other experiments came between; "
+                        "each experiment's rows must be contiguous, in time order"
+                    )
+                first_line[key] = line
+                starts.append((key, table.rows))
+            table.add(pick(row), line)
+    except (DataError, csv.Error, UnicodeDecodeError):
+        table.flush()  # a bad cell on an earlier line is the first problem: it is named instead
+        raise
+    if not table.rows:
         raise DataError(f"{path}: no data rows under the header")
-    return ids, np.asarray(rows, dtype=np.float64)
+    stops = [start for _, start in starts[1:]] + [table.rows]
+    return [(key, start, stop) for (key, start), stop in zip(starts, stops)], table.array()
 
 
 def load_csv(
@@ -191,14 +332,12 @@ def load_csv(
     trajs: list[Trajectory] = []
     labels: list[str] = []
     for path in files:
-        ids, table = _read_csv(path, [*inputs, *outputs], experiment_column)
-        groups: dict[str, list[int]] = {}
-        for k, key in enumerate(ids if experiment_column else [path.name] * len(ids)):
-            groups.setdefault(key, []).append(k)
-        for key, rows in groups.items():
-            sub = table[np.asarray(rows)]
-            label = key if experiment_column is None else f"{path.name}:{experiment_column}={key}"
-            trajs.append(_trajectory(sub[:, :n_u], sub[:, n_u:], f"{path}, experiment {key!r}"))
+        runs, table = _read_csv(path, [*inputs, *outputs], experiment_column)
+        for key, start, stop in runs:
+            sub = table[start:stop]  # a view: each experiment's rows are contiguous
+            name = path.name if experiment_column is None else key
+            label = name if experiment_column is None else f"{path.name}:{experiment_column}={key}"
+            trajs.append(_trajectory(sub[:, :n_u], sub[:, n_u:], f"{path}, experiment {name!r}"))
             labels.append(label)
     metadata = {
         "source": "csv",
@@ -220,7 +359,7 @@ def load_npz(
     output_names: Sequence[str] | None = None,
 ) -> Dataset:
     """Read experiments from an ``.npz`` of arrays (see the module docstring)."""
-    p = Path(path)
+    p = regular_file(Path(path), "array file (.npz)")
     arrays = read_npz(p, what="array file")
     if "dt" in arrays:
         stored = arrays.pop("dt")
@@ -350,9 +489,7 @@ def data_checksum(path: PathLike) -> str:
             raise DataError(f"{p}: a folder without dataset.npz or CSV files")
         listing = "".join(f"{f.name}\t{sha256_file(f)}\n" for f in files)
         return hashlib.sha256(listing.encode()).hexdigest()
-    if not p.is_file():
-        raise DataError(f"data file not found: {p}")
-    return sha256_file(p)
+    return sha256_file(regular_file(p, "data file"))
 
 
 def load_data(
@@ -374,8 +511,7 @@ def load_data(
         if not files:
             raise DataError(f"{p}: a folder without dataset.npz or CSV files")
         return _csv(files, inputs, outputs, dt, experiment_column)
-    if not p.exists():
-        raise DataError(f"data file not found: {p}")
+    regular_file(p, "data file")
     if p.suffix.lower() == ".csv":
         return _csv([p], inputs, outputs, dt, experiment_column)
     if p.suffix.lower() == ".npz":
@@ -439,8 +575,12 @@ def split_train_val(
         heads, tails = [], []
         for i, tr in enumerate(train):
             cut = int((1 - val_fraction) * tr.T)
-            if cut < 2 or tr.T - cut < 2:
-                raise DataError(f"record {i} of {tr.T} samples is too short to split")
+            if not _splits_at(tr.T, val_fraction):
+                raise DataError(
+                    f"{_record_name(dataset, i)} has {tr.T} samples, too few to cut a validation "
+                    f"tail of --val-fraction {val_fraction:g} (at least 2 samples each side): it "
+                    f"needs at least {_fewest_samples(val_fraction)} samples"
+                )
             heads.append(tr.part(0, cut, samples=[0, cut]))
             tails.append(tr.part(cut, tr.T, samples=[cut, tr.T]))
         new_train, new_val = tuple(heads), tuple(tails)
@@ -459,3 +599,33 @@ def split_train_val(
         state_names=dataset.state_names,
         metadata={**dataset.metadata, "validation_split": how},
     )
+
+
+def _splits_at(samples: int, val_fraction: float) -> bool:
+    cut = int((1 - val_fraction) * samples)
+    return cut >= 2 and samples - cut >= 2
+
+
+def _fewest_samples(val_fraction: float) -> int:
+    """The fewest samples a record needs for :func:`split_train_val` to leave 2 on each side."""
+    # both parts grow with the length, so count up from just below the bounds 1/f and 2/(1 − f)
+    samples = max(4, int(1 / val_fraction) - 1, int(2 / (1 - val_fraction)) - 1)
+    while not _splits_at(samples, val_fraction):
+        samples += 1
+    return samples
+
+
+def _record_name(dataset: Dataset, i: int) -> str:
+    """``FILE: record 'NAME'`` of training record ``i``, from what the loader recorded."""
+    meta = dataset.metadata  # the loader's own fields, or whatever a dataset.json held
+    listed = meta.get("files", [meta.get("file")])
+    files = [f for f in listed if isinstance(f, str)] if isinstance(listed, list) else []
+    labels = meta.get("experiments")
+    info = dataset.split("train")[i].info
+    if isinstance(labels, list) and i < len(labels):
+        name = repr(labels[i])
+    elif "part" in info:
+        name = repr(info["part"])
+    else:
+        name = str(i)
+    return f"{', '.join(files)}: record {name}" if files else f"record {name}"

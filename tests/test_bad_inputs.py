@@ -19,6 +19,7 @@ from cli_helpers import one_line_error
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
+from test_data_edge import unread_fifo
 
 from canonid.cli import main
 from canonid.datagen.loaders import load_data
@@ -78,6 +79,12 @@ CSV_CORPUS = {
     "not a number": (_csv("u,y\n1,2\n1,abc\n"), "line 3, column 'y': 'abc' is not a number"),
     "not finite": (_csv("u,y\n1,2\n1,inf\n"), "line 3, column 'y': 'inf' is not finite"),
     "ragged row": (_csv("u,y\n1,2\n1,2,3\n"), "line 3: 3 fields, the header has 2"),
+    "underscore digits": (_csv("u,y\n1,2\n1_000,3\n"), "column 'u': '1_000' is not a number"),
+    "fullwidth digits": (_csv("u,y\n1,2\n１２,3\n"), "column 'u': '１２' is not a number"),
+    "duplicate column": (
+        _csv("y,u,y\n0,1,2\n0,1,3\n"),
+        "bad.csv: the header names column 'y' 2 times (columns 1 and 3)",
+    ),
 }
 
 SCATTERED = "run,u,y\n" + "".join(f"{'ab'[t // 30 % 2]},{t},{t}\n" for t in range(120))
@@ -217,6 +224,16 @@ def test_scattered_experiment_rows_and_overflowing_values_are_refused(tmp_path, 
     code = main(["train", str(huge), *CSV, *TRAIN, "--out", str(run)])
     one_line_error(capsys, code, "input 1 (values up to 1e+308) overflows float64")
     assert not run.exists()  # nothing left that would block a re-run
+
+
+def test_a_fifo_as_data_is_named_and_never_opened(good, tmp_path, capsys):
+    with unread_fifo(tmp_path / "pipe.csv") as fifo:
+        out = tmp_path / "run"
+        code = main(["train", str(fifo), *CSV, *TRAIN, "--out", str(out)])
+        one_line_error(capsys, code, "pipe.csv is a FIFO (named pipe), not a regular file")
+        assert not out.exists()
+        code = main(["evaluate", str(good["run"]), "--data", str(fifo), *CSV])
+        one_line_error(capsys, code, "pipe.csv is a FIFO (named pipe), not a regular file")
 
 
 @pytest.mark.parametrize("case", sorted(NPZ_CORPUS))
