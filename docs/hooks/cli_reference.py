@@ -11,6 +11,8 @@ import argparse
 import html
 from typing import Any
 
+from canonid.commands import COMMANDS
+
 PAGE = "cli.md"
 WIDTH = 96
 
@@ -96,16 +98,13 @@ def render(parser: argparse.ArgumentParser) -> str:
     """The Markdown page for ``parser`` and each of its subcommands, in registration order."""
     commands = _subparsers(parser)
     lines = [INTRO, "| command | what it does |", "|---|---|"]
-    helps = {
-        a.dest: a.help
-        for a in parser._actions
-        if isinstance(a, argparse._SubParsersAction)
-        for a in a._choices_actions
-    }
-    lines += [
-        f"| [`{name}`](#canonid-{name}) | {_cell((helps.get(name) or '').replace('%%', '%'))} |"
-        for name in commands
-    ]
+    # the one-line summaries of `canonid --help`, from the command table (argparse format
+    # strings: "%%" is a percent sign)
+    helps = {c.name: c.help.replace("%%", "%") for c in COMMANDS}
+    missing = [name for name in commands if not helps.get(name)]
+    if missing:
+        raise ValueError(f"canonid.commands.COMMANDS gives no summary for {missing}")
+    lines += [f"| [`{name}`](#canonid-{name}) | {_cell(helps[name])} |" for name in commands]
     lines += ["", "## Global options", ""]
     lines += _section(parser, "###")
     for name, sub in commands.items():

@@ -1,0 +1,235 @@
+"""Every measured figure the README and the docs quote, checked against the record that measured it.
+
+A quoted figure carries a marker right after it, invisible once rendered::
+
+    7.52e-5<!-- figure: defaults/tank/0 -->
+
+:data:`FIGURES` says where each key's value comes from: a cell of a table in a section of
+``benchmarks/RESULTS.md`` (the file the benchmark scripts write) or a value of the code itself
+(``canonid.profiles``). A number agrees with its source when it is the source rounded to the
+digits quoted (7.52e-5 quotes 7.520165e-05); any other text must be the source's text exactly.
+:func:`check` lists every disagreement, and so every marker whose key is unknown;
+``tests/test_figures.py`` runs it over README.md and docs/, and as a MkDocs hook it turns a
+disagreement into a warning, which fails the strict build. Run this file to print them all.
+"""
+
+from __future__ import annotations
+
+import logging
+import re
+from collections.abc import Callable
+from decimal import Decimal, InvalidOperation
+from functools import cache
+from pathlib import Path
+from typing import Any, NamedTuple
+
+ROOT = Path(__file__).resolve().parents[2]
+RESULTS = ROOT / "benchmarks" / "RESULTS.md"
+MARKER = re.compile(r"<!-- figure: (?P<key>[\w./-]+) -->")
+
+log = logging.getLogger("mkdocs.plugins.figures")
+
+
+class Cell(NamedTuple):
+    """The first number (or, with ``whole``, the whole text) of one cell of a RESULTS.md table:
+    the ``nth`` table of ``section`` that has ``column`` (0: the first), the row whose cells
+    match ``row``."""
+
+    section: str
+    row: tuple[tuple[str, str], ...]
+    column: str
+    whole: bool = False
+    nth: int = 0
+
+    def value(self) -> str:
+        tables = [(h, rows) for h, rows in _tables(self.section) if self.column in h]
+        for header, rows in tables[self.nth : self.nth + 1]:
+            for cells in rows:
+                record = dict(zip(header, cells))
+                if all(record.get(k) == v for k, v in self.row):
+                    text = record[self.column].replace("**", "").strip()
+                    return text if self.whole else text.split()[0]
+        raise KeyError(
+            f"{RESULTS.name}, section {self.section!r}: no row {dict(self.row)} "
+            f"with a column {self.column!r}"
+        )
+
+
+class Code(NamedTuple):
+    """A value the code itself holds (a profile's budget): ``get()`` returns it."""
+
+    get: Callable[[], Any]
+
+    def value(self) -> str:
+        return str(self.get())
+
+
+def _row(**cells: str) -> tuple[tuple[str, str], ...]:
+    return tuple(cells.items())
+
+
+def _quick(stage: str, key: str) -> Callable[[], Any]:
+    def get() -> Any:
+        from canonid.profiles import PROFILES
+
+        return PROFILES["quick"][stage][key]
+
+    return get
+
+
+#: the row of RESULTS.md's "make demo" section that the pages quote: the latest timing
+DEMO_RUN = "quick profile with gradient clipping (Table 1 pinned without it)"
+_NOW = "3e-3, clip 1, skip from zero (now)"
+_NO_SKIP = "3e-3, clip 1"
+
+FIGURES: dict[str, Cell | Code] = {
+    # canonid's defaults (the last column of the defaults study) on the three systems
+    **{
+        f"defaults/{system}/{seed}": Cell(
+            "Defaults study", _row(system=system, seed=str(seed)), _NOW
+        )
+        for system, seeds in (("tank", (0, 1, 2)), ("silverbox", (0, 1, 2)), ("drone2d", (0, 1)))
+        for seed in seeds
+    },
+    # the same without the linear skip (the defaults before it), and with the ARX start
+    **{
+        f"no-skip/{system}/{seed}": Cell(
+            "Defaults study", _row(system=system, seed=str(seed)), _NO_SKIP
+        )
+        for system, seeds in (("tank", (0, 1, 2)), ("silverbox", (0, 1, 2)), ("drone2d", (0, 1)))
+        for seed in seeds
+    },
+    "arx-start/drone2d/0": Cell(
+        "Defaults study", _row(system="drone2d", seed="0"), "3e-3, clip 1, ARX start"
+    ),
+    "lr5e-3/tank/0": Cell("Defaults study", _row(system="tank", seed="0"), "5e-3"),
+    "lr5e-3/tank/1": Cell("Defaults study", _row(system="tank", seed="1"), "5e-3"),
+    "lr5e-3/tank/2": Cell("Defaults study", _row(system="tank", seed="2"), "5e-3"),
+    # deepSI's SUBNET against Ours (MLP) at the same CPU budget
+    **{
+        f"deepsi/{system}/{who}/{target}": Cell(
+            "Identification versus deepSI", _row(model=model), f"100-step MSE, {target}", nth=nth
+        )
+        for nth, system in enumerate(("tank", "drone2d"))
+        for who, model in (("ours", "Ours (MLP)"), ("subnet", "deepSI SUBNET"))
+        for target in ("y", "y_clean")
+    },
+    # the published Silverbox baselines (Champneys et al. 2024)
+    "silverbox/published-gru": Code(lambda: _published("silverbox", "multisine", "GRU")),
+    # `canonid benchmark silverbox`: canonid's defaults and the published recurrent baselines
+    **{
+        f"benchmark/silverbox/{part}/{who}": Cell(
+            "Standard benchmarks", _row(**{"test part": part}), column
+        )
+        for part in ("multisine", "arrow-full", "arrow-no-extrapolation")
+        for who, column in (("canonid", "canonid [mV]"), ("gru", "GRU"), ("lstm", "LSTM"))
+    },
+    # how long `make demo` takes, and what it runs
+    "demo/wall": Cell("make demo", _row(run=DEMO_RUN), "wall time", whole=True),
+    # the quick profile's training budget (canonid/profiles.py)
+    "quick/train/epochs": Code(_quick("train", "epochs")),
+    "quick/train/horizon": Code(_quick("train", "horizon")),
+    "quick/train/val_horizon": Code(_quick("train", "val_horizon")),
+    "quick/train/batch_size": Code(_quick("train", "batch_size")),
+    "quick/train/windows_per_epoch": Code(_quick("train", "windows_per_epoch")),
+    "quick/train/lr": Code(_quick("train", "lr")),
+}
+
+
+def _published(name: str, test: str, method: str) -> str:
+    from canonid.datagen.benchmarks import benchmark
+
+    found = [b.figure for b in benchmark(name).baselines if b.method == method and b.test == test]
+    if not found:
+        raise KeyError(f"no published {method} figure on {name} {test}")
+    return found[0]
+
+
+@cache
+def _sections() -> dict[str, str]:
+    text = RESULTS.read_text(encoding="utf-8")
+    found = re.findall(r"<!-- BEGIN (.+?) -->\n(.*?)<!-- END \1 -->", text, re.S)
+    return dict(found)
+
+
+def _tables(section: str) -> list[tuple[list[str], list[list[str]]]]:
+    """The Markdown tables of one RESULTS.md section: (header, rows of cells)."""
+    body = _sections().get(section)
+    if body is None:
+        raise KeyError(f"{RESULTS.name} has no section {section!r}")
+    tables, lines = [], body.splitlines()
+    for i, line in enumerate(lines):
+        if i + 1 < len(lines) and line.startswith("|") and re.match(r"^\|[-:| ]+\|$", lines[i + 1]):
+            rows = []
+            for row in lines[i + 2 :]:
+                if not row.startswith("|"):
+                    break
+                rows.append(_cells(row))
+            tables.append((_cells(line), rows))
+    return tables
+
+
+def _cells(line: str) -> list[str]:
+    return [c.strip() for c in line.strip().strip("|").split("|")]
+
+
+def _number(text: str) -> Decimal | None:
+    cleaned = text.replace("−", "-").replace(",", "").rstrip(".;:")
+    try:
+        return Decimal(cleaned)
+    except InvalidOperation:
+        return None
+
+
+def agrees(quoted: str, source: str) -> bool:
+    """Whether ``quoted`` is ``source`` rounded to the digits it shows (or, for text, equal)."""
+    q, s = _number(quoted), _number(source)
+    if q is None or s is None:
+        return quoted == source
+    half_unit = Decimal(1).scaleb(q.as_tuple().exponent) / 2
+    return abs(q - s) <= half_unit * (1 + Decimal("1e-9"))
+
+
+def value(key: str) -> str:
+    """The source's value of ``key`` (KeyError naming what is missing)."""
+    if key not in FIGURES:
+        raise KeyError(f"no figure {key!r} in docs/hooks/figures.py FIGURES")
+    return FIGURES[key].value()
+
+
+def check(text: str, where: str) -> list[str]:
+    """One line per marker of ``text`` whose quoted figure disagrees with its source."""
+    problems = []
+    for match in MARKER.finditer(text):
+        key = match["key"]
+        line = text.count("\n", 0, match.start()) + 1
+        try:
+            expected = value(key)
+        except KeyError as err:
+            problems.append(f"{where}:{line}: {err.args[0]}")
+            continue
+        before = text[: match.start()]
+        if _number(expected) is None:
+            ok = before.endswith(expected)
+            quoted = before[-len(expected) - 10 :].strip()
+        else:
+            quoted = re.split(r"[\s(|/*`=×]", before.rstrip())[-1]
+            ok = agrees(quoted, expected)
+        if not ok:
+            problems.append(
+                f"{where}:{line}: {quoted!r} quotes {key}, whose source says {expected}"
+            )
+    return problems
+
+
+def on_page_markdown(markdown: str, page: Any, **_: Any) -> str:
+    """Warn (a failure of the strict build) for every figure that disagrees with its source."""
+    for problem in check(markdown, page.file.src_path):
+        log.warning(problem)
+    return markdown
+
+
+if __name__ == "__main__":
+    pages = [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    problems = [p for page in pages for p in check(page.read_text(encoding="utf-8"), str(page))]
+    print("\n".join(problems) or "every quoted figure agrees with its source")
