@@ -288,7 +288,8 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
             return _train_and_score(todo, run_dir, bench)
         check_request(todo)  # every training option, before the data are written
         data = run_dir / DATA_FILE
-        wrote = not data.is_file() or data_checksum(data) != checksum
+        # the JSON is written last: without it the data file is not complete
+        wrote = not data.with_suffix(".json").is_file() or data_checksum(data) != checksum
         if wrote:
             split.save(data)
         try:
