@@ -424,17 +424,31 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
     from canonid.runfolder import RunRecipe
 
     recorded = RunRecipe.read(run_dir)
-    wanted = _recipe(request).to_dict()
-    there = recorded.to_dict()
-    ignored = ("command", "data", "data_sha256", "val_sha256")
+    ignored = {"command", "data", "data_sha256", "val_sha256"}
+    there = _flat({k: v for k, v in recorded.to_dict().items() if k not in ignored})
+    wanted = _flat({k: v for k, v in _recipe(request).to_dict().items() if k not in ignored})
     diffs = [
         f"{key}: {there.get(key)!r} there, {wanted.get(key)!r} here"
-        for key in sorted({*wanted, *there} - set(ignored))
+        for key in sorted({*wanted, *there})
         if there.get(key) != wanted.get(key)
     ]
     if diffs:
-        raise CheckpointError(f"run {run_dir} was started with other options: " + "; ".join(diffs))
+        raise CheckpointError(
+            f"{run_dir} holds a run started with other options ({'; '.join(diffs)}); give the "
+            f"same options to continue it, resume it (--resume {run_dir}), or choose another --out"
+        )
     return recorded
+
+
+def _flat(body: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` → ``{"a.b": 1}`` (the differences of two recipes, by name)."""
+    flat: dict[str, Any] = {}
+    for key, value in body.items():
+        if isinstance(value, Mapping):
+            flat.update(_flat(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
 
 
 def train(
