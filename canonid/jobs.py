@@ -21,6 +21,7 @@ of mixing its files with the first one's.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import json
@@ -32,7 +33,6 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -216,7 +216,7 @@ def check_folder(path: Path, *, flag: str = "--out") -> Path:
     return path
 
 
-#: the lock file of a run folder (:func:`run_folder_lock`); it stays, holding the last holder
+#: the lock file of a run folder (:func:`run_folder_lock`): it stays, empty but while held
 LOCK_FILE = ".canonid.lock"
 #: the names whose ``format`` field marks a folder as canonid's (a run written before the lock)
 _CANONID_FILES = ("run.json", "candidates.json", RESULT_FILE)
@@ -258,7 +258,7 @@ def check_run_folder(folder: Path, *, flag: str = "--out") -> Path:
     return folder
 
 
-@contextmanager
+@contextlib.contextmanager
 def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> Iterator[Path]:
     """Hold the exclusive lock of run folder ``folder`` while the block writes it.
 
@@ -276,7 +276,7 @@ def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> 
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"{flag} {folder}: cannot create the folder ({exc.strerror})") from exc
+        raise OutputError(f"{flag} {folder}: {exc.strerror} (cannot create the folder)") from exc
     key = os.path.realpath(folder)
     me = (os.getpid(), threading.get_ident())
     if _HELD.get(key) == me:  # this thread holds it already (a benchmark trains into its folder)
@@ -299,6 +299,8 @@ def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> 
         except OSError:
             pass  # something else lives there now: leave it
         finally:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, 0)  # no holder: the file is empty until the next one
             os.close(fd)
 
 

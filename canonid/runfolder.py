@@ -612,9 +612,10 @@ def train_run(
     own files.
     """
     t0, cpu0 = time.perf_counter(), time.process_time()
+    dataset, train, val, test_name, _ = load_splits(recipe)  # the loader's checks first
     if not resume:
         recipe = recipe.pinned()
-    dataset, train, val, test_name, data_path = load_splits(recipe)
+    data_path = recipe.data
     opts = recipe.options()
     horizon = eval_defaults(
         dataset.split(test_name),
