@@ -50,6 +50,7 @@ __all__ = [
     "check_folder",
     "check_run_folder",
     "finished",
+    "is_canonid_folder",
     "run_folder_lock",
     "run_job",
     "store",

@@ -142,12 +142,16 @@ class RunSource:
         recipe of an older canonid) resolved against the folder the run was trained from
         (:func:`_origin`), else against the current folder as those versions did."""
         origin = _origin(run_dir, self.command)
-        paths = {
-            key: str(Path(origin, value)) if origin and not Path(value).is_absolute() else value
-            for key, value in (("data", self.data), ("val", self.val))
-            if value is not None
-        }
-        return dataclasses.replace(self, **paths, recorded_in=str(run_dir / RUN_FILE))
+
+        def place(path: str) -> str:
+            return str(Path(origin, path)) if origin and not Path(path).is_absolute() else path
+
+        return dataclasses.replace(
+            self,
+            data=place(self.data),
+            val=None if self.val is None else place(self.val),
+            recorded_in=str(run_dir / RUN_FILE),
+        )
 
 
 @dataclass(frozen=True)

@@ -156,7 +156,7 @@ def remove_stale_temporaries(folder: str | os.PathLike[str], *, before: float) -
     killed in the middle of a write left. Only plain files go (never a symlink, nor what it
     points to); the caller holds the folder's lock, so no write of its own is in progress.
     Returns the files removed."""
-    removed = []
+    removed: list[Path] = []
     try:
         entries = list(os.scandir(folder))
     except OSError:

@@ -191,7 +191,7 @@ def run(args: argparse.Namespace) -> int:
             f"give a benchmark NAME ({', '.join(BENCHMARKS)}), --resume RUN or --list"
         )
     extra = _extra_train_args(args.train_args) + (["--no-progress"] if args.no_progress else [])
-    given = {
+    chosen = {
         key: getattr(args, key)
         for key in ("model", "profile", "out", "val_fraction")
         if getattr(args, key) is not None
@@ -200,7 +200,7 @@ def run(args: argparse.Namespace) -> int:
     if trained.data is not None:  # DATA is the benchmark's
         raise OptionError(f"--train-args: {trained.data!r} is not an option")
     request = BenchmarkRequest(
-        **given,
+        **chosen,
         name=args.name,
         seed=args.seed,
         files=args.dir,
