@@ -28,9 +28,10 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
+from canonid.datagen.loaders import data_checksum
 from canonid.kernel.dataset import Dataset, Trajectory
-from canonid.kernel.errors import OptionError, OutputError
-from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable
+from canonid.kernel.errors import CheckpointError, OptionError
+from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable, read_json
 from canonid.profiles import DEFAULT_PROFILE
 from canonid.training import TrainRequest
 
@@ -218,9 +219,13 @@ class BenchmarkRequest:
     """A benchmark run: train on benchmark ``name``'s official training part (from ``files``,
     default the package's cache) as ``train`` asks (its data, model, window, profile, folder,
     seed and threads are the benchmark's: ``None`` here means its default), with the last
-    ``val_fraction`` of every training record validating; score every official test part."""
+    ``val_fraction`` of every training record validating; score every official test part.
 
-    name: str
+    ``resume``: continue the benchmark run in that folder as ``canonid train --resume`` does
+    (``train`` may then hold only what a resumed run may change), then score it; ``name``, if
+    given, must be the run's benchmark."""
+
+    name: str | None = None
     files: Path | None = None
     model: str = "mlp"
     window: int | Literal["auto"] | None = None
@@ -230,51 +235,164 @@ class BenchmarkRequest:
     threads: int | None = None
     val_fraction: float = 0.2
     train: TrainRequest = field(default_factory=TrainRequest)
+    resume: Path | None = None
 
 
 def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     """Train and score ``request`` (see :class:`BenchmarkRequest`); write the run folder with
     ``benchmark-data.npz``, ``benchmark.json`` and a figure per test part; return the report and
-    the folder."""
+    the folder.
+
+    Everything is checked before anything is written, and the folder's lock is held
+    throughout. A folder that holds this benchmark's run from an earlier, interrupted call of
+    the same command is continued (its training resumed from its checkpoint, then scored); one
+    started with other options or other data is refused, naming the differences.
+    """
     from canonid.datagen.benchmarks import benchmark, load_benchmark
     from canonid.datagen.loaders import split_train_val
-    from canonid.learning import Model
+    from canonid.jobs import check_run_folder, run_folder_lock
     from canonid.learning.training import CHECKPOINT_FILE
-    from canonid.training import train
+    from canonid.selection import CANDIDATES_DIR
+    from canonid.training import WINDOW_CANDIDATES, check_request
 
+    if request.resume is not None:
+        return _resume(request)
+    if request.name is None:
+        raise OptionError("give a benchmark NAME, or --resume RUN")
     bench = benchmark(request.name)
     window = request.window if request.window is not None else min(DEFAULT_WINDOW, bench.n_init)
     if isinstance(window, int):
         check_window(window, bench)
     run_dir = request.out or Path("runs") / f"{bench.name}-{request.model}"
-    if (run_dir / CHECKPOINT_FILE).exists():
-        raise OutputError(f"{run_dir} already holds a training run; choose another --out")
     wanted = dataclasses.replace(
         request.train,
         data=str(run_dir / DATA_FILE),
         model=request.model,
         window=window,
+        # --window auto tries only the windows the official rule can feed
+        window_candidates=tuple(w for w in WINDOW_CANDIDATES if w <= bench.n_init),
         profile=request.profile,
         out=run_dir,
         seed=request.seed,
         threads=request.threads,
     )
+    check_run_folder(run_dir)
+    if not (run_dir / CHECKPOINT_FILE).exists():  # a run to continue is checked under the lock
+        check_request(wanted)  # every training option, before the files are read
     dataset = load_benchmark(bench.name, request.files)
     split = split_train_val(dataset, val_fraction=request.val_fraction, record_tails=True)
-    run_dir.mkdir(parents=True, exist_ok=True)
-    split.save(run_dir / DATA_FILE)
-    train(wanted)
+    checksum = _checksum(split)
+    with run_folder_lock(run_dir, new=True):
+        todo = _continue_or_start(wanted, run_dir, checksum)
+        if todo.resume is not None:
+            return _train_and_score(todo, run_dir, bench)
+        check_request(todo)  # every training option, before the data are written
+        data = run_dir / DATA_FILE
+        # the JSON is written last: without it the data file is not complete
+        wrote = not data.with_suffix(".json").is_file() or data_checksum(data) != checksum
+        if wrote:
+            split.save(data)
+        try:
+            return _train_and_score(todo, run_dir, bench)
+        except BaseException:
+            if wrote and not any(  # no training to continue: no data left either
+                (run_dir / name).exists() for name in (CHECKPOINT_FILE, CANDIDATES_DIR)
+            ):
+                data.unlink(missing_ok=True)
+                data.with_suffix(".json").unlink(missing_ok=True)
+            raise
 
+
+def _continue_or_start(wanted: TrainRequest, run_dir: Path, checksum: str) -> TrainRequest:
+    """What to train into ``run_dir``, whose lock the caller holds: ``wanted`` when no training
+    has started there (or none got to its first checkpoint), else the resumption of the run
+    there when it is the same run (the same recipe, the same data: ``checksum``)."""
+    from canonid.learning.training import CHECKPOINT_FILE
+    from canonid.runfolder import RUN_FILE, RunRecipe
+    from canonid.selection import CANDIDATES_FILE
+    from canonid.training import same_run
+
+    recorded = (
+        RunRecipe.read(run_dir)
+        if (run_dir / RUN_FILE).is_file() and not (run_dir / CANDIDATES_FILE).is_file()
+        else None
+    )
+    if recorded is not None and recorded.data_sha256 not in (None, checksum):
+        raise CheckpointError(
+            f"{run_dir} holds a benchmark run trained on other data than the benchmark files "
+            f"give now ({DATA_FILE}); choose another --out"
+        )
+    if not (run_dir / CHECKPOINT_FILE).is_file():
+        return wanted
+    same_run(wanted, run_dir)
+    return TrainRequest(
+        resume=run_dir,
+        threads=wanted.threads,
+        progress=wanted.progress,
+        command=wanted.command,
+    )
+
+
+def _checksum(split: Dataset) -> str:
+    """The checksum of ``split`` saved as a canonid dataset (what ``run.json`` records)."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as scratch:
+        return data_checksum(split.save(Path(scratch) / DATA_FILE, durable=False))
+
+
+def _resume(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
+    """``--resume RUN``: continue the benchmark run in RUN (see :class:`BenchmarkRequest`)."""
+    from canonid.datagen.benchmarks import benchmark
+    from canonid.jobs import run_folder_lock
+    from canonid.runfolder import RunRecipe
+    from canonid.training import check_request
+
+    run_dir = request.resume
+    assert run_dir is not None
+    todo = dataclasses.replace(request.train, resume=run_dir, threads=request.threads, out=None)
+    check_request(todo)
+    recipe = RunRecipe.read(run_dir)
+    name = _benchmark_of(recipe.data, run_dir)
+    if request.name is not None and benchmark(request.name).name != name:
+        raise OptionError(f"--resume {run_dir}: a run of benchmark {name}, not {request.name}")
+    with run_folder_lock(run_dir, flag="--resume"):
+        return _train_and_score(todo, run_dir, benchmark(name))
+
+
+def _benchmark_of(data: str, run_dir: Path) -> str:
+    """The benchmark whose data ``data`` are (``run_dir``'s recorded ``benchmark-data``)."""
+    if Path(data).name != DATA_FILE:
+        raise CheckpointError(f"{run_dir} is not a canonid benchmark run (it trained on {data})")
+    header = read_json(Path(data).with_suffix(".json"), what="benchmark data")
+    name = header.get("metadata", {}).get("benchmark") if isinstance(header, dict) else None
+    if name not in BENCHMARKS:
+        raise CheckpointError(f"{data}: not the data of a canonid benchmark (no known 'benchmark')")
+    return str(name)
+
+
+def _train_and_score(
+    todo: TrainRequest, run_dir: Path, bench: Benchmark
+) -> tuple[BenchmarkReport, Path]:
+    """Train (or resume) ``todo`` into ``run_dir``, then score the model on the official test
+    parts of the run's data and write ``benchmark.json`` and the figures."""
+    from canonid.learning import Model
+    from canonid.runfolder import RunRecipe, run_data
+    from canonid.training import train
+
+    train(todo)
     model = Model.load(run_dir)
+    recipe = RunRecipe.read(run_dir)
+    split, _ = run_data(recipe)  # the run's data, checked by checksum
     scores, sims = score_parts(model, split, bench)
     report = BenchmarkReport(
         benchmark=bench.name,
         title=bench.title,
         definition=str(split.metadata["definition"]),
         files=list(split.metadata["files"]),
-        model=request.model,
+        model=recipe.model,
         window=model.window,
-        profile=request.profile,
+        profile=recipe.profile,
         validation=str(split.metadata["validation_split"]),
         scores=scores,
         baselines=list(bench.baselines),

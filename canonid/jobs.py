@@ -12,26 +12,46 @@ raised once and shows the progress.
 atomically (so a file that exists is complete); a ``result.json`` of another recipe is an error:
 the folder belongs to another run. :func:`check_folder` refuses an output folder that a file
 stands in the way of, before any job runs.
+
+:func:`run_folder_lock` is the one lock of a run folder: every command that writes one (``train``
+and ``--resume``, ``benchmark``, ``reduce``, the candidates of ``--window auto``, ``evaluate``)
+holds it while it writes, so a second writer is refused in one line naming the holder instead
+of mixing its files with the first one's.
 """
 
 from __future__ import annotations
 
+import contextlib
+import errno
+import fcntl
+import json
+import os
+import shlex
+import socket
+import sys
+import threading
+import time
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
 from canonid.kernel.errors import CheckpointError, OutputError
-from canonid.kernel.io import atomic_write_json, jsonable, read_json
+from canonid.kernel.io import atomic_write_json, jsonable, read_json, remove_stale_temporaries
 
 __all__ = [
+    "LOCK_FILE",
     "RESULT_FILE",
     "Job",
     "JobOutcome",
     "StoredJob",
     "check_folder",
+    "check_run_folder",
     "finished",
+    "is_canonid_folder",
+    "run_folder_lock",
     "run_job",
     "store",
     "torch_threads",
@@ -195,3 +215,148 @@ def check_folder(path: Path, *, flag: str = "--out") -> Path:
                 raise OutputError(f"{flag} {path} {what}; expected a folder")
             break
     return path
+
+
+#: the lock file of a run folder (:func:`run_folder_lock`): it stays, empty but while held
+LOCK_FILE = ".canonid.lock"
+#: the names whose ``format`` field marks a folder as canonid's (a run written before the lock)
+_CANONID_FILES = ("run.json", "candidates.json", RESULT_FILE)
+#: the run folders this process holds: real path -> (pid, thread) of the holder; the thread that
+#: holds a folder may take it again (``benchmark`` holds its folder and trains into it)
+_HELD: dict[str, tuple[int, int]] = {}
+
+
+def is_canonid_folder(folder: Path) -> bool:
+    """Whether ``folder`` was written by canonid: it holds :data:`LOCK_FILE`, or a
+    ``run.json``, ``candidates.json`` or ``result.json`` whose ``format`` is canonid's."""
+    if (folder / LOCK_FILE).is_file():
+        return True
+    for name in _CANONID_FILES:
+        try:
+            body = json.loads((folder / name).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(body, dict) and str(body.get("format", "")).startswith("canonid-"):
+            return True
+    return False
+
+
+def check_run_folder(folder: Path, *, flag: str = "--out") -> Path:
+    """``folder`` if a new run may be written there: a new or empty folder, or one canonid
+    wrote (:func:`is_canonid_folder`); a folder holding other files is refused in one line,
+    as the run's files would replace the user's files of the same names."""
+    check_folder(folder, flag=flag)
+    try:
+        names = sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
+    except OSError as exc:
+        raise OutputError(f"{flag} {folder}: cannot read the folder ({exc.strerror})") from exc
+    if names and not is_canonid_folder(folder):
+        shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
+        raise OutputError(
+            f"{flag} {folder} is a folder with files canonid did not write ({shown}); a run "
+            "would replace those of the same names: choose a new or empty folder"
+        )
+    return folder
+
+
+@contextlib.contextmanager
+def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> Iterator[Path]:
+    """Hold the exclusive lock of run folder ``folder`` while the block writes it.
+
+    The folder is made if missing (and removed again at the end, with the parents made for it,
+    when nothing but the lock file was written). The lock is ``flock`` on :data:`LOCK_FILE`,
+    taken without waiting: a folder another process holds is refused with an
+    :class:`OutputError` naming that process (its pid, host, command and start, which the
+    holder writes into the lock file); the kernel drops the lock when its holder ends, even by
+    ``kill -9``. Once held, the temporary files that a killed writer left in the folder are
+    removed. ``new``: the folder receives a new run, so a folder of the user's own files is
+    refused (:func:`check_run_folder`), checked again under the lock.
+    """
+    (check_run_folder if new else check_folder)(folder, flag=flag)
+    missing = [p for p in (folder, *folder.parents) if not p.exists()]
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{flag} {folder}: {exc.strerror} (cannot create the folder)") from exc
+    key = os.path.realpath(folder)
+    me = (os.getpid(), threading.get_ident())
+    if _HELD.get(key) == me:  # this thread holds it already (a benchmark trains into its folder)
+        yield folder
+        return
+    fd = _acquire(folder, flag=flag)
+    _HELD[key] = me
+    try:
+        remove_stale_temporaries(folder, before=time.time())
+        if new:
+            check_run_folder(folder, flag=flag)  # another run may have been written meanwhile
+        yield folder
+    finally:
+        del _HELD[key]
+        try:
+            if missing and [p.name for p in folder.iterdir()] == [LOCK_FILE]:
+                (folder / LOCK_FILE).unlink()
+                for made in missing:  # the folder first, then the parents made for it
+                    made.rmdir()
+        except OSError:
+            pass  # something else lives there now: leave it
+        finally:
+            with contextlib.suppress(OSError):
+                os.ftruncate(fd, 0)  # no holder: the file is empty until the next one
+            os.close(fd)
+
+
+def _acquire(folder: Path, *, flag: str) -> int:
+    """The descriptor of ``folder``'s lock file, locked exclusively (see
+    :func:`run_folder_lock`)."""
+    path = folder / LOCK_FILE
+    for _ in range(5):
+        try:
+            # O_NOFOLLOW: a symlink planted at the lock's name is refused, never written through
+            fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
+        except OSError as exc:
+            why = "it is a symbolic link" if exc.errno == errno.ELOOP else exc.strerror
+            raise OutputError(f"{flag} {folder}: cannot open the lock file {path}: {why}") from exc
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            holder = _holder(fd)
+            os.close(fd)
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                raise OutputError(f"{flag} {folder}: cannot lock {path}: {exc.strerror}") from exc
+            raise OutputError(
+                f"{folder} is being written by another canonid process ({holder}); wait for it "
+                "to finish, or choose another folder"
+            ) from None
+        try:  # a holder that ended may have removed the file we opened: lock the one there
+            same = os.stat(path, follow_symlinks=False).st_ino == os.fstat(fd).st_ino
+        except OSError:
+            same = False
+        if same:
+            _write_holder(fd)
+            return fd
+        os.close(fd)
+    raise OutputError(f"{flag} {folder}: the lock file {path} keeps changing; try again")
+
+
+def _write_holder(fd: int) -> None:
+    """Record who holds the lock (what a refused writer is told)."""
+    body = {
+        "pid": os.getpid(),
+        "host": socket.gethostname(),
+        "command": shlex.join([Path(sys.argv[0]).name, *sys.argv[1:]]),
+        "started": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+    }
+    data = (json.dumps(body, sort_keys=True) + "\n").encode("utf-8")
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, data, 0)
+
+
+def _holder(fd: int) -> str:
+    """Who holds the lock, from the lock file: ``pid 12 on host, since …: canonid train …``."""
+    try:
+        body = json.loads(os.pread(fd, 1 << 16, 0).decode("utf-8"))
+        return (
+            f"pid {int(body['pid'])} on {body['host']}, since {body['started']}: {body['command']}"
+        )
+    except (OSError, ValueError, KeyError, TypeError):
+        return "which has not yet said who it is"

@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from canonid.datagen.loaders import is_dataset
-from canonid.kernel.errors import DataError, SetError
+from canonid.kernel.errors import DataError, OutputError, SetError
 from canonid.kernel.io import atomic_write_json
 from canonid.learning import Model
 from canonid.models.learned import LearnedSystem
@@ -119,6 +119,13 @@ def encoder_path(path: Path) -> Path:
     return path.with_name(f"{path.stem}.encoder.casadi")
 
 
+def _check_output(*paths: Path) -> None:
+    """Refuse an output of ``canonid export`` that is a folder (it could not be written)."""
+    for path in paths:
+        if path.is_dir():
+            raise OutputError(f"--casadi: {path} is a folder, expected a file name")
+
+
 def export_casadi(
     run_dir: Path, target: Path, *, data: Path | None = None
 ) -> tuple[str, list[Path]]:
@@ -130,15 +137,14 @@ def export_casadi(
 
     if target.suffix != ".casadi":
         raise DataError(f"--casadi: expected a file name ending in .casadi, got {target}")
-    if target.is_dir():
-        raise DataError(f"--casadi: {target} is a folder, expected a file name")
+    described = target.with_name(target.name + ".json")
+    _check_output(target, described)
     learned = learned_system(run_dir, data=data)
     system = learned.system
     fun = model_function(system)
-    files = [save_function(fun, target)]
     reduced = system.reduced
-    if reduced:
-        files.append(save_function(system.encoder, encoder_path(target)))
+    outputs = [(target, fun)] + ([(encoder_path(target), system.encoder)] if reduced else [])
+    _check_output(*(path for path, _ in outputs), described)  # all of them, before any is written
     description = {
         "format": "canonid-casadi-model",
         "run": str(run_dir),
@@ -156,7 +162,15 @@ def export_casadi(
         "window": system.regressor.window,
         **system.describe(),
     }
-    files.append(atomic_write_json(target.with_name(target.name + ".json"), description))
+    files: list[Path] = []
+    try:
+        for path, function in outputs:
+            files.append(save_function(function, path))
+        files.append(atomic_write_json(described, description))
+    except BaseException:
+        for path in files:  # the files belong together: none is left without the others
+            path.unlink(missing_ok=True)
+        raise
     summary = (
         f"{learned.model.name} model of {run_dir}: {system.n_x} states, {system.n_u} "
         f"input(s), {system.n_y} output(s), dt = {system.dt:g} s"

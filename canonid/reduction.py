@@ -41,7 +41,7 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from canonid.jobs import Job, check_folder
+from canonid.jobs import Job, check_folder, run_folder_lock
 from canonid.kernel.dataset import as_trajectories
 from canonid.kernel.errors import CheckpointError, DataError
 from canonid.kernel.io import atomic_write_figure, atomic_write_json, read_json
@@ -281,7 +281,15 @@ def reduce_one(job: ReductionJob, *, progress: bool = True) -> ReductionResult:
 def reduce_run(
     job: ReductionJob, *, callback: Callable[[EpochReport], None] | None = None
 ) -> ReductionResult:
-    """Run one reduction and write its run folder (see the module docstring)."""
+    """Run one reduction and write its run folder (see the module docstring), holding the
+    folder's lock (:func:`canonid.jobs.run_folder_lock`)."""
+    with run_folder_lock(Path(job.out), new=not job.resume):
+        return _reduce_locked(job, callback=callback)
+
+
+def _reduce_locked(
+    job: ReductionJob, *, callback: Callable[[EpochReport], None] | None = None
+) -> ReductionResult:
     source, out = Path(job.source), Path(job.out)
     model, recipe = _load_source(source)
     latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early

@@ -6,7 +6,9 @@ study and the Table-1 jobs of ``canonid reproduce`` all write the same folder:
 
 * ``run.json`` (:data:`RUN_FILE`) — the recipe (:class:`RunRecipe` for a training run,
   :class:`ReductionRecipe` for a reduction; :func:`read_recipe` reads either): ``data``,
-  ``data_options``, ``val``, ``val_fraction``, the model and its options;
+  ``data_options``, ``val``, ``val_fraction``, the model and its options; ``data`` and ``val``
+  by absolute path and SHA-256 (:func:`canonid.datagen.loaders.data_checksum`), so that data
+  read back for the run (:func:`run_data`) are the data it was trained on, or refused;
 * the model (``config.json``, ``weights.pt``, ``normalisation.json``) and ``checkpoint.pt``;
 * ``history.csv`` and ``training_curve.png`` (:func:`write_history`);
 * ``metrics.json`` (:data:`METRICS_FILE`) and ``rollouts.png`` (:func:`evaluate_run`).
@@ -20,16 +22,19 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import logging
 import math
+import os
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, TypeAlias
+from typing import Any, ClassVar, TypeAlias, TypeVar
 
-from canonid.datagen.loaders import is_dataset, load_data, split_train_val
+from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
+from canonid.jobs import run_folder_lock
 from canonid.kernel.dataset import Dataset, Trajectory
-from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.errors import CheckpointError, DataError, OutputError
 from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, fit
 from canonid.learning.evaluate import default_n_init, evaluate
@@ -49,6 +54,7 @@ __all__ = [
     "RunResult",
     "RunSource",
     "check_compatible",
+    "check_recorded",
     "eval_defaults",
     "evaluate_run",
     "load",
@@ -60,6 +66,8 @@ __all__ = [
     "train_run",
     "write_history",
 ]
+
+log = logging.getLogger(__name__)
 
 RUN_FILE = "run.json"
 #: the loader options a run records, by the command-line flag that sets each
@@ -75,6 +83,7 @@ RECIPE_FORMAT = "canonid-run"
 #: the version of :class:`RunRecipe`'s JSON (a recipe without one is of version 1)
 RECIPE_VERSION = 1
 DEFAULT_VAL_FRACTION = 0.2
+_S = TypeVar("_S", bound="RunSource")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -88,6 +97,9 @@ class RunSource:
         val_fraction: share of DATA's ``train`` split held out when it has no ``val`` split.
         profile: the profile the options came from.
         command: the command line that asked for the run (a record, not part of what is run).
+        data_sha256, val_sha256: the checksums of ``data`` and ``val`` (``None``: a recipe of
+            an older canonid, or one not yet written: :meth:`pinned`).
+        recorded_in: the ``run.json`` the recipe was read from (not part of it; messages).
     """
 
     data: str
@@ -96,15 +108,50 @@ class RunSource:
     val_fraction: float = DEFAULT_VAL_FRACTION
     profile: str = "quick"
     command: Sequence[str] = ()
+    data_sha256: str | None = None
+    val_sha256: str | None = None
+    recorded_in: str | None = field(default=None, compare=False, metadata={"json": False})
 
     def source(self) -> dict[str, Any]:
         """The data fields (JSON-ready): what a run derived from this one trains on."""
         return {
             "data": self.data,
+            "data_sha256": self.data_sha256,
             "data_options": dict(self.data_options),
             "val": self.val,
+            "val_sha256": self.val_sha256,
             "val_fraction": self.val_fraction,
         }
+
+    def pinned(self: _S) -> _S:
+        """This recipe with ``data`` and ``val`` as absolute paths and their checksums, as a new
+        run records them (a recipe that has its checksums is returned as it is)."""
+        if self.data_sha256 is not None:
+            return self
+        val = None if self.val is None else os.path.abspath(self.val)
+        return dataclasses.replace(
+            self,
+            data=os.path.abspath(self.data),
+            data_sha256=data_checksum(self.data),
+            val=val,
+            val_sha256=None if val is None else data_checksum(val),
+        )
+
+    def located(self: _S, run_dir: Path) -> _S:
+        """This recipe as read from ``run_dir/run.json``: a relative ``data`` or ``val`` (a
+        recipe of an older canonid) resolved against the folder the run was trained from
+        (:func:`_origin`), else against the current folder as those versions did."""
+        origin = _origin(run_dir, self.command)
+
+        def place(path: str) -> str:
+            return str(Path(origin, path)) if origin and not Path(path).is_absolute() else path
+
+        return dataclasses.replace(
+            self,
+            data=place(self.data),
+            val=None if self.val is None else place(self.val),
+            recorded_in=str(run_dir / RUN_FILE),
+        )
 
 
 @dataclass(frozen=True)
@@ -147,9 +194,10 @@ class RunRecipe(RunSource):
 
     @classmethod
     def read(cls, run_dir: Path) -> RunRecipe:
-        """The recipe in ``run_dir/run.json``."""
+        """The recipe in ``run_dir/run.json`` (its data located: :meth:`located`)."""
         path = run_dir / RUN_FILE
-        return cls.from_dict(read_json(path, what="run recipe"), where=str(path))
+        recipe = cls.from_dict(read_json(path, what="run recipe"), where=str(path))
+        return recipe.located(run_dir)
 
     def write(self, run_dir: Path) -> None:
         atomic_write_json(run_dir / RUN_FILE, self.to_dict())
@@ -236,7 +284,7 @@ def _recipe_body(cls: type[Recipe], data: Any, *, where: str) -> dict[str, Any]:
             if kind in _KINDS
             else f"{where}: unknown run kind {kind!r}; expected one of {sorted(_KINDS)}"
         )
-    fields = dataclasses.fields(cls)
+    fields = [f for f in dataclasses.fields(cls) if f.metadata.get("json", True)]
     known = {f.name for f in fields}
     header = {"format", "version", "kind", "model"} - known  # model: a class constant
     unknown = sorted(set(data) - known - header)
@@ -262,7 +310,28 @@ def read_recipe(run_dir: Path) -> Recipe:
     path = run_dir / RUN_FILE
     data = read_json(path, what="run recipe")
     kind = data.get("kind", "train") if isinstance(data, Mapping) else "train"
-    return _KINDS.get(kind, RunRecipe).from_dict(data, where=str(path))
+    recipe = _KINDS.get(kind, RunRecipe).from_dict(data, where=str(path))
+    return recipe.located(run_dir)
+
+
+def _origin(run_dir: Path, command: Sequence[str]) -> Path | None:
+    """The folder a run was trained from, found from its recorded command line: ``run_dir``
+    less the relative ``--out`` that led to it (or less ``runs/NAME``, the default folder of
+    ``train`` and ``benchmark``); ``None`` when the command does not tell."""
+    out: str | None = None
+    args = [str(a) for a in command]
+    for i, arg in enumerate(args):
+        if arg == "--out" and i + 1 < len(args):
+            out = args[i + 1]
+        elif arg.startswith("--out="):
+            out = arg.removeprefix("--out=")
+    here = Path(os.path.abspath(run_dir))
+    if out is None:
+        return here.parent.parent if here.parent.name == "runs" else None
+    tail = Path(os.path.normpath(out)).parts
+    if Path(out).is_absolute() or ".." in tail or here.parts[-len(tail) :] != tail:
+        return None
+    return Path(*here.parts[: -len(tail)])
 
 
 def recipe_of(run_dir: Path) -> Recipe | None:
@@ -370,6 +439,33 @@ def check_compatible(
             raise DataError(f"{where}: {len(have)} {kind}(s) {have}, {whose} are {names}")
 
 
+def check_recorded(recipe: RunSource, path: str, sha256: str | None, *, what: str) -> None:
+    """Refuse data at ``path`` (named by ``recipe``) whose checksum is not the recorded
+    ``sha256``, in one line saying where the path came from and what to do. A recipe of an
+    older canonid records no checksum: its data are used unchecked, with a warning."""
+    where = recipe.recorded_in or RUN_FILE
+    if sha256 is None:
+        if recipe.recorded_in is not None:
+            log.warning(
+                "%s records no checksum of its %s (an older canonid wrote it): %s is used "
+                "unchecked",
+                where,
+                what,
+                path,
+            )
+        return
+    fix = "put them back there, or give the data with --data FILE"
+    try:
+        found = data_checksum(path)
+    except DataError as exc:
+        raise DataError(f"{where} names the {what} {path}: {exc}; {fix}") from None
+    if found != sha256:
+        raise DataError(
+            f"{where} names the {what} {path}, but the data there have SHA-256 {found[:12]}…, "
+            f"not the {sha256[:12]}… the run was trained on; {fix}"
+        )
+
+
 def run_data(recipe: Recipe) -> tuple[Dataset, str]:
     """The data of a training run split as training used them, and the split that scores it.
 
@@ -378,6 +474,9 @@ def run_data(recipe: Recipe) -> tuple[Dataset, str]:
     the score uses ``test`` when there is one, else ``val``.
     """
     data_path, options = recipe.data, dict(recipe.data_options)
+    check_recorded(recipe, data_path, recipe.data_sha256, what="training data")
+    if recipe.val is not None:
+        check_recorded(recipe, recipe.val, recipe.val_sha256, what="validation data")
     dataset = load(data_path, options)
     if "train" not in dataset.splits:
         raise DataError(
@@ -489,12 +588,10 @@ def evaluate_run(
     return result
 
 
-def _discard(run_dir: Path, created: bool) -> None:
-    """Remove what a new run wrote before it failed without a checkpoint: its recipe, and the
-    folder when this run created it and nothing else is in it."""
+def _discard(run_dir: Path) -> None:
+    """Remove what a new run wrote before it failed without a checkpoint: its recipe (the
+    lock removes the folder when this run made it and nothing else is in it)."""
     (run_dir / RUN_FILE).unlink(missing_ok=True)
-    if created and run_dir.is_dir() and not any(run_dir.iterdir()):
-        run_dir.rmdir()
 
 
 def train_run(
@@ -513,10 +610,16 @@ def train_run(
     ``eval_horizon`` is the rollout length of the score; ``None``: 100, or the final training
     rollout length when shorter, at most what the scored records hold. Data that cannot be
     scored are refused before anything is written; a new run that fails before its first
-    checkpoint leaves no recipe behind.
+    checkpoint leaves no recipe behind. The folder's lock is held throughout
+    (:func:`canonid.jobs.run_folder_lock`); a new run records its data by absolute path and
+    checksum (:meth:`RunSource.pinned`) and refuses a folder holding another run or the user's
+    own files.
     """
     t0, cpu0 = time.perf_counter(), time.process_time()
-    dataset, train, val, test_name, data_path = load_splits(recipe)
+    dataset, train, val, test_name, _ = load_splits(recipe)  # the loader's checks first
+    if not resume:
+        recipe = recipe.pinned()
+    data_path = recipe.data
     opts = recipe.options()
     horizon = eval_defaults(
         dataset.split(test_name),
@@ -525,43 +628,46 @@ def train_run(
         where=f"{data_path} [{test_name}]",
         fit=eval_horizon is None,
     )
-    created = not run_dir.exists()
-    run_dir.mkdir(parents=True, exist_ok=True)
-    recipe.write(run_dir)
-    try:
-        fitted = fit(
-            train,
-            val,
-            model=recipe.model,
-            window=recipe.window,
-            options=opts,
-            net_options=dict(recipe.net_options),
-            run_dir=run_dir,
-            resume=resume,
-            callback=callback,
-            info={
-                "profile": recipe.profile,
-                "data": {"path": data_path, "splits": dataset.counts()},
-                "input_names": list(dataset.input_names),
-                "output_names": list(dataset.output_names),
-                "dt": dataset.dt,
-            },
+    with run_folder_lock(run_dir, new=not resume):
+        if not resume and (run_dir / CHECKPOINT_FILE).exists():
+            raise OutputError(
+                f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
+            )
+        recipe.write(run_dir)
+        try:
+            fitted = fit(
+                train,
+                val,
+                model=recipe.model,
+                window=recipe.window,
+                options=opts,
+                net_options=dict(recipe.net_options),
+                run_dir=run_dir,
+                resume=resume,
+                callback=callback,
+                info={
+                    "profile": recipe.profile,
+                    "data": {"path": data_path, "splits": dataset.counts()},
+                    "input_names": list(dataset.input_names),
+                    "output_names": list(dataset.output_names),
+                    "dt": dataset.dt,
+                },
+            )
+        except BaseException:
+            if not resume and not (run_dir / CHECKPOINT_FILE).exists():
+                _discard(run_dir)
+            raise
+        write_history(run_dir, fitted.history)
+        evaluation = evaluate_run(
+            run_dir,
+            fitted.model,
+            dataset,
+            data_path=data_path,
+            split=test_name,
+            horizon=horizon,
+            stride=eval_stride,
+            n_init=None,
         )
-    except BaseException:
-        if not resume and not (run_dir / CHECKPOINT_FILE).exists():
-            _discard(run_dir, created)
-        raise
-    write_history(run_dir, fitted.history)
-    evaluation = evaluate_run(
-        run_dir,
-        fitted.model,
-        dataset,
-        data_path=data_path,
-        split=test_name,
-        horizon=horizon,
-        stride=eval_stride,
-        n_init=None,
-    )
     return RunResult(
         run_dir=run_dir,
         recipe=recipe,

@@ -35,7 +35,9 @@ __all__ = [
     "TrainOutcome",
     "TrainRequest",
     "check_new_run",
+    "check_request",
     "parse_widths",
+    "same_run",
     "train",
 ]
 
@@ -66,6 +68,7 @@ class TrainRequest:
         data, data_options, val, val_fraction: the training data, the loader options
             (:data:`canonid.runfolder.DATA_FLAGS`), a validation file, the share held out.
         model, window: registry name (default ``mlp``) and window ℓ (or ``"auto"``).
+        window_candidates: the windows ``window="auto"`` tries (those the data allow).
         profile: the training budget (default :data:`canonid.profiles.DEFAULT_PROFILE`).
         epochs … device: overrides of the profile's training options (:data:`TRAIN_OPTION_FIELDS`).
         hidden, activation, residual, feedthrough, linear, paper_options: the network's options
@@ -82,6 +85,7 @@ class TrainRequest:
     val_fraction: float | None = None
     model: str | None = None
     window: int | Literal["auto"] | None = None
+    window_candidates: tuple[int, ...] = WINDOW_CANDIDATES
     profile: str | None = None
     epochs: int | None = None
     lr: float | None = None
@@ -173,13 +177,14 @@ def _hidden_option(model: str) -> str:
 
 
 def check_new_run(run_dir: Path, *, selection: bool = False) -> None:
-    """Refuse an output folder that holds another kind of run (a selection is continued by
-    running it again, so a selection folder is accepted for a selection)."""
-    from canonid.jobs import check_folder
+    """Refuse an output folder that holds another kind of run, or files canonid did not write
+    (:func:`canonid.jobs.check_run_folder`); a selection is continued by running it again, so
+    a selection folder is accepted for a selection."""
+    from canonid.jobs import check_run_folder
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.selection import CANDIDATES_FILE
 
-    check_folder(run_dir)
+    check_run_folder(run_dir)
     if (run_dir / CHECKPOINT_FILE).exists():
         raise OutputError(
             f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
@@ -307,28 +312,35 @@ def _resume_recipe(request: TrainRequest, run_dir: Path) -> RunRecipe:
     return dataclasses.replace(recipe, train_options=TrainOptions.from_dict(opts).to_dict())
 
 
-def _select(request: TrainRequest) -> TrainOutcome:
-    """``window="auto"`` / ``hidden="auto"``: train the candidates, keep the best on
-    validation (:mod:`canonid.selection`)."""
-    from canonid.kernel.io import read_json
-    from canonid.runfolder import METRICS_FILE
-    from canonid.selection import allowed_windows, plan_candidates, select
-
+def _selection_base(request: TrainRequest) -> RunRecipe:
+    """The recipe that the candidates of ``window="auto"`` / ``hidden="auto"`` vary."""
     window_auto, hidden_auto = request.window == AUTO, request.hidden == AUTO
+    if window_auto and not request.window_candidates:
+        raise OptionError("--window auto: no candidate window to try")
     base = _recipe(
         dataclasses.replace(
             request,
-            window=WINDOW_CANDIDATES[0] if window_auto else request.window,
+            window=request.window_candidates[0] if window_auto else request.window,
             hidden=None if hidden_auto else request.hidden,
         )
     )
     if hidden_auto:
         _hidden_option(base.model)  # refuses a model without hidden widths
-    windows = allowed_windows(base, WINDOW_CANDIDATES) if window_auto else [base.window]
-    run_dir = request.out or Path("runs") / (
-        f"{base.model}-l{'auto' if window_auto else base.window}"
-        + ("-hauto" if hidden_auto else "")
-    )
+    return base
+
+
+def _select(request: TrainRequest) -> TrainOutcome:
+    """``window="auto"`` / ``hidden="auto"``: train the candidates, keep the best on
+    validation (:mod:`canonid.selection`)."""
+    from canonid.jobs import run_folder_lock
+    from canonid.kernel.io import read_json
+    from canonid.runfolder import METRICS_FILE
+    from canonid.selection import allowed_windows, plan_candidates, select
+
+    window_auto, hidden_auto = request.window == AUTO, request.hidden == AUTO
+    base = _selection_base(request)
+    windows = allowed_windows(base, request.window_candidates) if window_auto else [base.window]
+    run_dir = _selection_folder(request, base)
     check_new_run(run_dir, selection=True)
     local = not request.workers and request.scheduler is None
     jobs = plan_candidates(
@@ -339,27 +351,34 @@ def _select(request: TrainRequest) -> TrainOutcome:
         eval_horizon=request.eval_horizon,
         threads=request.threads if request.threads is not None or local else 1,
     )
-    run_dir.mkdir(parents=True, exist_ok=True)
-    selection = select(
-        jobs,
-        run_dir,
-        workers=request.workers or 0,
-        scheduler=request.scheduler,
-        progress=request.progress,
-    )
-    metrics = read_json(run_dir / METRICS_FILE, what="metrics")
+    # a failure before any candidate wrote (a bad --workers or scheduler) leaves no folder
+    with run_folder_lock(run_dir, new=True):
+        check_new_run(run_dir, selection=True)  # again, now that no one else writes it
+        selection = select(
+            jobs,
+            run_dir,
+            workers=request.workers or 0,
+            scheduler=request.scheduler,
+            progress=request.progress,
+        )
+        metrics = read_json(run_dir / METRICS_FILE, what="metrics")
     return TrainOutcome(run_dir, metrics, selection=selection)
 
 
-def train(
-    request: TrainRequest, *, callback: Callable[[EpochReport], None] | None = None
-) -> TrainOutcome:
-    """Train (or resume, or select) the run that ``request`` asks for, write its run folder and
-    score it; a single run shows its epochs in a progress bar (``request.progress``) and passes
-    them to ``callback``."""
-    from canonid.jobs import torch_threads
-    from canonid.runfolder import train_run
-    from canonid.runner import EpochBar
+def _selection_folder(request: TrainRequest, base: RunRecipe) -> Path:
+    """``--out``, else ``runs/MODEL-lauto`` (``-hauto`` with ``hidden="auto"``)."""
+    window_auto, hidden_auto = request.window == AUTO, request.hidden == AUTO
+    return request.out or Path("runs") / (
+        f"{base.model}-l{'auto' if window_auto else base.window}"
+        + ("-hauto" if hidden_auto else "")
+    )
+
+
+def _plan(request: TrainRequest) -> tuple[Path, RunRecipe | None]:
+    """Check ``request`` as far as it can be without its data: the options and their
+    combinations, the recipe of a new run (refusing a folder that holds another run), or the
+    resume rule against the recorded recipe. Returns the run folder and the recipe to train,
+    or ``None`` for a selection (whose candidates are planned from the data)."""
     from canonid.selection import CANDIDATES_FILE
 
     for flag, value in (("--threads", request.threads), ("--eval-horizon", request.eval_horizon)):
@@ -380,14 +399,71 @@ def train(
             f"selection again to continue it, or resume one candidate's folder"
         )
     if auto:
-        return _select(request)
+        run_dir = _selection_folder(request, _selection_base(request))
+        check_new_run(run_dir, selection=True)
+        return run_dir, None
     if request.resume is not None:
-        run_dir = request.resume
-        recipe = _resume_recipe(request, run_dir)
-    else:
-        recipe = _recipe(request)
-        run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
-        check_new_run(run_dir)
+        return request.resume, _resume_recipe(request, request.resume)
+    recipe = _recipe(request)
+    run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
+    check_new_run(run_dir)
+    return run_dir, recipe
+
+
+def check_request(request: TrainRequest) -> Path:
+    """What :func:`train` checks before it reads data or writes anything (see :func:`_plan`):
+    ``canonid benchmark`` checks its training this way before it writes its data. Returns the
+    run folder."""
+    return _plan(request)[0]
+
+
+def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
+    """The recipe recorded in ``run_dir`` when ``request``, a new run, asks for the same run
+    (the same recipe but for the command line, its data compared by checksum by the caller);
+    else a :class:`CheckpointError` naming the differences."""
+    from canonid.runfolder import RunRecipe
+
+    recorded = RunRecipe.read(run_dir)
+    ignored = {"command", "data", "data_sha256", "val_sha256"}
+    there = _flat({k: v for k, v in recorded.to_dict().items() if k not in ignored})
+    wanted = _flat({k: v for k, v in _recipe(request).to_dict().items() if k not in ignored})
+    diffs = [
+        f"{key}: {there.get(key)!r} there, {wanted.get(key)!r} here"
+        for key in sorted({*wanted, *there})
+        if there.get(key) != wanted.get(key)
+    ]
+    if diffs:
+        raise CheckpointError(
+            f"{run_dir} holds a run started with other options ({'; '.join(diffs)}); give the "
+            f"same options to continue it, resume it (--resume {run_dir}), or choose another --out"
+        )
+    return recorded
+
+
+def _flat(body: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    """``{"a": {"b": 1}}`` → ``{"a.b": 1}`` (the differences of two recipes, by name)."""
+    flat: dict[str, Any] = {}
+    for key, value in body.items():
+        if isinstance(value, Mapping):
+            flat.update(_flat(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
+
+
+def train(
+    request: TrainRequest, *, callback: Callable[[EpochReport], None] | None = None
+) -> TrainOutcome:
+    """Train (or resume, or select) the run that ``request`` asks for, write its run folder and
+    score it; a single run shows its epochs in a progress bar (``request.progress``) and passes
+    them to ``callback``."""
+    from canonid.jobs import torch_threads
+    from canonid.runfolder import train_run
+    from canonid.runner import EpochBar
+
+    run_dir, recipe = _plan(request)
+    if recipe is None:
+        return _select(request)
     bar = EpochBar(f"train {recipe.model}", enabled=request.progress, dynamic_ncols=True)
 
     def progress(report: EpochReport) -> None:

@@ -25,6 +25,8 @@ import io
 import json
 import math
 import os
+import re
+import stat
 import tempfile
 import zipfile
 from collections.abc import Iterator, Mapping
@@ -46,6 +48,7 @@ __all__ = [
     "npz_bytes",
     "read_json",
     "read_npz",
+    "remove_stale_temporaries",
     "sha256_bytes",
     "sha256_file",
     "write_npz",
@@ -141,6 +144,34 @@ def _replacing(
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+#: the names of :func:`_replacing`'s temporary files: ``.<target>.<mkstemp's 8 characters>.tmp``
+TEMPORARY_NAME = re.compile(r"\..+\.[a-z0-9_]{8}\.tmp")
+
+
+def remove_stale_temporaries(folder: str | os.PathLike[str], *, before: float) -> list[Path]:
+    """Remove the temporary files of this module's writes (:data:`TEMPORARY_NAME`) last
+    modified before ``before`` (a time stamp) from ``folder``, not below it: what a process
+    killed in the middle of a write left. Only plain files go (never a symlink, nor what it
+    points to); the caller holds the folder's lock, so no write of its own is in progress.
+    Returns the files removed."""
+    removed: list[Path] = []
+    try:
+        entries = list(os.scandir(folder))
+    except OSError:
+        return removed
+    for entry in entries:
+        if not TEMPORARY_NAME.fullmatch(entry.name):
+            continue
+        try:
+            info = entry.stat(follow_symlinks=False)
+            if stat.S_ISREG(info.st_mode) and info.st_mtime < before:
+                os.unlink(entry.path)
+                removed.append(Path(entry.path))
+        except OSError:
+            continue  # gone already, or not ours to remove: leave it
+    return removed
 
 
 def _umask() -> int:

@@ -371,3 +371,161 @@ def test_ced_with_the_default_profile_cuts_its_short_validation_rollouts(tmp_pat
     assert model["info"]["training"]["options"]["val_horizon"] == 70
     report = json.loads((run / "benchmark.json").read_text())
     assert [s["test"] for s in report["scores"]] == ["low-amplitude", "high-amplitude"]
+
+
+# ------------------------------------------------------------------ finishable, not half-written
+def _folder_after(tmp_path: Path, argv: list[str], capsys, *needles: str) -> None:
+    """``canonid benchmark ARGV`` into ``tmp_path/r`` is refused in one line holding the needles
+    and leaves no folder."""
+    code = main([*argv, "--out", str(tmp_path / "r")])
+    err = capsys.readouterr().err.strip()
+    assert code == 1 and "\n" not in err and "Traceback" not in err, err
+    assert all(needle in err for needle in needles), err
+    assert not (tmp_path / "r").exists()
+
+
+def test_training_options_are_checked_before_the_data_are_written(tmp_path, capsys):
+    write_benchmark("cascaded-tanks", tmp_path)
+    argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path), "--model", "gru"]
+    _folder_after(tmp_path, [*argv, "--train-args=--activation tanh"], capsys, "--activation")
+    _folder_after(tmp_path, [*argv, "--train-args=--threads 0"], capsys, "--threads")
+
+
+@pytest.mark.parametrize("given", ["--mod gru", "--model=gru", "--prof tiny", "--se 3", "-h"])
+def test_train_args_refuse_the_benchmarks_own_options_in_any_spelling(tmp_path, capsys, given):
+    write_benchmark("cascaded-tanks", tmp_path)
+    argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path), f"--train-args={given}"]
+    _folder_after(tmp_path, argv, capsys, "set by canonid benchmark itself")
+
+
+def test_train_args_take_no_abbreviation_and_no_data(tmp_path, capsys):
+    write_benchmark("cascaded-tanks", tmp_path)
+    argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path)]
+    _folder_after(tmp_path, [*argv, "--train-args=--epo 3"], capsys, "--epo")
+    _folder_after(tmp_path, [*argv, "--train-args=other.npz"], capsys, "'other.npz'")
+
+
+def test_window_auto_tries_only_windows_within_n_init(tmp_path, capsys):
+    write_benchmark("ced", tmp_path)  # n_init = 10: the candidate ℓ = 20 cannot be scored
+    run = tmp_path / "r"
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--window", "auto", "--out", str(run)]
+    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in (run / "candidates").iterdir()) == ["l10", "l2", "l5"]
+    assert json.loads((run / "benchmark.json").read_text())["window"] <= 10
+
+
+def test_a_finished_benchmark_run_again_gives_the_same_report_and_other_options_are_refused(
+    tmp_path, capsys
+):
+    write_benchmark("cascaded-tanks", tmp_path / "files")
+    run = tmp_path / "run"
+    argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path / "files"), "--out", str(run)]
+    argv += ["--profile", "tiny", "--threads", "1", "--no-progress"]
+    assert main([*argv, "--train-args=--epochs 2"]) == 0
+    report = (run / "benchmark.json").read_bytes()
+    assert main([*argv, "--train-args=--epochs 2"]) == 0  # continues: nothing left to train
+    assert (run / "benchmark.json").read_bytes() == report
+    capsys.readouterr()
+    code = main([*argv, "--train-args=--epochs 3"])
+    err = capsys.readouterr().err.strip()
+    assert code == 1 and "\n" not in err and "train_options.epochs: 2 there, 3 here" in err
+    assert f"--resume {run}" in err
+    # --resume: canonid train's rule (more epochs may be asked for), then the scores
+    assert (
+        main(["benchmark", "--resume", str(run), "--no-progress", "--train-args=--epochs 3"]) == 0
+    )
+    assert json.loads((run / "run.json").read_text())["train_options"]["epochs"] == 3
+    assert json.loads((run / "benchmark.json").read_text())["scores"]
+    assert main(["benchmark", "--resume", str(run), "--model", "gru"]) == 1
+    assert "--model cannot be given with --resume" in capsys.readouterr().err
+
+
+#: ``python -c`` program: ``canonid ARGS`` that SIGKILLs itself at its event number argv[1]
+#: (0: never), an event being an optimiser step or a file written atomically, killed with the
+#: temporary file complete but not yet renamed; the kinds of all events go to the file argv[2]
+KILLED_BENCHMARK = """
+import atexit, contextlib, json, os, signal, sys
+import torch
+import canonid.kernel.io as kio
+from canonid.cli import main
+
+kill_at, record = int(sys.argv[1]), sys.argv[2]
+events = []
+
+def event(kind):
+    events.append(kind)
+    if len(events) == kill_at:
+        os.kill(os.getpid(), signal.SIGKILL)
+
+replacing, adam_step = kio._replacing, torch.optim.Adam.step
+
+@contextlib.contextmanager
+def counted_replacing(path, **kwargs):
+    with replacing(path, **kwargs) as fh:
+        yield fh
+        event("write " + os.path.basename(path))
+
+def counted_step(self, *args, **kwargs):
+    event("step")
+    return adam_step(self, *args, **kwargs)
+
+kio._replacing = counted_replacing
+torch.optim.Adam.step = counted_step
+atexit.register(lambda: open(record, "w").write(json.dumps(events)))
+sys.argv[1:] = sys.argv[3:]
+sys.exit(main())
+"""
+
+
+def _scores(run: Path) -> dict:
+    """``metrics.json`` but for the path of the data scored (in the run's own folder)."""
+    metrics = json.loads((run / "metrics.json").read_text())
+    return {**metrics, "data": {**metrics["data"], "path": None}}
+
+
+def _benchmark_process(argv: list[str], *, kill_at: int, record: Path):
+    import subprocess
+    import sys
+
+    return subprocess.run(
+        [sys.executable, "-c", KILLED_BENCHMARK, str(kill_at), str(record), *argv],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env={"OMP_NUM_THREADS": "1", "PATH": "/usr/bin:/bin"},
+    )
+
+
+@pytest.mark.slow
+def test_a_benchmark_killed_at_random_points_finishes_with_the_same_report(tmp_path):
+    """kill -9 at random events (a seeded draw over every optimiser step and file write of an
+    uninterrupted run), then the same command again, or ``--resume`` once training has
+    checkpointed: ``benchmark.json`` and the weights have the bytes of the uninterrupted run
+    (``benchmark.json`` records no timing), and no temporary file is left."""
+    import signal
+
+    write_benchmark("cascaded-tanks", tmp_path / "files")
+    argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path / "files"), "--profile", "tiny"]
+    argv += ["--threads", "1", "--no-progress", "--train-args=--epochs 3 --device cpu"]
+    whole, record = tmp_path / "whole", tmp_path / "events.json"
+    done = _benchmark_process([*argv, "--out", str(whole)], kill_at=0, record=record)
+    assert done.returncode == 0, done.stderr[-2000:]
+    events = json.loads(record.read_text())
+    rng = np.random.default_rng(29)
+    points = [int(k) for k in rng.choice(np.arange(1, len(events) + 1), size=3, replace=False)]
+    after_checkpoint = events.index("write checkpoint.pt") + 2
+    points.append(int(rng.integers(after_checkpoint, len(events) + 1)))
+    for i, point in enumerate(points):
+        out = tmp_path / f"killed-{point}"
+        cut = _benchmark_process([*argv, "--out", str(out)], kill_at=point, record=record)
+        assert cut.returncode == -signal.SIGKILL, (events[point - 1], cut.stderr[-2000:])
+        again = [*argv, "--out", str(out)]
+        if i == len(points) - 1:  # the last one by --resume
+            again = ["benchmark", "--resume", str(out), "--threads", "1", "--no-progress"]
+        finished = _benchmark_process(again, kill_at=0, record=tmp_path / "unused.json")
+        assert finished.returncode == 0, (events[point - 1], finished.stderr[-2000:])
+        for name in ("benchmark.json", "weights.pt", "normalisation.json"):
+            assert (out / name).read_bytes() == (whole / name).read_bytes(), (point, name)
+        assert _scores(out) == _scores(whole), point
+        assert not [p.name for p in out.iterdir() if p.name.endswith(".tmp")], point

@@ -121,6 +121,34 @@ def test_a_file_name_without_the_suffix_is_refused(runs, tmp_path, capsys):
     assert "ending in .casadi" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("run", "in_the_way"),
+    [("mlp", "m.casadi.json"), ("red", "m.casadi.json"), ("red", "m.encoder.casadi")],
+)
+def test_an_output_that_is_a_folder_is_refused_before_any_file_is_written(
+    runs, tmp_path, capsys, run, in_the_way
+):
+    (tmp_path / in_the_way).mkdir()
+    code = main(["export", str(runs / run), "--casadi", str(tmp_path / "m.casadi")])
+    err = capsys.readouterr().err.strip()
+    assert code == 1 and len(err.splitlines()) == 1 and "Traceback" not in err
+    assert f"{tmp_path / in_the_way} is a folder" in err
+    assert [p.name for p in tmp_path.iterdir()] == [in_the_way]  # no .casadi without its JSON
+
+
+def test_a_failed_later_write_removes_the_files_written_before(runs, tmp_path, monkeypatch):
+    import canonid.learned as learned
+    from canonid.kernel.errors import OutputError
+
+    def full_disk(path, body):
+        raise OutputError(f"cannot write {path}: No space left on device")
+
+    monkeypatch.setattr(learned, "atomic_write_json", full_disk)
+    with pytest.raises(OutputError, match="No space left"):
+        learned.export_casadi(runs / "red", tmp_path / "m.casadi")
+    assert not list(tmp_path.iterdir())
+
+
 @pytest.mark.parametrize("content", [b"hello", b"", bytes(range(256)) * 4])
 def test_a_file_that_is_not_a_casadi_function_is_refused(tmp_path, content):
     path = tmp_path / "bad.casadi"

@@ -12,6 +12,7 @@ import pytest
 import torch
 from learning_helpers import siso_dataset_file
 
+from canonid.datagen.loaders import data_checksum
 from canonid.kernel.errors import CheckpointError
 from canonid.learning.presets import net_options
 from canonid.profiles import train_options
@@ -120,7 +121,10 @@ def test_the_same_recipe_gives_the_same_run_folder(dataset_path, tmp_path):
     assert isinstance(first.evaluation, RunEvaluation)
     assert first.evaluation.split == "test" and first.evaluation.rollout_mse_clean is not None
     assert first.evaluation.rollout_mse == second.evaluation.rollout_mse
-    assert RunRecipe.read(tmp_path / "a") == recipe
+    # the recipe as written: its data by absolute path and checksum
+    assert RunRecipe.read(tmp_path / "a") == recipe.pinned() == first.recipe
+    assert Path(first.recipe.data).is_absolute()
+    assert first.recipe.data_sha256 == data_checksum(dataset_path)
     assert _contents(tmp_path / "a") == _contents(tmp_path / "b")
     metrics = json.loads((tmp_path / "a" / "metrics.json").read_text())
     assert metrics == first.evaluation.to_json() | {"data": metrics["data"]}

@@ -13,7 +13,12 @@ take it) plus:
 
 Training is ``canonid train``'s (:func:`canonid.training.train`): ``--train-args`` is read by its
 own parser into the :class:`~canonid.training.TrainRequest` that the benchmark completes, so every
-default of ``canonid train`` applies and any of its options can be set.
+default of ``canonid train`` applies and any of its options can be set (spelt out in full; the
+options the benchmark sets itself are refused in any spelling).
+
+An interrupted benchmark is finished by running the same command again, or by ``--resume RUN``
+(``canonid train --resume``'s rule: only the options a resumed run may change are given, in
+``--train-args``).
 """
 
 from __future__ import annotations
@@ -32,7 +37,7 @@ from canonid.benchmark import (
     report_table,
     run_benchmark,
 )
-from canonid.commands import _options, train
+from canonid.commands import _options, _paths, train
 from canonid.kernel.catalog import MODEL_NAMES
 from canonid.kernel.errors import OptionError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
@@ -52,6 +57,13 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("name", nargs="?", metavar="NAME", help=f"one of {', '.join(BENCHMARKS)}")
+    p.add_argument(
+        "--resume",
+        type=Path,
+        metavar="RUN",
+        help="finish the interrupted benchmark run in RUN (as canonid train --resume; running "
+        "the same command again continues it too)",
+    )
     p.add_argument("--list", action="store_true", help="list the benchmarks and their files")
     p.add_argument(
         "--dir",
@@ -59,21 +71,24 @@ def register(sub: Any) -> None:
         metavar="DIR",
         help="folder of the benchmark files (default ~/.nonlinear_benchmarks, the package's cache)",
     )
-    p.add_argument("--model", choices=MODEL_NAMES, default="mlp", help="model (default mlp)")
+    p.add_argument("--model", choices=MODEL_NAMES, help="model (default mlp)")
     p.add_argument(
         "--window",
         metavar="L",
         help=f"window ℓ ≤ n_init (default min({DEFAULT_WINDOW}, n_init)); passed to canonid train",
     )
-    _options.add_profile(p, profile_names(), what="training budget", default=DEFAULT_PROFILE)
-    p.add_argument("--out", type=Path, metavar="RUN", help="run folder (default runs/NAME-MODEL)")
+    _options.add_profile(
+        p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
+    )
+    p.add_argument(
+        "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/NAME-MODEL)"
+    )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
     p.add_argument(
         "--val-fraction",
         type=float,
         metavar="F",
-        default=0.2,
         help="share at the end of every training record held out for validation (default 0.2)",
     )
     p.add_argument(
@@ -88,7 +103,11 @@ def register(sub: Any) -> None:
 
 
 class _TrainParser(argparse.ArgumentParser):
-    """``canonid train``'s parser, raising a one-line error instead of exiting."""
+    """``canonid train``'s parser, raising a one-line error instead of exiting, and taking
+    options only as spelt out in full (``--mod`` is not ``--model``)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **{**kwargs, "allow_abbrev": False})
 
     def error(self, message: str) -> NoReturn:
         raise OptionError(f"canonid train rejected the options: {message}")
@@ -97,27 +116,50 @@ class _TrainParser(argparse.ArgumentParser):
 def train_request(argv: list[str]) -> TrainRequest:
     """``argv`` read by ``canonid train``'s own parser (its defaults included)."""
     parser = _TrainParser(prog="canonid")
-    train.register(parser.add_subparsers(dest="command"))
+    train.register(parser.add_subparsers(dest="command", parser_class=_TrainParser))
     return train.request(parser.parse_args(["train", *argv]))
 
 
-#: canonid train options that the benchmark sets itself
-_OWN = ("--model", "--window", "--profile", "--out", "--seed", "--threads", "--resume", "--val")
+#: canonid train options that the benchmark sets itself (and help, which would exit)
+_OWN = (
+    "--model",
+    "--window",
+    "--profile",
+    "--out",
+    "--seed",
+    "--threads",
+    "--resume",
+    "--val",
+    "-h",
+    "--help",
+)
+#: the benchmark's own options a resumed run takes from its run.json instead
+_FIXED_ON_RESUME = ("dir", "model", "window", "profile", "out", "seed", "val_fraction")
 
 
 def _extra_train_args(text: str) -> list[str]:
-    """``--train-args`` split like a shell; the options the benchmark sets are refused."""
+    """``--train-args`` split like a shell; the options the benchmark sets are refused, also
+    when abbreviated (``--mod``) or joined to their value (``--model=gru``, ``-hx``)."""
     try:
         extra = shlex.split(text)
     except ValueError as exc:
         raise OptionError(f"--train-args: cannot split {text!r} ({exc})") from None
-    taken = [a for a in extra if a.split("=")[0] in _OWN or a.startswith("--val-")]
+    taken = [a for a in extra if _reserved(a)]
     if taken:
         raise OptionError(
             f"--train-args: {', '.join(taken)} set by canonid benchmark itself; give them as "
             "its own options"
         )
     return extra
+
+
+def _reserved(arg: str) -> bool:
+    """Whether ``arg`` names (or abbreviates) an option the benchmark sets itself."""
+    name = arg.split("=")[0]
+    if name.startswith("--val-") or (name.startswith("-h") and not name.startswith("--")):
+        return True
+    # an abbreviation the train parser would take for one of them, were abbreviations allowed
+    return len(name) > 2 and name.startswith("--") and any(o.startswith(name) for o in _OWN)
 
 
 def _window(text: str | None) -> int | Literal["auto"] | None:
@@ -135,16 +177,37 @@ def run(args: argparse.Namespace) -> int:
     if args.list:
         print(benchmark_list(args.dir))
         return 0
-    if args.name is None:
-        raise OptionError(f"give a benchmark NAME ({', '.join(BENCHMARKS)}) or --list")
+    if args.resume is not None:
+        given = [
+            f"--{k.replace('_', '-')}" for k in _FIXED_ON_RESUME if getattr(args, k) is not None
+        ]
+        if given:
+            raise OptionError(
+                f"{', '.join(given)} cannot be given with --resume: the run continues as its "
+                "run.json records it"
+            )
+    elif args.name is None:
+        raise OptionError(
+            f"give a benchmark NAME ({', '.join(BENCHMARKS)}), --resume RUN or --list"
+        )
     extra = _extra_train_args(args.train_args) + (["--no-progress"] if args.no_progress else [])
+    chosen = {
+        key: getattr(args, key)
+        for key in ("model", "profile", "out", "val_fraction")
+        if getattr(args, key) is not None
+    }
+    trained = train_request(extra)
+    if trained.data is not None:  # DATA is the benchmark's
+        raise OptionError(f"--train-args: {trained.data!r} is not an option")
     request = BenchmarkRequest(
-        **{key: getattr(args, key) for key in ("name", "model", "profile", "out", "seed")},
+        **chosen,
+        name=args.name,
+        seed=args.seed,
         files=args.dir,
         window=_window(args.window),
         threads=args.threads,
-        val_fraction=args.val_fraction,
-        train=train_request(extra),
+        resume=args.resume,
+        train=trained,
     )
     report, run_dir = run_benchmark(request)
     print(report_table(report))
