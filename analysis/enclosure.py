@@ -21,6 +21,8 @@ into words for error messages.
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -28,6 +30,7 @@ import casadi as ca
 import numpy as np
 from flint import arb
 
+from canonid.analysis.estimate import OutOfTime
 from canonid.analysis.interval import Interval, _sum_lower, _sum_upper, arb_map
 from canonid.kernel.errors import SetError, ShapeError
 
@@ -105,6 +108,17 @@ _OP_NAMES = {getattr(ca, n): n for n in dir(ca) if n.startswith("OP_")}
 _INCREASING = {ca.OP_EXP, ca.OP_LOG, ca.OP_ATAN, ca.OP_TANH, ca.OP_SINH}
 
 
+#: instructions walked between two looks at the clock
+_CLOCK_EVERY = 4096
+
+
+def _check_time(step: int, deadline: float) -> None:
+    """Raise :class:`OutOfTime` past ``deadline``, looking at the clock every
+    :data:`_CLOCK_EVERY` instructions (a large network has millions)."""
+    if step % _CLOCK_EVERY == _CLOCK_EVERY - 1 and time.perf_counter() > deadline:
+        raise OutOfTime
+
+
 def _increasing(func: Callable[[arb], arb], a: Interval) -> Interval:
     """``func([lo, hi]) = [func(lo), func(hi)]`` for an increasing ``func``, each end enclosed
     by arb and rounded outward; an undefined end makes both NaN (as :func:`arb_map`)."""
@@ -127,9 +141,19 @@ class Enclosure:
             decides ``fmax``/``fabs``/comparisons and keeps √ away from 0 long before the plain
             (natural) extension would. Skipped on boxes already flagged. Off by default: on the
             shipped systems the branch-and-bound searches reach the same bounds faster without it.
+        deadline: ``time.perf_counter()`` after which building the evaluator or an evaluation
+            raises :class:`~canonid.analysis.estimate.OutOfTime` (a network of millions of
+            instructions takes minutes per batch); default: none.
     """
 
-    def __init__(self, fun: ca.Function, *, wrt: int | None = None, refine: bool = False) -> None:
+    def __init__(
+        self,
+        fun: ca.Function,
+        *,
+        wrt: int | None = None,
+        refine: bool = False,
+        deadline: float = math.inf,
+    ) -> None:
         if not fun.is_a("SXFunction"):
             raise ShapeError(f"interval evaluation needs an SX function, got {fun.class_name()}")
         for i in range(fun.n_in()):
@@ -155,8 +179,10 @@ class Enclosure:
             if rows is None:
                 raise ShapeError(f"{fun.name()}: output {i} must be a column vector")
         self.n_out = [fun.size1_out(i) for i in range(fun.n_out())]
+        self.deadline = deadline
         self.program: list[tuple[int, list[int], list[int], float]] = []
         for k in range(fun.n_instructions()):
+            _check_time(k, deadline)
             op = fun.instruction_id(k)
             const = fun.instruction_constant(k) if op == ca.OP_CONST else 0.0
             self.program.append(
@@ -209,7 +235,8 @@ class Enclosure:
             w_cen: list[Interval | None] = [None] * self.n_work
         values = [Interval.point(np.zeros((batch, n))) for n in self.n_out]
         grads = [Interval.point(np.zeros((batch, n, self.n_grad))) for n in self.n_out]
-        for op, ins, outs, const in self.program:
+        for step, (op, ins, outs, const) in enumerate(self.program):
+            _check_time(step, self.deadline)
             if op == ca.OP_OUTPUT:
                 k, nz = outs
                 row = self.out_rows[k][nz]  # type: ignore[index]

@@ -22,7 +22,7 @@ from typing import Any, Literal
 from canonid.kernel.errors import SetError
 from canonid.models.sets import Box
 
-__all__ = ["KINDS", "QUANTITIES", "Bracket", "Budget", "Estimate", "Kind"]
+__all__ = ["KINDS", "QUANTITIES", "Bracket", "Budget", "Estimate", "Kind", "OutOfTime"]
 
 Kind = Literal["lower", "upper", "estimate"]
 KINDS: tuple[str, ...] = ("lower", "upper", "estimate")
@@ -35,8 +35,11 @@ class Budget:
     """What an estimator may spend.
 
     Attributes:
-        seconds: wall-clock limit of a branch-and-bound search (``None``: no limit). Tests use
-            ``boxes`` instead, so that results do not depend on the machine.
+        seconds: wall-clock limit of each stage (``None``: no limit): of a branch-and-bound
+            search, its set-up included, and of a sampled bound (its samples and local
+            searches). A stage checks it between steps, so it overruns by at most one step
+            (one batch of boxes or points; one CasADi Jacobian built). Tests use ``boxes``
+            instead, so that results do not depend on the machine.
         boxes: largest number of boxes a branch-and-bound search evaluates.
         samples: random points (or pairs) evaluated by a sampled bound.
         starts: local optimisations started from the best samples.
@@ -48,8 +51,8 @@ class Budget:
     starts: int = 8
 
     def __post_init__(self) -> None:
-        if self.seconds is not None and not (self.seconds > 0):
-            raise SetError(f"budget seconds must be > 0 or None, got {self.seconds}")
+        if self.seconds is not None and not (0 < self.seconds < math.inf):
+            raise SetError(f"budget seconds must be finite and > 0, or None; got {self.seconds}")
         for name in ("boxes", "samples", "starts"):
             value = getattr(self, name)
             if not isinstance(value, int) or value < 1:
@@ -63,6 +66,11 @@ class Budget:
         if self.seconds is not None and time.perf_counter() - started > self.seconds:
             return "time budget exhausted"
         return None
+
+    def deadline(self, started: float) -> float:
+        """When a stage started at ``started`` (``time.perf_counter()``) must stop: ``inf``
+        without a limit in seconds."""
+        return math.inf if self.seconds is None else started + self.seconds
 
     def used(self, evaluated: int, started: float) -> float:
         """Fraction of the budget spent (boxes or time, whichever is further), for progress."""
@@ -78,6 +86,12 @@ class Budget:
             "samples": self.samples,
             "starts": self.starts,
         }
+
+
+class OutOfTime(Exception):
+    """A stage's deadline passed in the middle of an evaluation it cannot split further (an
+    interval evaluation of a large graph, a local optimisation). Internal: the stage that set
+    the deadline catches it and reports what it has, saying that the time ran out."""
 
 
 @dataclass(frozen=True)

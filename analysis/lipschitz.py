@@ -30,7 +30,7 @@ import numpy as np
 
 from canonid.analysis._local import local_minima
 from canonid.analysis.enclosure import Enclosure, describe_flags
-from canonid.analysis.estimate import Bracket, Budget, Estimate
+from canonid.analysis.estimate import Bracket, Budget, Estimate, OutOfTime
 from canonid.analysis.interval import Interval
 from canonid.analysis.maps import batched, jacobian_function, varying_dims
 from canonid.analysis.matrix_bounds import spectral_upper
@@ -92,15 +92,32 @@ def _point(values: np.ndarray) -> str:
 JacobianRows = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
-def _norms(
-    jac: ca.Function | None, pts: np.ndarray, n_x: int, rows: JacobianRows | None = None
-) -> np.ndarray:
-    """``‖∂f/∂x‖₂`` at the rows of ``pts``: from ``rows`` when given, else from CasADi's ``jac``."""
-    if rows is not None:
-        j = np.asarray(rows(pts[:, :n_x], pts[:, n_x:]), dtype=np.float64)
-    else:
-        assert jac is not None
-        _, j = batched(jac, pts[:, :n_x], pts[:, n_x:])
+class _CasadiRows:
+    """Point Jacobians ``∂fun/∂x`` by CasADi (a :data:`JacobianRows`), its SX Jacobian built at
+    the first call — seconds for a large network, so only when a stage uses it, and once for
+    the stages that share it; ``build_seconds`` says how long that took."""
+
+    def __init__(self, fun: ca.Function) -> None:
+        self.fun = fun
+        self.build_seconds = 0.0
+        self._jac: ca.Function | None = None
+
+    def __call__(self, x: np.ndarray, u: np.ndarray) -> np.ndarray:
+        if self._jac is None:
+            t0 = time.perf_counter()
+            self._jac = jacobian_function(self.fun)
+            self.build_seconds = time.perf_counter() - t0
+        return batched(self._jac, x, u)[1]
+
+
+#: points evaluated between two looks at the clock by a sampled bound (a 3 × 128 GRU model
+#: takes ~35 ms a point through CasADi; a registered system or an MLP model microseconds)
+_SAMPLE_CHUNK = 32
+
+
+def _norms(rows: JacobianRows, pts: np.ndarray, n_x: int) -> np.ndarray:
+    """``‖∂f/∂x‖₂`` at the rows of ``pts`` (the Jacobians from ``rows``)."""
+    j = np.asarray(rows(pts[:, :n_x], pts[:, n_x:]), dtype=np.float64)
     if j.ndim == 2:
         j = j[:, :, None] if n_x == 1 else j[:, None, :]
     with np.errstate(invalid="ignore"):
@@ -129,7 +146,11 @@ def lipschitz_lower(
         fun: CasADi function of ``(x, u)``.
         X, U: boxes for ``x`` and ``u``.
         quantity, window: labels of the result (``"gamma_f"``/``"gamma_h"``).
-        budget: ``samples`` random points (plus the corners), ``starts`` local maximisations.
+        budget: ``samples`` random points (plus the corners), ``starts`` local maximisations;
+            its ``seconds`` end the stage early (checked every few points and during each
+            local search: ``details["stop"]`` says so and how far it got). The local searches
+            start only while the time left exceeds what CasADi took to build the Jacobian,
+            their set-up costing about as much.
         seed: random seed (same seed, same result).
         where: words naming the set, for error messages.
         jacobian: the Jacobians at many points at once, in place of CasADi's on ``fun`` (the
@@ -140,41 +161,51 @@ def lipschitz_lower(
     """
     budget = budget or Budget()
     t0 = time.perf_counter()
+    deadline = budget.deadline(t0)
     n_x = fun.nnz_in(0)
-    jac = jacobian_function(fun) if jacobian is None else None  # the SX Jacobian only if used
+    rows = jacobian if jacobian is not None else _CasadiRows(fun)
     lo = np.concatenate([X.lo, U.lo])
     hi = np.concatenate([X.hi, U.hi])
     rng = np.random.default_rng(seed)
     pts = np.concatenate([_corners(lo, hi), rng.uniform(lo, hi, size=(budget.samples, lo.size))])
-    norms = _norms(jac, pts, n_x, jacobian)
+    total, norms = len(pts), np.empty(len(pts))
+    done = 0  # the points evaluated, in order: the first chunk always
+    while done < len(pts) and (done == 0 or time.perf_counter() <= deadline):
+        chunk = pts[done : done + _SAMPLE_CHUNK]
+        norms[done : done + len(chunk)] = _norms(rows, chunk, n_x)
+        done += len(chunk)
+    pts, norms = pts[:done], norms[:done]
     if not np.all(np.isfinite(norms)):
         i = int(np.flatnonzero(~np.isfinite(norms))[0])
         raise _unbounded_error(quantity, fun, where, pts[i], n_x, None)
     best = float(norms.max())
     best_pt = pts[int(np.argmax(norms))]
-    # local maximisation of ‖J d‖²/‖d‖² over (x, u, d), from the best samples
-    x = ca.SX.sym("x", n_x)
-    u = ca.SX.sym("u", fun.nnz_in(1))
-    d = ca.SX.sym("d", n_x)
-    jd = ca.jtimes(fun(x, u), x, d)
-    starts = []
-    for i in np.argsort(-norms)[: budget.starts]:
-        if jacobian is not None:
-            j = np.asarray(jacobian(pts[i : i + 1, :n_x], pts[i : i + 1, n_x:])[0])
-        else:
-            assert jac is not None
-            j = np.asarray(jac(pts[i, :n_x], pts[i, n_x:])[1]).reshape(-1, n_x)
-        starts.append(np.concatenate([pts[i], np.linalg.svd(j)[2][0]]))
-    ends = local_minima(
-        -ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
-        ca.vertcat(x, u, d),
-        starts,
-        list(zip(lo, hi)) + [(None, None)] * n_x,
-    )
+    ends: list[np.ndarray] = []
+    set_up = getattr(rows, "build_seconds", 0.0)
+    if time.perf_counter() + set_up < deadline:
+        # local maximisation of ‖J d‖²/‖d‖² over (x, u, d), from the best samples
+        x = ca.SX.sym("x", n_x)
+        u = ca.SX.sym("u", fun.nnz_in(1))
+        d = ca.SX.sym("d", n_x)
+        jd = ca.jtimes(fun(x, u), x, d)
+        starts = []
+        for i in np.argsort(-norms)[: budget.starts]:
+            j = np.asarray(rows(pts[i : i + 1, :n_x], pts[i : i + 1, n_x:])[0]).reshape(-1, n_x)
+            starts.append(np.concatenate([pts[i], np.linalg.svd(j)[2][0]]))
+        ends = local_minima(
+            -ca.sumsqr(jd) / (ca.sumsqr(d) + 1e-300),
+            ca.vertcat(x, u, d),
+            starts,
+            list(zip(lo, hi)) + [(None, None)] * n_x,
+            deadline=deadline,
+        )
     for end in ends:
-        value = float(_norms(jac, end[None, : lo.size], n_x, jacobian)[0])
+        value = float(_norms(rows, end[None, : lo.size], n_x)[0])
         if np.isfinite(value) and value > best:
             best, best_pt = value, end[: lo.size]
+    complete = done == total and len(ends) == min(budget.starts, done)
+    complete = complete and time.perf_counter() <= deadline  # else the last search was cut
+    stop = "all samples and local searches done" if complete else "time budget exhausted"
     return Estimate(
         quantity=quantity,
         value=best,
@@ -184,7 +215,13 @@ def lipschitz_lower(
         window=window,
         budget={"samples": budget.samples, "starts": budget.starts},
         seconds=time.perf_counter() - t0,
-        details={"argmax": best_pt.tolist(), "seed": seed},
+        details={
+            "argmax": best_pt.tolist(),
+            "seed": seed,
+            "points_evaluated": done,
+            "local_searches": len(ends),
+            "stop": stop,
+        },
     )
 
 
@@ -245,15 +282,21 @@ def lipschitz_upper(
     if not (tol >= 0):
         raise SetError(f"tol must be >= 0, got {tol}")
     t0 = time.perf_counter()
+    deadline = budget.deadline(t0)
     n_x = fun.nnz_in(0)
     method = getattr(
         enclosure, "method", "certified: interval Jacobian branch-and-bound (outward rounding, arb)"
     )
-    enclosure = enclosure or Enclosure(fun, wrt=0)
-    jac = jacobian_function(fun) if jacobian is None else None  # the SX Jacobian only if used
-    dx, du = varying_dims(fun)
+    rows = jacobian if jacobian is not None else _CasadiRows(fun)
     lo0 = np.concatenate([X.lo, U.lo])
     hi0 = np.concatenate([X.hi, U.hi])
+    try:  # the set-up walks the whole graph: minutes for a large network, so it counts too
+        enclosure = enclosure or Enclosure(fun, wrt=0, deadline=deadline)
+        dx, du = varying_dims(fun)
+        if time.perf_counter() > deadline:
+            raise OutOfTime
+    except OutOfTime:
+        return _out_of_time(quantity, X, U, window, budget, t0, where, "preparing the search")
     scale = np.where(hi0 > lo0, hi0 - lo0, 1.0)
     mask = np.concatenate([dx, du]) & (hi0 > lo0)
     best = lower.value if lower is not None else 0.0
@@ -282,7 +325,7 @@ def lipschitz_upper(
         flagged = res.jac_flags != 0
         ub = np.where(flagged, np.inf, ub)
         centre = 0.5 * blo + 0.5 * bhi
-        norms = _norms(jac, centre, n_x, jacobian)
+        norms = _norms(rows, centre, n_x)
         tiny = np.all(np.where(mask, (bhi - blo) / scale, 0.0) < 1e-9, axis=1)
         stuck = flagged & (tiny | (not mask.any()))
         if stuck.any() or not np.all(np.isfinite(norms)):
@@ -300,7 +343,10 @@ def lipschitz_upper(
     counter = itertools.count()
     root = (lo0, hi0)
     heap: list[tuple[float, int, np.ndarray, np.ndarray]] = []
-    ub0 = evaluate([root])[0]
+    try:
+        ub0 = evaluate([root])[0]
+    except OutOfTime:
+        return _out_of_time(quantity, X, U, window, budget, t0, where, "the first box")
     heapq.heappush(heap, (-ub0, next(counter), lo0, hi0))
     evaluated = 1
     stop_reason = "tolerance reached"
@@ -314,7 +360,13 @@ def lipschitz_upper(
             break
         popped = [heapq.heappop(heap) for _ in range(min(batch, len(heap)))]
         children = [c for _, _, lo, hi in popped for c in _split(lo, hi, scale, mask)]
-        ubs = evaluate(children)
+        try:
+            ubs = evaluate(children)
+        except OutOfTime:  # the parents' bounds still hold: they go back, unsplit
+            for item in popped:
+                heapq.heappush(heap, item)
+            stop_reason = "time budget exhausted"
+            break
         evaluated += len(children)
         for (clo, chi), ub in zip(children, ubs):
             if ub > best:  # a box whose bound is below a value attained cannot hold the sup
@@ -339,13 +391,20 @@ def lipschitz_upper(
         # out of budget with a box whose Jacobian enclosure is still unusable (an overflow, or
         # an operation whose enclosure is not decided yet): the honest bound is the trivial one
         _, _, wlo, whi = heap[0]
-        res = enclosure(
-            [Interval(wlo[None, :n_x], whi[None, :n_x]), Interval(wlo[None, n_x:], whi[None, n_x:])]
-        )
+        try:
+            res = enclosure(
+                [
+                    Interval(wlo[None, :n_x], whi[None, :n_x]),
+                    Interval(wlo[None, n_x:], whi[None, n_x:]),
+                ]
+            )
+            meets = _reason(int(res.jac_flags[0]))
+        except OutOfTime:  # past the deadline the evaluator stops at once
+            meets = "no finite bound yet (the time ran out before the box was split further)"
         method = "trivial: no finite certified bound within the budget"
         details["why"] = (
             f"no finite upper bound on {where} within the budget ({stop_reason}): a box's "
-            f"Jacobian enclosure meets {_reason(int(res.jac_flags[0]))}"
+            f"Jacobian enclosure meets {meets}"
         )
         details["worst_box"] = {
             "x": Box(wlo[:n_x], whi[:n_x]).to_dict(),
@@ -361,6 +420,36 @@ def lipschitz_upper(
         budget=budget.to_dict(),
         seconds=time.perf_counter() - t0,
         details=details,
+    )
+
+
+def _out_of_time(
+    quantity: str,
+    X: Box,
+    U: Box,
+    window: int | None,
+    budget: Budget,
+    t0: float,
+    where: str,
+    during: str,
+) -> Estimate:
+    """The trivial upper bound ``∞`` of a search whose time ran out before any box was bounded
+    (a network too large for the interval evaluator within the budget)."""
+    return Estimate(
+        quantity=quantity,
+        value=np.inf,
+        kind="upper",
+        sets={"X": X, "U": U},
+        method="trivial: no finite certified bound within the budget",
+        window=window,
+        budget=budget.to_dict(),
+        seconds=time.perf_counter() - t0,
+        details={
+            "boxes": 0,
+            "stop": "time budget exhausted",
+            "why": f"no certified bound on {where}: the time budget ran out while {during} "
+            "(the interval evaluator walks the model's whole CasADi graph)",
+        },
     )
 
 
@@ -385,6 +474,8 @@ def lipschitz_bracket(
     branch-and-bound (``details["lower_found"]`` of the upper bound), so it is the best point
     value found by either method.
     """
+    # one CasADi Jacobian for both stages (built by the first that needs it)
+    rows = jacobian if jacobian is not None else _CasadiRows(fun)
     low = lipschitz_lower(
         fun,
         X,
@@ -394,7 +485,7 @@ def lipschitz_bracket(
         budget=budget,
         seed=seed,
         where=where,
-        jacobian=jacobian,
+        jacobian=rows,
     )
     up = lipschitz_upper(
         fun,
@@ -408,9 +499,9 @@ def lipschitz_bracket(
         where=where,
         progress=progress,
         enclosure=enclosure,
-        jacobian=jacobian,
+        jacobian=rows,
     )
-    found = float(up.details["lower_found"])
+    found = float(up.details.get("lower_found", low.value))
     if found > low.value:
         low = Estimate(
             quantity=low.quantity,

@@ -26,7 +26,14 @@ from canonid.kernel.io import atomic_write_json
 from canonid.learning import Model
 from canonid.models.learned import LearnedSystem
 from canonid.models.sets import Box
-from canonid.runfolder import RUN_FILE, load, load_splits, pick_split, recipe_of
+from canonid.runfolder import (
+    RUN_FILE,
+    check_compatible,
+    load,
+    load_splits,
+    pick_split,
+    recipe_of,
+)
 
 if TYPE_CHECKING:
     from canonid.analysis.report import AnalysisReport, LearnedChecks
@@ -71,8 +78,13 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
             raise DataError(f"{run_dir / RUN_FILE} not found: the run names no data; give them")
         dataset, train, *_ = load_splits(recipe)  # the training split as `train` cut it
     else:
+        from canonid.scoring import check_signal_names
+
         recorded = recipe.data_options if recipe is not None else {}
         dataset = load(data, {} if is_dataset(data) else dict(recorded))
+        # the sets of another sampling time or other signals would describe another model
+        check_compatible(dataset, model.info, where=str(data))
+        check_signal_names(dataset, model.info, where=str(data), explicit=False)
         splits = dataset.splits
         train = (
             list(splits["train"]) if "train" in splits else [t for s in splits.values() for t in s]
@@ -120,10 +132,16 @@ def encoder_path(path: Path) -> Path:
 
 
 def _check_output(*paths: Path) -> None:
-    """Refuse an output of ``canonid export`` that is a folder (it could not be written)."""
+    """Refuse an output of ``canonid export`` that is a folder, or whose folder is a file (it
+    could not be written)."""
     for path in paths:
         if path.is_dir():
             raise OutputError(f"--casadi: {path} is a folder, expected a file name")
+        for part in path.parents:  # the first that exists must be a folder to write into
+            if part.exists():
+                if not part.is_dir():
+                    raise OutputError(f"--casadi {path}: {part} is a file; expected a folder")
+                break
 
 
 def export_casadi(

@@ -299,9 +299,74 @@ def _recipe_body(cls: type[Recipe], data: Any, *, where: str) -> dict[str, Any]:
     if missing:
         raise CheckpointError(f"{where}: the run recipe lacks {missing}")
     body = {k: v for k, v in data.items() if k in known}
+    _check_types(body, where=where)
     body["data_options"] = dict(body.get("data_options") or {})
     body["command"] = tuple(body.get("command") or ())
     return body
+
+
+def _is_text(value: Any) -> bool:
+    return isinstance(value, str)
+
+
+def _is_count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
+def _is_real(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+#: what each field of a ``run.json`` body must hold (a field absent here is not read as a value)
+_FIELD_TYPES: dict[str, tuple[Callable[[Any], bool], str]] = {
+    "data": (_is_text, "a path (a string)"),
+    "data_options": (lambda v: v is None or isinstance(v, Mapping), "an object"),
+    "val": (lambda v: v is None or _is_text(v), "a path (a string) or null"),
+    "val_fraction": (lambda v: _is_real(v) and 0 < v < 1, "a number between 0 and 1"),
+    "profile": (_is_text, "a profile name (a string)"),
+    "command": (
+        lambda v: v is None or (isinstance(v, list) and all(map(_is_text, v))),
+        "a list of strings",
+    ),
+    "window": (_is_count, "an integer >= 1"),
+    "latent_dim": (_is_count, "an integer >= 1"),
+    "seed": (lambda v: isinstance(v, int) and not isinstance(v, bool), "an integer"),
+    "compression": (_is_real, "a number"),
+    "regressor": (_is_text, "a model name (a string)"),
+    "source_run": (_is_text, "a path (a string)"),
+    "model": (_is_text, "a model name (a string)"),
+    "train_options": (lambda v: isinstance(v, Mapping), "an object"),
+    "net_options": (lambda v: isinstance(v, Mapping), "an object"),
+    "reduction_options": (lambda v: isinstance(v, Mapping), "an object"),
+}
+
+
+def _is_names(value: Any) -> bool:
+    return _is_text(value) or (isinstance(value, list) and all(map(_is_text, value)))
+
+
+#: what each loader option in ``data_options`` must hold when not null
+_OPTION_TYPES: dict[str, tuple[Callable[[Any], bool], str]] = {
+    "inputs": (_is_names, "a list of column names"),
+    "outputs": (_is_names, "a list of column names"),
+    "experiment_column": (_is_text, "a column name"),
+    "dt": (lambda v: _is_real(v) and v > 0, "a positive number of seconds"),
+}
+
+
+def _check_types(body: Mapping[str, Any], *, where: str) -> None:
+    """Refuse a ``run.json`` field of the wrong type, by name (``"data": {"x": 1}`` would
+    otherwise reach the loader as a path)."""
+    for key, value in body.items():
+        check, expected = _FIELD_TYPES.get(key, (lambda v: True, ""))
+        if not check(value):
+            raise CheckpointError(f"{where}: field {key!r} must be {expected}, got {value!r}")
+    for key, value in (body.get("data_options") or {}).items():
+        check, expected = _OPTION_TYPES.get(key, (lambda v: False, f"one of {sorted(DATA_FLAGS)}"))
+        if value is not None and not check(value):
+            field = f"data_options.{key}" if key in DATA_FLAGS else "data_options"
+            got = value if key in DATA_FLAGS else key
+            raise CheckpointError(f"{where}: field {field!r} must be {expected}, got {got!r}")
 
 
 def read_recipe(run_dir: Path) -> Recipe:

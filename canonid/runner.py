@@ -174,6 +174,15 @@ def _probe_scheduler(address: str, timeout: float) -> None:
     from distributed.comm import connect
     from distributed.comm.addressing import get_address_host_port, parse_address
 
+    try:  # the form first: a malformed address is no timeout
+        if parse_address(address)[0] in ("tcp", "tls"):
+            get_address_host_port(address)
+    except ValueError as exc:
+        raise RunnerError(
+            f"the Dask scheduler address {address!r} is malformed ({exc}); expected the address "
+            "of a running scheduler, e.g. tcp://host:8786"
+        ) from None
+
     async def handshake() -> None:
         if parse_address(address)[0] in ("tcp", "tls"):  # refused: fail now, not after timeout
             socket.create_connection(get_address_host_port(address), timeout=timeout).close()
@@ -229,6 +238,24 @@ def _ctrl_c_deferred() -> Iterator[list[bool]]:
     restore()
 
 
+@contextmanager
+def _sigterm_interrupts() -> Iterator[None]:
+    """SIGTERM raises KeyboardInterrupt here, as Ctrl-C does, so that the cluster is closed on
+    the way out instead of leaving its worker processes and semaphores behind."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt("terminated (SIGTERM)")
+
+    previous = signal.signal(signal.SIGTERM, terminate)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
 def dask_setup(worker: Any) -> None:
     """Dask preload of the local workers (this module): they ignore Ctrl-C, so that it
     interrupts only the main process, which then closes the cluster cleanly."""
@@ -277,8 +304,9 @@ def _executor(
                 cluster.close()
                 raise KeyboardInterrupt
         try:
-            threads = sum(client.nthreads().values()) or 1
-            yield client.get_executor(pure=False), 2 * threads
+            with _sigterm_interrupts():
+                threads = sum(client.nthreads().values()) or 1
+                yield client.get_executor(pure=False), 2 * threads
         except KeyboardInterrupt:
             # closing a cluster mid-job makes Dask log cancelled tasks as errors: not news
             logging.getLogger("distributed").setLevel(logging.CRITICAL)

@@ -28,6 +28,7 @@ if TYPE_CHECKING:
 __all__ = [
     "USER_DATA_SPLIT",
     "EvaluateRequest",
+    "check_signal_names",
     "metrics_table",
     "score_run",
     "scoring_data",
@@ -128,7 +129,33 @@ def scoring_data(
         options = {k: recorded.get(k) if given.get(k) is None else given[k] for k in DATA_FLAGS}
     dataset = user_data_as_test(load(data, options))
     check_compatible(dataset, model, where=str(data))
+    explicit = any(given.get(k) is not None for k in ("inputs", "outputs"))
+    check_signal_names(dataset, model, where=str(data), explicit=explicit)
     return dataset, str(data), split
+
+
+def check_signal_names(
+    dataset: Dataset, info: Mapping[str, Any], *, where: str, explicit: bool
+) -> None:
+    """Refuse data whose signal names differ from those the run was trained on (``info``'s
+    ``input_names`` / ``output_names``, where recorded): ``u``/``y`` scoring a model of
+    ``pump``/``level`` is data of another system far more often than the same signals renamed.
+    Columns chosen ``explicit``-ly with ``--inputs``/``--outputs`` are the user's statement
+    that they are the run's signals, and are accepted."""
+    if explicit:
+        return
+    theirs = {"inputs": list(dataset.input_names), "outputs": list(dataset.output_names)}
+    ours = {"inputs": info.get("input_names"), "outputs": info.get("output_names")}
+    differ = [k for k in theirs if ours[k] is not None and list(ours[k]) != theirs[k]]
+    if differ:
+        raise DataError(
+            f"{where}: signals "
+            + ", ".join(f"{k} {theirs[k]}" for k in differ)
+            + "; the run was trained on "
+            + ", ".join(f"{k} {ours[k]}" for k in differ)
+            + ". If these are the same signals under other names, choose the columns with "
+            "--inputs/--outputs (CSV and .npz data)"
+        )
 
 
 def user_data_as_test(dataset: Dataset) -> Dataset:

@@ -13,6 +13,7 @@ The module imports neither torch nor CasADi; the analysis loads them.
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -97,14 +98,14 @@ def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
     budget = _check_numbers(request)
     if request.data is not None and request.run is None:
         raise OptionError("--data applies to --run RUN only")
+    X = system.X if request.X is None else parse_box(request.X, system.n_x, "X")
+    U = system.U if request.U is None else parse_box(request.U, system.n_u, "U")
+    W = system.W if request.W is None else parse_box(request.W, system.n_y, "W")
     model, dataset, split = None, None, None
     source: dict[str, str] = {}
     if request.run is not None:
         model, dataset, split, source = _learned_source(request.run, request.data, system)
         windows = sorted({*windows, int(model.window)})
-    X = parse_box(request.X, system.n_x, "X") if request.X else system.X
-    U = parse_box(request.U, system.n_u, "U") if request.U else system.U
-    W = parse_box(request.W, system.n_y, "W") if request.W else system.W
     out = check_folder(request.out or Path("runs") / f"analyze-{system.name}")
     bar, progress = _progress_bar(request.progress)
     try:
@@ -188,10 +189,12 @@ def _check_numbers(request: AnalyzeRequest) -> Budget:
 
     if request.trials < 0:
         raise OptionError(f"--trials must be >= 0, got {request.trials}")
-    if not request.budget > 0:
-        raise OptionError(f"--budget must be a positive number of seconds, got {request.budget}")
-    if not request.tol > 0:
-        raise OptionError(f"--tol must be a positive relative tolerance, got {request.tol}")
+    if not 0 < request.budget < math.inf:  # NaN fails too
+        raise OptionError(
+            f"--budget must be a positive finite number of seconds, got {request.budget}"
+        )
+    if not 0 < request.tol < math.inf:
+        raise OptionError(f"--tol must be a positive finite relative tolerance, got {request.tol}")
     if request.seed < 0:
         raise OptionError(f"--seed must be an integer >= 0, got {request.seed}")
     if request.boxes is not None and request.boxes < 1:
@@ -210,12 +213,7 @@ def _learned_source(
 
     trained = Model.load(run_dir)
     model, info = trained.export(), trained.info
-    n_u, n_y = int(model.n_u), int(model.n_y)
-    if (n_u, n_y) != (system.n_u, system.n_y):
-        raise DataError(
-            f"--run {run_dir}: the run has n_u={n_u}, n_y={n_y}; {system.name} has "
-            f"{system.n_u}, {system.n_y}"
-        )
+    _check_run_matches_system(run_dir, info, int(model.n_u), int(model.n_y), system)
     dataset, data_path, split = scoring_data(run_dir, data, {}, split=None, model=info)
     name, test = pick_split(dataset, split, where=data_path)
     if any(tr.y_clean is None for tr in test):
@@ -224,6 +222,34 @@ def _learned_source(
             f"[{name}] does not hold; give --data a canonid dataset or .npz with y_clean"
         )
     return model, dataset, name, {"run": str(run_dir), "data": data_path, "split": name}
+
+
+def _check_run_matches_system(
+    run_dir: Path, info: Mapping[str, Any], n_u: int, n_y: int, system: Any
+) -> None:
+    """Refuse a run that was not trained on data of ``system``: the numbers of inputs and
+    outputs always; the sampling time and the signal names where the run records them
+    (``config.json`` ``info``: a model saved without data records none)."""
+    have = {"number of inputs": n_u, "number of outputs": n_y}
+    want: dict[str, Any] = {"number of inputs": system.n_u, "number of outputs": system.n_y}
+    if info.get("dt") is not None:
+        have["sampling time dt"], want["sampling time dt"] = float(info["dt"]), system.dt
+    for key, label in (("input_names", "input names"), ("output_names", "output names")):
+        if info.get(key) is not None:
+            have[label], want[label] = list(info[key]), list(getattr(system, key))
+    differ = [
+        f"{label} {have[label]!r} (the run) vs {want[label]!r} ({system.name})"
+        for label in have
+        if (
+            not math.isclose(have[label], want[label], rel_tol=1e-9)
+            if label == "sampling time dt"
+            else have[label] != want[label]
+        )
+    ]
+    if differ:
+        raise DataError(
+            f"--run {run_dir} was not trained on data of {system.name}: " + "; ".join(differ)
+        )
 
 
 def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
@@ -306,7 +332,6 @@ def _learned_gamma_record(model: Any, request: AnalyzeRequest, budget: Budget) -
     or why there is none (only canonical models are built as CasADi systems)."""
     from canonid.analysis.certify import learned_gamma
     from canonid.learned import learned_system
-    from canonid.runfolder import recipe_of
 
     run = request.run
     if run is None:  # only called for a run's model
@@ -317,9 +342,8 @@ def _learned_gamma_record(model: Any, request: AnalyzeRequest, budget: Budget) -
         model.network()
     except CanonidError as exc:  # only canonical models export
         return {"available": False, "why": str(exc)}
-    # the training hull: the run's own training data when its recipe names them
-    own = recipe_of(run) is not None
-    system = learned_system(run, data=None if own else request.data).system
+    # the hull: of the run's own training data, or of --data when given (it replaces them)
+    system = learned_system(run, data=request.data).system
     gamma = learned_gamma(system, budget=budget, tol=request.tol, seed=request.seed)
     return {"available": True, "state_dim": system.n_x, **gamma.to_dict()}
 

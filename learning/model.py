@@ -16,6 +16,7 @@ samples ``ℓ … T−1`` (``T − ℓ`` rows).
 from __future__ import annotations
 
 import io
+import math
 import os
 import pickle
 import zipfile
@@ -37,6 +38,7 @@ __all__ = [
     "MODEL_FORMAT_VERSION",
     "Model",
     "check_architecture",
+    "check_info",
     "check_same",
     "load_state",
     "read_weights",
@@ -177,7 +179,46 @@ class Model:
         )
         net = build_net(name, **net_config)
         load_state(net, state, where=str(folder / WEIGHTS_FILE))
-        return cls(net, norm, info=config.get("info", {}))
+        info = check_info(config.get("info", {}), net, where=folder / CONFIG_FILE)
+        return cls(net, norm, info=info)
+
+
+def check_info(info: Any, net: SequenceModel, *, where: Path) -> dict[str, Any]:
+    """The ``info`` field of ``config.json``, its fields that canonid reads checked by type: an
+    object; ``dt`` a positive finite number of seconds; ``input_names`` / ``output_names`` lists
+    of ``n_u`` / ``n_y`` strings (each may be absent: models saved without data have none)."""
+    if not isinstance(info, Mapping):
+        raise CheckpointError(f"{where}: field 'info' must be an object, got {_kind(info)}")
+    dt = info.get("dt")
+    if dt is not None and not (_is_number(dt) and 0 < dt < math.inf):
+        raise CheckpointError(
+            f"{where}: field 'info.dt' must be a positive finite number of seconds, got {dt!r}"
+        )
+    for key, count in (("input_names", net.n_u), ("output_names", net.n_y)):
+        names = info.get(key)
+        if names is None:
+            continue
+        if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+            raise CheckpointError(
+                f"{where}: field 'info.{key}' must be a list of names, got {names!r}"
+            )
+        if len(names) != count:
+            raise CheckpointError(
+                f"{where}: field 'info.{key}' names {len(names)} signal(s) {names}; the "
+                f"network has {count}"
+            )
+    return dict(info)
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _kind(value: Any) -> str:
+    """The JSON kind of ``value`` for a message (``a string 'abc'``, ``a list``)."""
+    names = {str: "a string", list: "a list", dict: "an object", bool: "a boolean"}
+    kind = names.get(type(value), "a number" if _is_number(value) else "null")
+    return f"{kind} {value!r}" if isinstance(value, (str, int, float)) else kind
 
 
 def load_weights(

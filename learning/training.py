@@ -58,6 +58,7 @@ import hashlib
 import io
 import logging
 import math
+import pickle
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -167,21 +168,27 @@ class TrainOptions:
                 raise OptionError(f"training option {key} must be an integer >= 0, got {value!r}")
         for key in ("patience", "val_horizon", "val_windows"):
             value = getattr(self, key)
-            if value is not None and (not isinstance(value, int) or value < 1):
-                raise OptionError(f"training option {key} must be None or an integer >= 1")
+            if value is not None and (
+                isinstance(value, bool) or not isinstance(value, int) or value < 1
+            ):
+                raise OptionError(
+                    f"training option {key} must be None or an integer >= 1, got {value!r}"
+                )
         for key in ("lr", "lr_final", "grad_clip"):
             value = getattr(self, key)
-            if value is not None and not (math.isfinite(value) and value > 0):
+            if value is not None and not (_real(value) and math.isfinite(value) and value > 0):
                 raise OptionError(f"training option {key} must be a positive number, got {value}")
         for key in ("weight_decay", "alpha_first"):
             value = getattr(self, key)
-            if not (math.isfinite(value) and value >= 0):
+            if not (_real(value) and math.isfinite(value) and value >= 0):
                 raise OptionError(f"training option {key} must be >= 0, got {value}")
-        if self.ema_decay is not None and not (0.0 < self.ema_decay < 1.0):
+        if self.ema_decay is not None and not (_real(self.ema_decay) and 0 < self.ema_decay < 1):
             raise OptionError(
                 f"training option ema_decay must be None or in (0, 1), got {self.ema_decay}"
             )
-        if self.device not in ("auto", "cpu", "cuda") and not self.device.startswith("cuda:"):
+        if not isinstance(self.device, str) or (
+            self.device not in ("auto", "cpu", "cuda") and not self.device.startswith("cuda:")
+        ):
             raise OptionError(f"device must be auto, cpu or cuda, got {self.device!r}")
 
     @property
@@ -220,6 +227,11 @@ class TrainOptions:
         if unknown:
             raise OptionError(f"unknown training option(s) {unknown}; known: {sorted(known)}")
         return cls(**data)
+
+
+def _real(value: Any) -> bool:
+    """A number as JSON holds one (a boolean is not), for the checks of a recorded option."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 @dataclass(frozen=True)
@@ -813,11 +825,21 @@ def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
         raise CheckpointError(f"no checkpoint to resume from: {path} does not exist")
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises several types for corrupt or unsafe files
-        raise CheckpointError(f"cannot read checkpoint {path}: {exc}") from exc
+    except pickle.UnpicklingError as exc:  # torch's advice to unpickle is wrong for user files
+        raise CheckpointError(
+            f"cannot read checkpoint {path}: it holds Python objects besides tensors, which "
+            "canonid never unpickles (a file not written by canonid, or tampered with)"
+        ) from exc
+    except Exception as exc:  # torch raises several types for corrupt files; its first line
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise CheckpointError(
+            f"cannot read checkpoint {path}: corrupt or truncated ({first})"
+        ) from exc
     if not isinstance(state, dict) or state.get("version") != CHECKPOINT_VERSION:
         raise CheckpointError(f"{path} is not a canonid training checkpoint (version)")
-    found = state["identity"]
+    found = state.get("identity")
+    if not isinstance(found, Mapping):
+        raise CheckpointError(f"{path} is not a canonid training checkpoint (no identity)")
     check_same(
         {"model": found.get("model"), "data": found.get("data")},
         {"model": identity["model"], "data": identity["data"]},

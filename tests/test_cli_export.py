@@ -162,9 +162,17 @@ def test_a_file_that_is_not_a_casadi_function_is_refused(tmp_path, content):
 def test_analyze_run_reports_the_learned_models_gamma_beside_the_true_systems(
     runs, tmp_path, capsys
 ):
+    # the run must be of data of `linear` (its names u1/y1 and dt = 1 s): trained here on those
+    ds = Dataset.load(runs / "data" / "dataset.npz")
+    ds = Dataset(splits=ds.splits, dt=1.0, input_names=("u1",), output_names=("y1",))
+    data = ds.save(tmp_path / "linear" / "dataset.npz")
+    run = tmp_path / "linear-mlp"
+    train = ["train", str(data), "--model", "mlp", "--window", str(ELL), "--residual"]
+    assert main([*train, "--hidden", "8,8", "--out", str(run), *COMMON]) == 0
+    capsys.readouterr()
     out = tmp_path / "analysis"
     argv = ["analyze", "linear", "--window", "3", "--trials", "5", "--budget", "30"]
-    argv += ["--boxes", "40", "--run", str(runs / "mlp"), "--learned-gamma"]
+    argv += ["--boxes", "40", "--run", str(run), "--learned-gamma"]
     argv += ["--out", str(out), "--quiet"]
     assert main(argv) == 0
     printed = capsys.readouterr().out
@@ -179,9 +187,14 @@ def test_analyze_run_reports_the_learned_models_gamma_beside_the_true_systems(
     )
     assert "product of layer norms" in gamma["layer_norms"]["method"]
     # a non-canonical model: the residual check as before, γ_f says why it is missing
-    argv[argv.index(str(runs / "mlp"))] = str(runs / "classic-gru")
+    gru = tmp_path / "linear-gru"
+    train = ["train", str(data), "--model", "classic-gru", "--window", str(ELL), "--out", str(gru)]
+    assert main([*train, *COMMON]) == 0
+    capsys.readouterr()
+    argv[argv.index(str(run))] = str(gru)
     assert main(argv) == 0
-    assert "not computed (only canonical models export" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "not computed (only canonical models export" in printed, printed
 
 
 def _python_blocks(markdown: str) -> list[str]:

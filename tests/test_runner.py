@@ -58,8 +58,10 @@ def test_bad_arguments_and_unreachable_scheduler_are_clear_errors():
         run_jobs(abs, [1], workers=-1, progress=False)
     with pytest.raises(RunnerError, match=r"scheduler at .* refused the connection"):
         run_jobs(abs, [1], scheduler="tcp://127.0.0.1:1", connect_timeout=1.0, progress=False)
-    with pytest.raises(RunnerError, match=r"scheduler at .* did not answer"):
+    with pytest.raises(RunnerError, match=r"scheduler address 'not-an-address' is malformed"):
         run_jobs(abs, [1], scheduler="not-an-address", connect_timeout=1.0, progress=False)
+    with pytest.raises(RunnerError, match=r"scheduler at .* did not answer"):
+        run_jobs(abs, [1], scheduler="inproc://nobody", connect_timeout=1.0, progress=False)
 
 
 def test_canonid_errors_are_not_retried():

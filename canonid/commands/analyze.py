@@ -53,7 +53,8 @@ def register(sub: Any) -> None:
         type=float,
         default=20.0,
         metavar="SECONDS",
-        help="wall-clock limit of each certified branch-and-bound search (default 20)",
+        help="wall-clock limit of each stage (default 20): each certified branch-and-bound "
+        "search and each sampled bound, checked between steps; loading the run not counted",
     )
     p.add_argument(
         "--boxes",
