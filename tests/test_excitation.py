@@ -214,3 +214,23 @@ def test_a_design_changes_the_inputs_and_nothing_drawn_before_it(tmp_path):
 def test_unknown_reference_family_is_refused():
     with pytest.raises(ShapeError, match="reference family 'zigzag' does not apply to drone2d"):
         GenerationConfig(system="drone2d", references="zigzag")
+
+
+def test_generate_command_takes_a_design_and_prints_its_informativeness(tmp_path):
+    from canonid.cli import main
+
+    out = tmp_path / "d"
+    argv = ["generate", "drone2d", "--n-train", "1", "--n-val", "0", "--n-test", "0"]
+    argv += ["--steps", "90", "--excitation", "prbs", "--clock", "3", "--amplitude", "4,2"]
+    assert main([*argv, "--out", str(out), "--no-progress"]) == 0
+    design = Dataset.load(out).metadata["generation"]["design"]
+    assert design == {**design, "kind": "prbs", "clock_samples": 3, "rms": [4.0, 2.0]}
+
+
+def test_generate_command_refuses_design_options_without_excitation(tmp_path, capsys):
+    from canonid.cli import main
+
+    code = main(["generate", "drone2d", "--lines", "3", "--out", str(tmp_path / "d")])
+    assert code != 0
+    assert "--amplitude, --band, --lines and --clock need --excitation" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()
