@@ -63,7 +63,7 @@ import numpy as np
 from canonid.datagen.chunks import cut_chunks
 from canonid.datagen.controllers.base import Controller
 from canonid.datagen.excitation import InputDesign
-from canonid.datagen.informativeness import measure_informativeness
+from canonid.datagen.informativeness import Informativeness, measure_informativeness
 from canonid.datagen.scenarios import ReferenceSampler, Scenario, get_scenario
 from canonid.datagen.simulate import Excitation, noise_box, simulate_closed_loop
 from canonid.kernel.dataset import Dataset, Trajectory
@@ -290,6 +290,7 @@ class GenerationResult:
         resumed: flights taken from existing parts.
         solver_failures: failed controller steps in the kept flights (all fell back).
         replaced: flights that were regenerated with a new seed at least once.
+        informativeness: the measure written into the metadata (designed configurations only).
     """
 
     path: Path
@@ -299,6 +300,7 @@ class GenerationResult:
     solver_failures: int
     replaced: int
     chunks: dict[str, int] | None = None
+    informativeness: Informativeness | None = None
 
 
 def plan_flights(config: GenerationConfig) -> list[FlightJob]:
@@ -588,6 +590,7 @@ def generate_dataset(
     }
     kept = [tr for trs in splits.values() for tr in trs]
     metadata = _metadata(config)
+    measure = None
     if config.designed and splits["train"]:
         measure = measure_informativeness(
             [(tr.u, tr.y) for tr in splits["train"]],
@@ -622,4 +625,5 @@ def generate_dataset(
         solver_failures=sum(int(tr.info.get("solver_failures", 0)) for tr in kept),
         replaced=sum(1 for tr in kept if tr.info.get("replaced")),
         chunks=dataset.counts() if chunk is not None else None,
+        informativeness=measure,
     )
