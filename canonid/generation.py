@@ -20,6 +20,7 @@ from canonid.kernel.errors import OptionError
 from canonid.kernel.io import atomic_write_figure
 
 if TYPE_CHECKING:
+    from canonid.datagen.excitation import InputDesign
     from canonid.datagen.generate import FlightResult
     from canonid.kernel.dataset import Dataset
 
@@ -43,6 +44,9 @@ class GenerateRequest:
         horizon, steps: the MPC horizon; samples per flight. out: the dataset's folder.
         workers, scheduler, resume, plot, progress: where the flights run; keep finished
             flights; draw a few; a progress bar.
+        excitation, amplitude, band, lines, clock: an input design added to the controller's
+            command (``multisine`` or ``prbs``, :mod:`canonid.datagen.excitation`), as given.
+        references: a reference family of the scenario (e.g. ``steps``).
     """
 
     system: str
@@ -57,6 +61,42 @@ class GenerateRequest:
     resume: bool = False
     plot: bool = False
     progress: bool = True
+    excitation: str | None = None
+    amplitude: str | None = None
+    band: str | None = None
+    lines: int | None = None
+    clock: int | None = None
+    references: str | None = None
+
+
+def _numbers(text: str, option: str) -> tuple[float, ...]:
+    try:
+        return tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise OptionError(f"{option} must be numbers separated by commas, got {text!r}") from None
+
+
+def _design(request: GenerateRequest) -> InputDesign | None:
+    from canonid.datagen.excitation import design_from_options
+
+    given = [request.amplitude, request.band, request.lines, request.clock]
+    if request.excitation is None:
+        if any(v is not None for v in given):
+            raise OptionError("--amplitude, --band, --lines and --clock need --excitation")
+        return None
+    band = None
+    if request.band is not None:
+        band = _numbers(request.band, "--band")
+        if len(band) != 2:
+            raise OptionError(f"--band must be LOW,HIGH in Hz, got {request.band!r}")
+    amplitude = None if request.amplitude is None else _numbers(request.amplitude, "--amplitude")
+    return design_from_options(
+        request.excitation,
+        amplitude=amplitude,
+        band=band,
+        lines=request.lines,
+        clock=request.clock,
+    )
 
 
 def _noise(text: str | None) -> float | tuple[float, ...] | None:
@@ -81,7 +121,6 @@ def generate(request: GenerateRequest) -> str:
     from canonid.datagen.scenarios import get_scenario
     from canonid.jobs import check_folder
     from canonid.kernel.dataset import Dataset
-    from canonid.models.registry import get_system
     from canonid.runner import run_jobs
 
     system = request.system
@@ -93,6 +132,8 @@ def generate(request: GenerateRequest) -> str:
         noise=_noise(request.noise),
         controller_options={} if request.horizon is None else {"horizon": request.horizon},
         T=request.steps,
+        design=_design(request),
+        references=request.references,
     )
     if request.workers < 0:
         raise OptionError(f"--workers must be >= 0, got {request.workers}")
@@ -114,9 +155,16 @@ def generate(request: GenerateRequest) -> str:
         chunks_text = ", ".join(f"{k} {v}" for k, v in result.chunks.items())
         length = get_scenario(system).chunk_length
         lines.append(f"  flights cut into {length}-sample chunks: {chunks_text} chunks")
-    stand_in = get_system(system).simulated_stand_in_for
+    stand_in = config.true_system.simulated_stand_in_for
     if stand_in:
         lines.append(f"  SIMULATED data: {system} is a simulated stand-in for {stand_in}")
+    if result.informativeness is not None:
+        info = result.informativeness
+        lines.append(
+            f"  informativeness (window {info.window}): smallest eigenvalue of the regressor "
+            f"covariance {info.smallest:.3g}, of the inputs given the outputs "
+            f"{info.input_given_outputs:.3g} (dataset.json: metadata.informativeness)"
+        )
     lines.append(
         f"  generated {result.generated}, resumed {result.resumed}; solver failures (fell back) "
         f"{result.solver_failures}; flights regenerated with a new seed {result.replaced}"

@@ -6,9 +6,15 @@ function of the :class:`GenerationConfig` and its position: its generator is see
 the flight had to be regenerated), so no random stream is shared between flights and the result
 does not depend on which process ran which flight, nor in what order.
 
-Within a flight the seed sequence spawns two children: the first draws the reference, the second
-the simulation's random numbers (noise, excitation, loose steps; see
-:mod:`canonid.datagen.simulate`).
+Within a flight the seed sequence spawns three children: the first draws the reference, the
+second the simulation's random numbers (noise, excitation, loose steps; see
+:mod:`canonid.datagen.simulate`), the third the input design's signal (phases or levels; see
+:mod:`canonid.datagen.excitation`), used only when there is a design. The first two are the
+children a dataset without a design always had, so its bytes did not change.
+
+A configuration with an input design or another reference family (the scenario's, e.g.
+``drone2d-id``, or the caller's) also records the informativeness of its training flights
+(:mod:`canonid.datagen.informativeness`) in the metadata's ``informativeness``.
 
 Training flight ``i`` is *loose* when ``⌊(i+1)·f⌋ > ⌊i·f⌋`` with ``f`` the scenario's loose
 fraction: exactly ``⌊n·f⌋`` of ``n`` flights, spread evenly (every fifth for ``f = 0.2``).
@@ -56,7 +62,9 @@ import numpy as np
 
 from canonid.datagen.chunks import cut_chunks
 from canonid.datagen.controllers.base import Controller
-from canonid.datagen.scenarios import Scenario, get_scenario
+from canonid.datagen.excitation import InputDesign
+from canonid.datagen.informativeness import Informativeness, measure_informativeness
+from canonid.datagen.scenarios import ReferenceSampler, Scenario, get_scenario
 from canonid.datagen.simulate import Excitation, noise_box, simulate_closed_loop
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError, ShapeError
@@ -129,7 +137,8 @@ class GenerationConfig:
     """What to generate; validated on construction.
 
     Attributes:
-        system: a system with a scenario (:func:`canonid.datagen.scenarios.scenario_names`).
+        system: a scenario's name (:func:`canonid.datagen.scenarios.scenario_names`): a
+            system's, or a named design such as ``drone2d-id``.
         seed: the root seed (integer >= 0).
         counts: flights per split; splits left out get the scenario's default size.
         noise: measurement-noise half-width(s), see :func:`canonid.datagen.simulate.noise_box`;
@@ -137,6 +146,10 @@ class GenerationConfig:
         controller_options: overrides passed to the scenario's controller factory (only the
             names the scenario lists, e.g. ``{"horizon": 20}``).
         T: samples per flight; ``None`` uses the scenario's.
+        design: an input design added to the controller's command
+            (:mod:`canonid.datagen.excitation`); ``None`` uses the scenario's (most have none).
+        references: a reference family of the scenario (``Scenario.reference_families``);
+            ``None`` uses the scenario's own reference.
     """
 
     system: str
@@ -145,9 +158,17 @@ class GenerationConfig:
     noise: float | tuple[float, ...] | None = None
     controller_options: Mapping[str, Any] = field(default_factory=dict)
     T: int | None = None
+    design: InputDesign | None = None
+    references: str | None = None
 
     def __post_init__(self) -> None:
         scenario = get_scenario(self.system)
+        if self.references is not None and self.references not in scenario.reference_families:
+            accepted = ", ".join(scenario.reference_families) or "none"
+            raise ShapeError(
+                f"reference family {self.references!r} does not apply to {self.system} "
+                f"(accepted: {accepted})"
+            )
         if not (isinstance(self.seed, (int, np.integer)) and self.seed >= 0):
             raise ShapeError(f"seed must be an integer >= 0, got {self.seed!r}")
         counts = dict(scenario.split_sizes)
@@ -180,11 +201,36 @@ class GenerationConfig:
             object.__setattr__(self, "noise", float(self.noise))
         elif self.noise is not None:
             object.__setattr__(self, "noise", tuple(float(v) for v in self.noise))
-        noise_box(_system(self.system), self.noise)  # raises if outside W
+        system = _system(scenario.system)
+        noise_box(system, self.noise)  # raises if outside W
+        if self.input_design is not None:  # a band too narrow for T fails before any flight
+            self.input_design.signal(np.random.default_rng(0), self.steps, system.dt, system.n_u)
 
     @property
     def scenario(self) -> Scenario:
         return get_scenario(self.system)
+
+    @property
+    def true_system(self) -> System:
+        """The system the scenario flies."""
+        return _system(self.scenario.system)
+
+    @property
+    def input_design(self) -> InputDesign | None:
+        """The design added to the commands: the configuration's, else the scenario's."""
+        return self.design if self.design is not None else self.scenario.design
+
+    @property
+    def reference_sampler(self) -> ReferenceSampler:
+        scenario = self.scenario
+        if self.references is None:
+            return scenario.reference
+        return scenario.reference_families[self.references]
+
+    @property
+    def designed(self) -> bool:
+        """Whether the configuration departs from a plain scenario (its data are measured)."""
+        return self.input_design is not None or self.references is not None
 
     @property
     def steps(self) -> int:
@@ -201,6 +247,9 @@ class GenerationConfig:
             else list(self.noise),
             "controller_options": dict(sorted(self.controller_options.items())),
             "T": self.steps,
+            # only when given: the configurations of earlier datasets keep their JSON
+            **({} if self.design is None else {"design": self.design.describe()}),
+            **({} if self.references is None else {"references": self.references}),
         }
 
 
@@ -241,6 +290,7 @@ class GenerationResult:
         resumed: flights taken from existing parts.
         solver_failures: failed controller steps in the kept flights (all fell back).
         replaced: flights that were regenerated with a new seed at least once.
+        informativeness: the measure written into the metadata (designed configurations only).
     """
 
     path: Path
@@ -250,6 +300,7 @@ class GenerationResult:
     solver_failures: int
     replaced: int
     chunks: dict[str, int] | None = None
+    informativeness: Informativeness | None = None
 
 
 def plan_flights(config: GenerationConfig) -> list[FlightJob]:
@@ -297,14 +348,14 @@ def _controller_for(config: GenerationConfig) -> Controller:
     key = (config.system, factory, json.dumps(config.controller_options, sort_keys=True))
     cache = _controller_cache()
     if key not in cache:
-        cache[key] = factory(_system(config.system), config.controller_options)
+        cache[key] = factory(config.true_system, config.controller_options)
     return cache[key]
 
 
 def run_flight(job: FlightJob) -> FlightResult:
     """Simulate one flight, regenerating it with the next seed while it fails (module docs)."""
     config, scenario = job.config, job.config.scenario
-    system, controller = _system(config.system), _controller_for(config)
+    system, controller = config.true_system, _controller_for(config)
     noise = noise_box(system, config.noise)
     loose = is_loose(job.split, job.index, scenario.loose_fraction)
     excitation = Excitation(
@@ -312,12 +363,19 @@ def run_flight(job: FlightJob) -> FlightResult:
         loose_probability=scenario.loose_probability if loose else 0.0,
         loose_std=scenario.loose_std,
     )
+    design = config.input_design
     allowed = int(scenario.max_failure_fraction * config.steps)
     replaced: list[dict[str, Any]] = []
     for attempt in range(scenario.max_attempts):
         seq = flight_seed(config.seed, job.split, job.index, attempt)
-        reference_seq, simulation_seq = seq.spawn(2)
-        reference = scenario.reference(system, np.random.default_rng(reference_seq), config.steps)
+        reference_seq, simulation_seq, design_seq = seq.spawn(3)
+        reference = config.reference_sampler(
+            system, np.random.default_rng(reference_seq), config.steps
+        )
+        signal = None
+        if design is not None:
+            rng = np.random.default_rng(design_seq)
+            signal = design.signal(rng, config.steps, system.dt, system.n_u)
         loop = simulate_closed_loop(
             system,
             controller,
@@ -327,6 +385,7 @@ def run_flight(job: FlightJob) -> FlightResult:
             noise=noise,
             excitation=excitation,
             clip_input=scenario.clip_input,
+            input_signal=signal,
         )
         spawn_key = [int(k) for k in seq.spawn_key]
         if loop.diverged_at is None and loop.failures <= allowed:
@@ -368,7 +427,13 @@ def _versions() -> dict[str, str]:
 
 
 def _metadata(config: GenerationConfig) -> dict[str, Any]:
-    system = _system(config.system)
+    system = config.true_system
+    seeding = (
+        "flight (split, index) uses SeedSequence(seed, spawn_key=(split_code, index, "
+        "attempt)); children 0 and 1 draw the reference and the simulation noise"
+    )
+    if config.input_design is not None:
+        seeding += ", child 2 the input design's signal"
     return {
         "source": "canonid generate",
         "simulated": True,
@@ -387,10 +452,7 @@ def _metadata(config: GenerationConfig) -> dict[str, Any]:
             "box": noise_box(system, config.noise).to_dict(),
             "inside_W": True,
         },
-        "seeding": (
-            "flight (split, index) uses SeedSequence(seed, spawn_key=(split_code, index, "
-            "attempt)); children 0 and 1 draw the reference and the simulation noise"
-        ),
+        "seeding": seeding,
         "split_codes": dict(SPLIT_CODES),
         "versions": _versions(),
     }
@@ -479,7 +541,7 @@ def generate_dataset(
     """
     out_dir = Path(out)
     parts = out_dir / PARTS
-    system = _system(config.system)
+    system = config.true_system
     dataset_path = out_dir / DATASET_FILE
     jobs = plan_flights(config)
     finished: dict[str, Trajectory] = {}
@@ -527,6 +589,16 @@ def generate_dataset(
         for split in SPLIT_CODES
     }
     kept = [tr for trs in splits.values() for tr in trs]
+    metadata = _metadata(config)
+    measure = None
+    if config.designed and splits["train"]:
+        measure = measure_informativeness(
+            [(tr.u, tr.y) for tr in splits["train"]],
+            window=config.scenario.measure_window,
+            dt=system.dt,
+            input_names=system.input_names,
+        )
+        metadata["informativeness"] = measure.to_dict()
     chunk = config.scenario.chunk_length
     flights = {split: len(trs) for split, trs in splits.items()}
     if chunk is not None:
@@ -540,7 +612,7 @@ def generate_dataset(
         input_names=system.input_names,
         output_names=system.output_names,
         state_names=system.state_names,
-        metadata=_metadata(config),
+        metadata=metadata,
     )
     dataset.save(dataset_path)
     if not keep_parts:
@@ -553,4 +625,5 @@ def generate_dataset(
         solver_failures=sum(int(tr.info.get("solver_failures", 0)) for tr in kept),
         replaced=sum(1 for tr in kept if tr.info.get("replaced")),
         chunks=dataset.counts() if chunk is not None else None,
+        informativeness=measure,
     )

@@ -18,6 +18,7 @@ __all__ = [
     "DRONE2D_REFERENCE_NAMES",
     "TANK_REFERENCE_NAMES",
     "drone2d_reference",
+    "drone2d_step_reference",
     "tank_reference",
 ]
 
@@ -102,4 +103,34 @@ def drone2d_reference(
     ref = np.zeros((T, 6))
     ref[:, 0:2] = spline(times)
     ref[:, 3:5] = spline(times, 1)
+    return ref
+
+
+def drone2d_step_reference(
+    rng: np.random.Generator,
+    *,
+    T: int = 600,
+    dt: float = 1.0 / 30.0,
+    hold: tuple[float, float] = (1.0, 3.0),
+    half_width: float = 2.0,
+) -> np.ndarray:
+    """Position steps for the planar drone, shape ``(T, 6)``, columns as
+    :func:`drone2d_reference`: targets that jump, so the controller tilts hard to follow.
+
+    Each target ``(px, pz)`` is drawn uniformly in ``[−half_width, half_width]²`` and held for a
+    duration drawn uniformly in ``hold`` (seconds); velocity, angle and rate targets are 0. The
+    first target holds from sample 0 (a flight that starts on the reference starts at rest there).
+    """
+    T = _require_positive_int(T, "T", minimum=2)
+    if not (dt > 0 and half_width > 0 and 0 < hold[0] <= hold[1]):
+        raise ShapeError(
+            f"dt and half_width must be > 0 and hold (min, max) seconds with 0 < min <= max, got "
+            f"dt={dt}, half_width={half_width}, hold={hold}"
+        )
+    ref = np.zeros((T, 6))
+    start = 0
+    while start < T:
+        length = max(1, round(rng.uniform(hold[0], hold[1]) / dt))
+        ref[start : start + length, 0:2] = rng.uniform(-half_width, half_width, size=2)
+        start += length
     return ref

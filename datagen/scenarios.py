@@ -9,12 +9,13 @@ call (or one entry in ``_SCENARIOS``); :mod:`canonid.datagen.generate` needs not
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
+from canonid.datagen.excitation import InputDesign, Multisine
 from canonid.datagen.quadrotor_reference import (
     QUADROTOR_REFERENCE_NAMES,
     quadrotor_initial_state,
@@ -24,6 +25,7 @@ from canonid.datagen.references import (
     DRONE2D_REFERENCE_NAMES,
     TANK_REFERENCE_NAMES,
     drone2d_reference,
+    drone2d_step_reference,
     tank_reference,
 )
 from canonid.kernel.errors import ShapeError, UnknownSystemError
@@ -69,6 +71,14 @@ class Scenario:
             of a flight is dropped): the dataset's trajectories are the chunks, its splits still by
             flight.
         notes: one paragraph for the dataset metadata (what was chosen and why).
+        name: the scenario's name (default: ``system``); a system may have several, e.g. the
+            planar drone's paper scenario ``drone2d`` and its informative design ``drone2d-id``.
+        design: an input design added to every command (:mod:`canonid.datagen.excitation`), or
+            ``None``; a scenario with one also writes the informativeness of its training split
+            (:mod:`canonid.datagen.informativeness`) into the dataset metadata.
+        reference_families: other reference samplers a user may pick by name instead of
+            ``reference`` (``canonid generate --references NAME``).
+        measure_window: the window ℓ of the informativeness written into the metadata.
     """
 
     system: str
@@ -88,8 +98,16 @@ class Scenario:
     max_attempts: int = 5
     chunk_length: int | None = None
     notes: str = ""
+    name: str = ""
+    design: InputDesign | None = None
+    reference_families: Mapping[str, ReferenceSampler] = field(default_factory=dict)
+    measure_window: int = 10
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "name", self.name or self.system)
+        object.__setattr__(
+            self, "reference_families", MappingProxyType(dict(self.reference_families))
+        )
         if self.T < 2:
             raise ShapeError(f"scenario {self.system}: T must be >= 2, got {self.T}")
         if not 0.0 <= self.loose_fraction <= 1.0:
@@ -105,8 +123,12 @@ class Scenario:
         object.__setattr__(self, "split_sizes", MappingProxyType(dict(self.split_sizes)))
 
     def describe(self) -> dict[str, Any]:
-        """JSON-ready settings for the dataset metadata."""
+        """JSON-ready settings for the dataset metadata (the keys of the design only for a
+        scenario that has one: the paper's datasets keep their bytes)."""
+        named = {} if self.name == self.system else {"name": self.name}
+        designed = {} if self.design is None else {"design": self.design.describe()}
         return {
+            **named,
             "system": self.system,
             "T": self.T,
             "reference_names": list(self.reference_names),
@@ -119,6 +141,7 @@ class Scenario:
             "max_attempts": self.max_attempts,
             "chunk_length": self.chunk_length,
             "notes": self.notes,
+            **designed,
         }
 
 
@@ -146,6 +169,10 @@ DRONE2D_INPUT_WEIGHTS = (1e-3, 1e-3)
 
 def _drone2d_reference(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
     return drone2d_reference(rng, T=T, dt=system.dt)
+
+
+def _drone2d_steps(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
+    return drone2d_step_reference(rng, T=T, dt=system.dt)
 
 
 def _reference_start(system: System, reference: np.ndarray) -> np.ndarray:
@@ -209,6 +236,50 @@ _QUADROTOR = Scenario(
     ),
 )
 
+_DRONE2D = Scenario(
+    system="drone2d",
+    T=600,
+    split_sizes={"train": 500, "val": 20, "test": 20},
+    reference=_drone2d_reference,
+    reference_names=DRONE2D_REFERENCE_NAMES,
+    initial_state=_reference_start,
+    controller=_drone2d_nmpc,
+    controller_options=("horizon",),
+    excitation_std=1.0,
+    loose_fraction=0.2,
+    loose_probability=0.1,
+    loose_std=10.0,
+    clip_input=True,
+    reference_families={"spline": _drone2d_reference, "steps": _drone2d_steps},
+    notes=(
+        "Authors' generator: 5-10 waypoints in [-2, 2]^2 evenly spread over 20 s, cubic "
+        "spline, velocities from its derivative, angle target 0; each flight starts on the "
+        "reference's initial state. Nonlinear MPC (fatrop) with the authors' tracking weights "
+        "(5, 5, 0, 1, 1, 0.01); Gaussian excitation sigma = 1 rad/s on the applied rotor "
+        "speeds; every fifth training flight is loose (each step, with probability 0.1, the "
+        "previous input plus N(0, 10^2) replaces the controller's). Applied inputs are "
+        "clipped to U = [0, 250] rad/s (the authors' rotors allowed about 733 rad/s)."
+    ),
+)
+
+#: the informative design: a multisine on each rotor, on top of the paper's references,
+#: excitation and loose flights (RMS 10 rad/s or ±2 m steps leave the flight box in every flight:
+#: benchmarks/RESULTS.md, "Informative drone data")
+DRONE2D_ID_DESIGN = Multisine(band=(0.1, 5.0), lines=20, amplitude=5.0)
+
+_DRONE2D_ID = replace(
+    _DRONE2D,
+    name="drone2d-id",
+    design=DRONE2D_ID_DESIGN,
+    notes=(
+        "Informative design for identification for control (docs: Identifying for control). "
+        "As drone2d (references, NMPC, weights, excitation sigma = 1 rad/s, loose flights, U), "
+        "and each rotor speed gets a random-phase multisine, 20 lines per rotor interleaved on "
+        "the 0.05 Hz grid of a 20-s flight between 0.1 and 5 Hz, RMS 5 rad/s (about 4.5 % of "
+        "hover), added to the command before clipping to U."
+    ),
+)
+
 _SCENARIOS: dict[str, Scenario] = {
     "tank": Scenario(
         system="tank",
@@ -224,48 +295,26 @@ _SCENARIOS: dict[str, Scenario] = {
             "PID (4, 0.6, 4) on the true lower level, command not saturated, no excitation."
         ),
     ),
-    "drone2d": Scenario(
-        system="drone2d",
-        T=600,
-        split_sizes={"train": 500, "val": 20, "test": 20},
-        reference=_drone2d_reference,
-        reference_names=DRONE2D_REFERENCE_NAMES,
-        initial_state=_reference_start,
-        controller=_drone2d_nmpc,
-        controller_options=("horizon",),
-        excitation_std=1.0,
-        loose_fraction=0.2,
-        loose_probability=0.1,
-        loose_std=10.0,
-        clip_input=True,
-        notes=(
-            "Authors' generator: 5-10 waypoints in [-2, 2]^2 evenly spread over 20 s, cubic "
-            "spline, velocities from its derivative, angle target 0; each flight starts on the "
-            "reference's initial state. Nonlinear MPC (fatrop) with the authors' tracking weights "
-            "(5, 5, 0, 1, 1, 0.01); Gaussian excitation sigma = 1 rad/s on the applied rotor "
-            "speeds; every fifth training flight is loose (each step, with probability 0.1, the "
-            "previous input plus N(0, 10^2) replaces the controller's). Applied inputs are "
-            "clipped to U = [0, 250] rad/s (the authors' rotors allowed about 733 rad/s)."
-        ),
-    ),
+    "drone2d": _DRONE2D,
+    "drone2d-id": _DRONE2D_ID,
     "quadrotor": _QUADROTOR,
 }
 
 
 def register_scenario(scenario: Scenario) -> None:
-    """Add a scenario (raises if its system already has one)."""
-    if scenario.system in _SCENARIOS:
-        raise ValueError(f"system {scenario.system!r} already has a scenario")
-    _SCENARIOS[scenario.system] = scenario
+    """Add a scenario under its name (raises if the name is taken)."""
+    if scenario.name in _SCENARIOS:
+        raise ValueError(f"scenario {scenario.name!r} already exists")
+    _SCENARIOS[scenario.name] = scenario
 
 
 def scenario_names() -> list[str]:
-    """Systems that have a generation scenario, in registration order."""
+    """The scenarios' names (systems and named designs), in registration order."""
     return list(_SCENARIOS)
 
 
 def get_scenario(name: str) -> Scenario:
-    """The scenario of system ``name``."""
+    """The scenario called ``name`` (a system's name or a named design, e.g. ``drone2d-id``)."""
     try:
         return _SCENARIOS[name]
     except KeyError:

@@ -8,7 +8,9 @@ Time convention (the one of :mod:`canonid.kernel.dataset`): for ``t = 0 … T−
   Gaussian perturbation, ``c[t] = u[t−1] + N(0, loose_std²)`` (``u[−1]`` = the controller's
   value), for state-space coverage;
 * the applied input is ``u[t] = c[t] + e[t]`` with Gaussian excitation ``e[t] ~ N(0,
-  excitation_std²)``, clipped to the system's input box U when ``clip_input`` is set;
+  excitation_std²)`` plus the input design's signal ``d[t]`` when one is given
+  (:mod:`canonid.datagen.excitation`), clipped to the system's input box U when ``clip_input`` is
+  set; ``u[t]`` is what the flight records (the input *as applied*);
 * ``x[t+1] = f(x[t], u[t])``, ``y_clean[t] = h(x[t], u[t])`` and ``y[t] = y_clean[t] + w[t]`` with
   ``w[t]`` uniform in the noise box (a sub-box of the system's W).
 
@@ -138,6 +140,7 @@ def simulate_closed_loop(
     excitation: Excitation | None = None,
     clip_input: bool = False,
     step_by_step: bool = False,
+    input_signal: np.ndarray | None = None,
 ) -> ClosedLoop:
     """Run ``controller`` on ``system`` for ``T = len(reference)`` samples from ``x0``.
 
@@ -152,6 +155,7 @@ def simulate_closed_loop(
         clip_input: clip applied inputs to the system's U (after excitation).
         step_by_step: call the controller once per step even when it offers a compiled loop
             (the reference the compiled loop is tested and benchmarked against).
+        input_signal: ``(T, n_u)`` design signal added to every command with the excitation.
     """
     ref = np.asarray(reference, dtype=np.float64)
     ref = as_matrix(ref, ref.shape[1] if ref.ndim == 2 else 1, "reference")
@@ -166,6 +170,10 @@ def simulate_closed_loop(
     e = exc.std * rng.standard_normal((T, system.n_u))
     loose = np.less(rng.random(T), exc.loose_probability)
     kicks = exc.loose_std * rng.standard_normal((T, system.n_u))
+    if input_signal is not None:
+        e = e + as_matrix(
+            np.asarray(input_signal, dtype=np.float64), system.n_u, "input signal", rows=T
+        )
 
     compiled = None if step_by_step else controller.compiled_loop()
     if compiled is not None and compiled.system is system:

@@ -24,7 +24,10 @@ def register(sub: Any) -> None:
         "tracked by the system's controller, bounded measurement noise, train/val/test splits. "
         "Writes DIR/dataset.npz and DIR/dataset.json.",
     )
-    p.add_argument("system", help=f"the system ({', '.join(scenario_names())})")
+    p.add_argument(
+        "system",
+        help=f"the scenario: a system or a named design ({', '.join(scenario_names())})",
+    )
     p.add_argument(
         "--out",
         type=_paths.folder,
@@ -50,6 +53,22 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--steps", type=int, metavar="T", help="samples per flight (default: the system's)"
     )
+    design = p.add_argument_group("experiment design (docs: Identifying for control)")
+    design.add_argument(
+        "--excitation",
+        choices=("multisine", "prbs"),
+        help="add a signal to the controller's command (the applied input, clipped to U, is "
+        "recorded): a random-phase multisine or a PRBS",
+    )
+    design.add_argument(
+        "--amplitude", metavar="RMS", help="its RMS per input, one number or one per input"
+    )
+    design.add_argument("--band", metavar="LOW,HIGH", help="multisine band in Hz")
+    design.add_argument("--lines", type=int, metavar="N", help="multisine lines per input")
+    design.add_argument("--clock", type=int, metavar="N", help="PRBS: samples each level holds")
+    design.add_argument(
+        "--references", metavar="FAMILY", help="another reference family (drone2d: steps)"
+    )
     _options.add_where(p, jobs="simulate the flights", sees="--out")
     p.add_argument(
         "--resume", action="store_true", help="keep finished flights of an interrupted run"
@@ -63,8 +82,9 @@ def register(sub: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     options = ("system", "seed", "noise", "horizon", "steps", "out", "workers", "scheduler")
+    design = ("excitation", "amplitude", "band", "lines", "clock", "references")
     request = GenerateRequest(
-        **{key: getattr(args, key) for key in (*options, "resume", "plot")},
+        **{key: getattr(args, key) for key in (*options, *design, "resume", "plot")},
         counts={
             k: n for k in ("train", "val", "test") if (n := getattr(args, f"n_{k}")) is not None
         },
