@@ -38,9 +38,7 @@ def _prose(text: str) -> str:
         text,
     )
     # in a span: Python-Markdown takes a line that starts with <math> for an HTML block
-    return _INLINE.sub(
-        lambda m: f'<span class="math">{_mathml(m.group(1), "inline")}</span>', text
-    )
+    return _INLINE.sub(lambda m: f'<span class="math">{_mathml(m.group(1), "inline")}</span>', text)
 
 
 def render(markdown: str) -> str:
