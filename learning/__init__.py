@@ -19,6 +19,10 @@ from __future__ import annotations
 from canonid.kernel.lazy import lazy_exports
 
 _EXPORTS = {
+    "BatchedResult": "canonid.learning.batched",
+    "Candidate": "canonid.learning.batched",
+    "candidate_grid": "canonid.learning.batched",
+    "fit_batched": "canonid.learning.batched",
     "Normalisation": "canonid.learning.data",
     "Evaluation": "canonid.learning.evaluate",
     "Scores": "canonid.learning.evaluate",
