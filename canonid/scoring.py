@@ -60,6 +60,7 @@ class EvaluateRequest:
 
 def score_run(request: EvaluateRequest) -> RunEvaluation:
     """Score the model of ``request.run``; write its ``metrics.json`` and ``rollouts.png``."""
+    from canonid.jobs import run_folder_lock
     from canonid.learning import Model
     from canonid.runfolder import eval_defaults, evaluate_run, pick_split
 
@@ -80,16 +81,17 @@ def score_run(request: EvaluateRequest) -> RunEvaluation:
         where=f"{data_path} [{name}]",
         fit=request.horizon is None,
     )
-    return evaluate_run(
-        request.run,
-        model,
-        dataset,
-        data_path=data_path,
-        split=name,
-        horizon=horizon,
-        stride=request.stride,
-        n_init=request.n_init,
-    )
+    with run_folder_lock(request.run, flag="RUN"):  # no other writer of the run meanwhile
+        return evaluate_run(
+            request.run,
+            model,
+            dataset,
+            data_path=data_path,
+            split=name,
+            horizon=horizon,
+            stride=request.stride,
+            n_init=request.n_init,
+        )
 
 
 def scoring_data(
@@ -141,12 +143,19 @@ def check_signal_names(
     ``input_names`` / ``output_names``, where recorded): ``u``/``y`` scoring a model of
     ``pump``/``level`` is data of another system far more often than the same signals renamed.
     Columns chosen ``explicit``-ly with ``--inputs``/``--outputs`` are the user's statement
-    that they are the run's signals, and are accepted."""
+    that they are the run's signals, and are accepted; so are data without names (arrays of an
+    ``.npz``, which the loader calls ``u1``, ``y1``, …)."""
     if explicit:
         return
     theirs = {"inputs": list(dataset.input_names), "outputs": list(dataset.output_names)}
     ours = {"inputs": info.get("input_names"), "outputs": info.get("output_names")}
-    differ = [k for k in theirs if ours[k] is not None and list(ours[k]) != theirs[k]]
+    generated = {"inputs": "u", "outputs": "y"}  # the loader's names for unnamed arrays
+    unnamed = {
+        k: theirs[k] == [f"{generated[k]}{i + 1}" for i in range(len(theirs[k]))] for k in theirs
+    }
+    differ = [
+        k for k in theirs if ours[k] is not None and not unnamed[k] and list(ours[k]) != theirs[k]
+    ]
     if differ:
         raise DataError(
             f"{where}: signals "

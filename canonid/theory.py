@@ -13,6 +13,7 @@ The module imports neither torch nor CasADi; the analysis loads them.
 
 from __future__ import annotations
 
+import logging
 import math
 import sys
 from collections.abc import Mapping
@@ -21,6 +22,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from canonid.kernel.errors import CanonidError, DataError, OptionError, SetError
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from canonid.analysis.estimate import Budget
@@ -76,7 +79,7 @@ class AnalysisOutcome:
 def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
     """Run the analysis of ``request`` (see the module docstring)."""
     from canonid.analysis.report import analyze
-    from canonid.jobs import check_folder
+    from canonid.jobs import check_folder, run_folder_lock
     from canonid.models.registry import get_system
 
     if request.window is not None and request.window < 1:
@@ -141,7 +144,8 @@ def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
             if request.learned_gamma
             else {"available": False, "why": "not asked for (--learned-gamma)"}
         )
-    json_path = report.write_json(out / "analysis.json")
+    with run_folder_lock(out):  # one writer of the analysis folder at a time
+        json_path = report.write_json(out / "analysis.json")
     lines = [report.table()]
     if report.learned:
         res = report.learned["residual"]
@@ -228,15 +232,22 @@ def _check_run_matches_system(
     run_dir: Path, info: Mapping[str, Any], n_u: int, n_y: int, system: Any
 ) -> None:
     """Refuse a run that was not trained on data of ``system``: the numbers of inputs and
-    outputs always; the sampling time and the signal names where the run records them
-    (``config.json`` ``info``: a model saved without data records none)."""
+    outputs always, the sampling time where the run records it (``config.json`` ``info``: a
+    model saved without data records none). Signal names that differ only warn: a CSV's column
+    names are the user's labels (``pump``, ``level``), the registry's are generic (``u``, ``y``)."""
     have = {"number of inputs": n_u, "number of outputs": n_y}
     want: dict[str, Any] = {"number of inputs": system.n_u, "number of outputs": system.n_y}
     if info.get("dt") is not None:
         have["sampling time dt"], want["sampling time dt"] = float(info["dt"]), system.dt
-    for key, label in (("input_names", "input names"), ("output_names", "output names")):
-        if info.get(key) is not None:
-            have[label], want[label] = list(info[key]), list(getattr(system, key))
+    renamed = [
+        f"{label} {list(info[key])!r} (the run) vs {list(getattr(system, key))!r}"
+        for key, label in (("input_names", "input names"), ("output_names", "output names"))
+        if info.get(key) is not None and list(info[key]) != list(getattr(system, key))
+    ]
+    if renamed:
+        log.warning(
+            "--run %s: %s; compared as the same signals, in order", run_dir, "; ".join(renamed)
+        )
     differ = [
         f"{label} {have[label]!r} (the run) vs {want[label]!r} ({system.name})"
         for label in have
@@ -254,7 +265,7 @@ def _check_run_matches_system(
 
 def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
     """``canonid analyze --run RUN`` without a system: γ_f of the learned model alone."""
-    from canonid.jobs import check_folder
+    from canonid.jobs import check_folder, run_folder_lock
     from canonid.kernel.io import atomic_write_json, jsonable
     from canonid.learning import Model
 
@@ -282,7 +293,8 @@ def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
         "window": int(model.window),
         "gamma_f": record,
     }
-    path = atomic_write_json(out / "learned_analysis.json", jsonable(body))
+    with run_folder_lock(out):
+        path = atomic_write_json(out / "learned_analysis.json", jsonable(body))
     return AnalysisOutcome(
         f"learned model ({body['model']}), ℓ = {body['window']}; no registered system, so no "
         "α_ℓ and no Proposition 2 bound (they need the true system)\n"

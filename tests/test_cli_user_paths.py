@@ -95,10 +95,19 @@ def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
     one_line_error(capsys, code, "--dt apply to --data FILE")
 
 
-def test_analyze_run_checks_a_csv_trained_tank_model(trained, tmp_path, capsys):
+def test_analyze_run_checks_a_csv_trained_tank_model(trained, csv_files, tmp_path, capsys):
     out = tmp_path / "analysis"
-    argv = ["analyze", "tank", "--run", str(trained), "--window", "3", "--trials", "5"]
     quick = ["--boxes", "40", "--budget", "5", "--quiet", "--out", str(out)]
+    # the shared run says dt = 2 s; the tank samples every 1 s: not the tank's data
+    argv = ["analyze", "tank", "--run", str(trained), "--window", "3", "--trials", "5"]
+    one_line_error(capsys, main([*argv, *quick]), "sampling time dt 2.0 (the run) vs 1.0 (tank)")
+    assert not out.exists()
+    # the same CSV at the tank's sampling time; its column names only differ (a warning)
+    run = tmp_path / "tank-dt1"
+    train_csv, val_csv, _ = csv_files
+    fit = ["train", str(train_csv), "--val", str(val_csv), *CSV_OPTIONS, "--dt", "1.0"]
+    assert main([*fit, "--model", "mlp", "--window", "3", *QUICK, "--out", str(run)]) == 0
+    argv = ["analyze", "tank", "--run", str(run), "--window", "3", "--trials", "5"]
     # CSV records carry no noise-free outputs: refused before the analysis runs
     one_line_error(capsys, main([*argv, *quick]), "needs the noise w = y − y_clean", "[val]")
     assert not out.exists()
@@ -112,8 +121,8 @@ def test_analyze_run_checks_a_csv_trained_tank_model(trained, tmp_path, capsys):
     learned = json.loads((out / "analysis.json").read_text())["learned"]
     assert learned["window"] == 3 and learned["split"] == "all"
     assert learned["data"] == str(test_npz) and learned["residual"]["rows"] == 128 - 3
-    code = main(["analyze", "drone2d", "--run", str(trained), "--window", "3", "--quiet"])
-    one_line_error(capsys, code, "the run has n_u=1, n_y=1; drone2d has 2, 3")
+    code = main(["analyze", "drone2d", "--run", str(run), "--window", "3", "--quiet"])
+    one_line_error(capsys, code, "number of inputs 1 (the run) vs 2 (drone2d)")
 
 
 def test_analyze_run_without_a_system_bounds_the_learned_model_alone(trained, tmp_path, capsys):
