@@ -289,7 +289,10 @@ def test_bad_run_folders_are_refused_by_every_reader(case, good, tmp_path, capsy
         (["analyze", "linear", "--window", "2", "--tol", "0"], "--tol must be a positive"),
         (["analyze", "linear", "--window", "2", "--tol", "-1"], "--tol must be a positive"),
         (["analyze", "linear", "--window", "2", "--data", "{data}"], "--data applies to --run"),
-        (["analyze", "drone2d", "--window", "2", "--run", "{run}"], "the run has n_u=1, n_y=1"),
+        (
+            ["analyze", "drone2d", "--window", "2", "--run", "{run}"],
+            "number of inputs 1 (the run) vs 2 (drone2d)",
+        ),
     ],
 )
 def test_bad_arguments_fail_in_one_line_before_any_work(argv, needle, good, tmp_path, capsys):
