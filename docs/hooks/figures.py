@@ -77,7 +77,8 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
     return get
 
 
-#: the row of RESULTS.md's "make demo" section that the pages quote: the latest timing
+#: the row of RESULTS.md's "make demo" section that the pages quote: the latest timing on an
+#: idle machine (later rows measured under load say so)
 DEMO_RUN = "quick profile with gradient clipping (Table 1 pinned without it)"
 _NOW = "3e-3, clip 1, skip from zero (now)"
 _NO_SKIP = "3e-3, clip 1"
