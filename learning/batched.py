@@ -55,7 +55,7 @@ from canonid.learning.training import (
     MAX_RECOVERIES,
     FitResult,
     TrainOptions,
-    _check_lengths,
+    _check_rollout_lengths,
     _draw_windows,
     _fit_validation_horizon,
     _validation_starts,
@@ -625,15 +625,7 @@ def fit_batched(
     windows = [int(c.get("window", window)) for c in candidates]
     shared: dict[int, TrainOptions] = {}
     for ell in dict.fromkeys(windows):
-        _check_lengths(train, ell, "training data")
-        _check_lengths(val, ell, "validation data")
-        longest = max(tr.T for tr in train)
-        if longest < ell + base.horizon:
-            raise ShapeError(
-                f"window ℓ = {ell} plus training rollout horizon {base.horizon} needs "
-                f"trajectories of at least {ell + base.horizon} samples; the longest training "
-                f"trajectory has {longest} (lower the horizon)"
-            )
+        _check_rollout_lengths(train, val, ell, base.horizon)
         shared[ell] = _fit_validation_horizon(base, ell, max(tr.T for tr in val))
     opts = [c.train_options(shared[ell]) for c, ell in zip(candidates, windows, strict=True)]
     config = preset_net_options("mlp", net_options)

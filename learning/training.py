@@ -314,6 +314,21 @@ def validation_loss(
     return total / count
 
 
+def _check_rollout_lengths(
+    train: Sequence[Trajectory], val: Sequence[Trajectory], window: int, horizon: int
+) -> None:
+    """Refuse data too short for window ℓ, or for ℓ plus the training rollout ``horizon``."""
+    _check_lengths(train, window, "training data")
+    _check_lengths(val, window, "validation data")
+    longest = max(tr.T for tr in train)
+    if longest < window + horizon:
+        raise ShapeError(
+            f"window ℓ = {window} plus training rollout horizon {horizon} needs "
+            f"trajectories of at least {window + horizon} samples; the longest training "
+            f"trajectory has {longest} (lower the horizon)"
+        )
+
+
 def _check_lengths(trajectories: Sequence[Trajectory], window: int, what: str) -> None:
     for i, tr in enumerate(trajectories):
         if tr.T < window + 1:
@@ -695,15 +710,7 @@ def fit_net(
             f"the normalisation is for n_u={norm.n_u}, n_y={norm.n_y}; the training data have "
             f"n_u={n_u}, n_y={n_y}"
         )
-    _check_lengths(train, window, "training data")
-    _check_lengths(val, window, "validation data")
-    longest = max(tr.T for tr in train)
-    if longest < window + opts.horizon:
-        raise ShapeError(
-            f"window ℓ = {window} plus training rollout horizon {opts.horizon} needs "
-            f"trajectories of at least {window + opts.horizon} samples; the longest training "
-            f"trajectory has {longest} (lower the horizon)"
-        )
+    _check_rollout_lengths(train, val, window, opts.horizon)
     opts = _fit_validation_horizon(opts, window, max(tr.T for tr in val))
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:

@@ -19,6 +19,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 import pytest
+from cli_helpers import one_line_error
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
@@ -76,13 +77,7 @@ def _edit_json(path: Path, edit) -> None:
 
 def _refused(capsys, argv: list[str], *needles: str) -> str:
     """``canonid ARGV`` exits 1 with one line on stderr holding every needle."""
-    code = main(argv)
-    err = capsys.readouterr().err
-    assert code == 1, err
-    assert len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
-    for needle in needles:
-        assert needle in err, err
-    return err
+    return one_line_error(capsys, main(argv), *needles)
 
 
 def _snapshot(folder: Path) -> dict[str, bytes]:
