@@ -84,11 +84,12 @@ def _design(request: GenerateRequest) -> InputDesign | None:
         if any(v is not None for v in given):
             raise OptionError("--amplitude, --band, --lines and --clock need --excitation")
         return None
-    band = None
+    band: tuple[float, float] | None = None
     if request.band is not None:
-        band = _numbers(request.band, "--band")
-        if len(band) != 2:
+        numbers = _numbers(request.band, "--band")
+        if len(numbers) != 2:
             raise OptionError(f"--band must be LOW,HIGH in Hz, got {request.band!r}")
+        band = (numbers[0], numbers[1])
     amplitude = None if request.amplitude is None else _numbers(request.amplitude, "--amplitude")
     return design_from_options(
         request.excitation,

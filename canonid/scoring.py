@@ -148,7 +148,7 @@ def check_signal_names(
     if explicit:
         return
     theirs = {"inputs": list(dataset.input_names), "outputs": list(dataset.output_names)}
-    ours = {"inputs": info.get("input_names"), "outputs": info.get("output_names")}
+    ours: dict[str, Any] = {"inputs": info.get("input_names"), "outputs": info.get("output_names")}
     generated = {"inputs": "u", "outputs": "y"}  # the loader's names for unnamed arrays
     unnamed = {
         k: theirs[k] == [f"{generated[k]}{i + 1}" for i in range(len(theirs[k]))] for k in theirs

@@ -235,7 +235,7 @@ def _check_run_matches_system(
     outputs always, the sampling time where the run records it (``config.json`` ``info``: a
     model saved without data records none). Signal names that differ only warn: a CSV's column
     names are the user's labels (``pump``, ``level``), the registry's are generic (``u``, ``y``)."""
-    have = {"number of inputs": n_u, "number of outputs": n_y}
+    have: dict[str, Any] = {"number of inputs": n_u, "number of outputs": n_y}
     want: dict[str, Any] = {"number of inputs": system.n_u, "number of outputs": system.n_y}
     if info.get("dt") is not None:
         have["sampling time dt"], want["sampling time dt"] = float(info["dt"]), system.dt
