@@ -24,7 +24,7 @@ def register(sub: Any) -> None:
         "evaluate",
         description=(
             "Score the model of RUN on test data: the paper's metric (MSE of open-loop rollouts "
-            "after an ℓ-sample burn-in, physical units) and RMSE / NRMSE / fit %% of a full "
+            "after an ℓ-sample burn-in, physical units) and RMSE / NRMSE / fit % of a full "
             "open-loop simulation of each record after n_init samples. Rewrites RUN/metrics.json."
         ),
     )
