@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from canonid.kernel.dataset import Trajectory, as_trajectories
+from canonid.kernel.dataset import Trajectory
 from canonid.kernel.errors import OptionError, ShapeError
 from canonid.learning.canonical import pairs_to_state
 from canonid.learning.data import Normalisation, WindowBank
@@ -58,6 +58,7 @@ from canonid.learning.training import (
     _check_rollout_lengths,
     _draw_windows,
     _fit_validation_horizon,
+    _training_pair,
     _validation_starts,
     data_fingerprint,
     resolve_device,
@@ -614,14 +615,7 @@ def fit_batched(
     base = options or TrainOptions()
     if not candidates:
         raise OptionError("fit_batched: give at least one candidate")
-    train = as_trajectories(train, what="training data")
-    val = as_trajectories(val, what="validation data")
-    n_u, n_y = train[0].n_u, train[0].n_y
-    if (val[0].n_u, val[0].n_y) != (n_u, n_y):
-        raise ShapeError(
-            f"validation data have n_u={val[0].n_u}, n_y={val[0].n_y}; "
-            f"training data have n_u={n_u}, n_y={n_y}"
-        )
+    train, val = _training_pair(train, val)
     windows = [int(c.get("window", window)) for c in candidates]
     shared: dict[int, TrainOptions] = {}
     for ell in dict.fromkeys(windows):

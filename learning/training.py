@@ -314,6 +314,20 @@ def validation_loss(
     return total / count
 
 
+def _training_pair(
+    train: Sequence[Any], val: Sequence[Any]
+) -> tuple[tuple[Trajectory, ...], tuple[Trajectory, ...]]:
+    """Training and validation data as trajectories (converted once), with the same signals."""
+    train_t = as_trajectories(train, what="training data")
+    val_t = as_trajectories(val, what="validation data")
+    if (val_t[0].n_u, val_t[0].n_y) != (train_t[0].n_u, train_t[0].n_y):
+        raise ShapeError(
+            f"validation data have n_u={val_t[0].n_u}, n_y={val_t[0].n_y}; "
+            f"training data have n_u={train_t[0].n_u}, n_y={train_t[0].n_y}"
+        )
+    return train_t, val_t
+
+
 def _check_rollout_lengths(
     train: Sequence[Trajectory], val: Sequence[Trajectory], window: int, horizon: int
 ) -> None:
@@ -697,14 +711,8 @@ def fit_net(
             after a resume; it must depend on nothing but its arguments.
     """
     opts = options or TrainOptions()
-    train = as_trajectories(train, what="training data")
-    val = as_trajectories(val, what="validation data")
+    train, val = _training_pair(train, val)
     n_u, n_y = train[0].n_u, train[0].n_y
-    if (val[0].n_u, val[0].n_y) != (n_u, n_y):
-        raise ShapeError(
-            f"validation data have n_u={val[0].n_u}, n_y={val[0].n_y}; "
-            f"training data have n_u={n_u}, n_y={n_y}"
-        )
     if norm is not None and (norm.n_u, norm.n_y) != (n_u, n_y):
         raise ShapeError(
             f"the normalisation is for n_u={norm.n_u}, n_y={norm.n_y}; the training data have "
