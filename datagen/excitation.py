@@ -3,7 +3,7 @@ command during data generation.
 
 A closed loop flown by a good controller is a poor experiment: the controller cancels what the
 identification needs to see, so the inputs follow the outputs and the data do not determine the
-input-to-output response (why and how much: docs "Identifying for control"). An
+input-to-output response (docs: Data generation, "Experiment design"). An
 :class:`InputDesign` adds a known signal ``d[t]`` to the command, ``u[t] = clip(c[t] + e[t] +
 d[t], U)`` (see :mod:`canonid.datagen.simulate`); the controller still closes the loop, so the
 flight stays in its box.

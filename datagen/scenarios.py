@@ -272,7 +272,7 @@ _DRONE2D_ID = replace(
     name="drone2d-id",
     design=DRONE2D_ID_DESIGN,
     notes=(
-        "Informative design for identification for control (docs: Identifying for control). "
+        "Informative design for identification for control (docs: Data generation). "
         "As drone2d (references, NMPC, weights, excitation sigma = 1 rad/s, loose flights, U), "
         "and each rotor speed gets a random-phase multisine, 20 lines per rotor interleaved on "
         "the 0.05 Hz grid of a 20-s flight between 0.1 and 5 Hz, RMS 5 rad/s (about 4.5 % of "

@@ -53,7 +53,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--steps", type=int, metavar="T", help="samples per flight (default: the system's)"
     )
-    design = p.add_argument_group("experiment design (docs: Identifying for control)")
+    design = p.add_argument_group("experiment design (docs: Data generation, Experiment design)")
     design.add_argument(
         "--excitation",
         choices=("multisine", "prbs"),
