@@ -59,6 +59,7 @@ __all__ = [
     "evaluate_run",
     "load",
     "load_splits",
+    "scoring_source",
     "pick_split",
     "read_recipe",
     "recipe_of",
@@ -458,11 +459,17 @@ class RunResult:
 def load_splits(
     recipe: Recipe,
 ) -> tuple[Dataset, list[Trajectory], list[Trajectory], str, str]:
-    """The data of ``recipe``: ``(dataset, train, val, scoring split name, data path)``, split as
-    :func:`run_data` splits them."""
+    """The data of ``recipe``: ``(dataset, train, val, scoring split name, the file that split
+    came from)``, split as :func:`run_data` splits them (a ``--val FILE`` run scores FILE)."""
     dataset, scoring = run_data(recipe)
     train, val = list(dataset.split("train")), list(dataset.split("val"))
-    return dataset, train, val, scoring, recipe.data
+    return dataset, train, val, scoring, scoring_source(recipe, scoring)
+
+
+def scoring_source(recipe: Recipe, split: str) -> str:
+    """The file split ``split`` of ``recipe``'s data comes from: ``--val FILE`` for ``val`` when
+    the run has one, else its data."""
+    return recipe.val if split == "val" and recipe.val is not None else recipe.data
 
 
 def load(path: str | Path, options: Mapping[str, Any]) -> Dataset:
@@ -684,7 +691,7 @@ def train_run(
     dataset, train, val, test_name, _ = load_splits(recipe)  # the loader's checks first
     if not resume:
         recipe = recipe.pinned()
-    data_path = recipe.data
+    data_path = scoring_source(recipe, test_name)
     opts = recipe.options()
     horizon = eval_defaults(
         dataset.split(test_name),
@@ -712,7 +719,7 @@ def train_run(
                 callback=callback,
                 info={
                     "profile": recipe.profile,
-                    "data": {"path": data_path, "splits": dataset.counts()},
+                    "data": {"path": recipe.data, "splits": dataset.counts()},
                     "input_names": list(dataset.input_names),
                     "output_names": list(dataset.output_names),
                     "dt": dataset.dt,

@@ -217,7 +217,8 @@ def allowed_windows(base: RunRecipe, windows: Sequence[int]) -> list[int]:
     """The ``windows`` that the data of ``base`` allow: every training and validation record
     holds ℓ + 1 samples, the longest ones the training and validation rollouts after ℓ, and a
     scored record ℓ + 1; none allowed is a :class:`DataError`."""
-    dataset, train, val, test_name, data_path = load_splits(base)
+    dataset, train, val, test_name, _ = load_splits(base)
+    data_path = base.data
     opts = base.options()
     scored = list(dataset.split(test_name))
 

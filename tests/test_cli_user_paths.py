@@ -60,6 +60,7 @@ def trained(csv_files, tmp_path_factory):
 def test_train_with_a_val_csv_scores_the_val_file(trained, csv_files):
     metrics = json.loads((trained / "metrics.json").read_text())
     assert metrics["data"]["split"] == "val" and metrics["data"]["n_trajectories"] == 1
+    assert metrics["data"]["path"] == str(csv_files[1].resolve())  # the file it scored
     recipe = json.loads((trained / "run.json").read_text())
     assert recipe["val"] == str(csv_files[1]) and recipe["data_options"]["dt"] == DT
     config = json.loads((trained / "config.json").read_text())
