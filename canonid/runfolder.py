@@ -59,11 +59,11 @@ __all__ = [
     "evaluate_run",
     "load",
     "load_splits",
-    "scoring_source",
     "pick_split",
     "read_recipe",
     "recipe_of",
     "run_data",
+    "scoring_source",
     "train_run",
     "write_history",
 ]

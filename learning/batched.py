@@ -61,6 +61,7 @@ from canonid.learning.training import (
     _training_pair,
     _validation_starts,
     data_fingerprint,
+    network_work,
     resolve_device,
 )
 
@@ -405,7 +406,9 @@ class _Stack:
     def step(self, losses: torch.Tensor, epoch: int) -> tuple[list[int], list[float | None]]:
         """Adam on the rows whose loss is finite; recovery on the others. Returns the rows that
         diverged for good and each row's loss (``None`` when not stepped on)."""
-        finite = torch.isfinite(losses).tolist()
+        # one device-to-host copy per step (one per candidate would stall a GPU K times)
+        values = losses.detach().cpu().tolist()
+        finite = [math.isfinite(v) for v in values]
         grads = torch.autograd.grad(
             torch.where(torch.isfinite(losses), losses, 0.0).sum(), list(self.params.values())
         )
@@ -413,7 +416,7 @@ class _Stack:
         out: list[float | None] = []
         for row, ok in enumerate(finite):
             if ok:
-                out.append(float(losses[row].detach()))
+                out.append(values[row])
             else:
                 out.append(None)
                 if not self.recover(row, epoch):
@@ -623,19 +626,22 @@ def fit_batched(
         shared[ell] = _fit_validation_horizon(base, ell, max(tr.T for tr in val))
     opts = [c.train_options(shared[ell]) for c, ell in zip(candidates, windows, strict=True)]
     config = preset_net_options("mlp", net_options)
-    device = resolve_device(base.device)
+    resolve_device(base.device)  # "cuda" without a GPU fails before any work
     norm = Normalisation.fit(train)
     fingerprint = data_fingerprint(train, val)
     nets = [
         _build(c, o, config, ell, train, norm)
         for c, o, ell in zip(candidates, opts, windows, strict=True)
     ]
-    train_bank = WindowBank(train, norm, device=device)
-    val_bank = WindowBank(val, norm, device=device)
-
     groups: dict[tuple[int, tuple[int, ...]], list[int]] = {}
     for i, net in enumerate(nets):
         groups.setdefault((net.window, net.hidden), []).append(i)
+    # "auto" weighs the largest stack: a step advances one stack's candidates together
+    work = max(network_work(nets[idx[0]], base.batch_size, len(idx)) for idx in groups.values())
+    device = resolve_device(base.device, work=work)
+    train_bank = WindowBank(train, norm, device=device)
+    val_bank = WindowBank(val, norm, device=device)
+
     stacks = [
         _Stack(
             idx,
@@ -672,6 +678,7 @@ def fit_batched(
                 info={
                     "training": {
                         "options": opts[i].to_dict(),
+                        "device": device.type,  # what "auto" resolved to
                         "best_epoch": stack.best_epoch[pos],
                         "best_val_loss": stack.best_val[pos],
                         "data_sha256": fingerprint,

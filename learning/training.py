@@ -84,8 +84,10 @@ __all__ = [
     "FitResult",
     "OptionError",
     "TrainOptions",
+    "auto_device",
     "fit",
     "fit_net",
+    "network_work",
     "resolve_device",
     "validation_loss",
 ]
@@ -125,7 +127,8 @@ class TrainOptions:
         val_horizon: validation rollout length (default ``horizon``).
         checkpoint_every: write ``checkpoint.pt`` every this many epochs (needs ``run_dir``).
         seed: seeds the initial weights and the sub-window draws.
-        device: ``"auto"`` (CUDA when present), ``"cpu"`` or ``"cuda"``.
+        device: ``"auto"`` (CUDA when present and the job is large enough to be faster there:
+            :func:`auto_device`), ``"cpu"`` or ``"cuda"``.
     """
 
     epochs: int = 100
@@ -273,10 +276,34 @@ class FitResult:
     stopped: str
 
 
-def resolve_device(name: str) -> torch.device:
-    """``auto`` → CUDA when available, else CPU; ``cuda`` without a GPU raises OptionError."""
+#: ``device="auto"`` trains on CUDA only when one rollout step of the job takes at least this
+#: many multiply-adds (:func:`network_work`): below it one GPU was slower than the CPU, above it
+#: faster than 1, 4 or 16 CPU threads (benchmarks/RESULTS.md, section "Device")
+AUTO_CUDA_WORK = 4_900_000
+
+
+def network_work(net: torch.nn.Module, batch: int, candidates: int = 1) -> int:
+    """Multiply-adds of one rollout step: ``candidates × batch ×`` the entries of the
+    network's weight matrices (biases and gains aside; each weight is used once a step)."""
+    weights = sum(p.numel() for p in net.parameters() if p.dim() >= 2)
+    return candidates * batch * weights
+
+
+def auto_device(work: int, *, cuda_available: bool) -> str:
+    """The device ``auto`` picks for a job of ``work`` multiply-adds per rollout step
+    (:func:`network_work`): CUDA when there is one and ``work`` reaches
+    :data:`AUTO_CUDA_WORK`, else the CPU."""
+    return "cuda" if cuda_available and work >= AUTO_CUDA_WORK else "cpu"
+
+
+def resolve_device(name: str, *, work: int | None = None) -> torch.device:
+    """``auto`` → :func:`auto_device` for ``work`` (CUDA when present if ``work`` is not
+    given); ``cuda`` without a GPU raises OptionError."""
     if name == "auto":
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        cuda = torch.cuda.is_available()
+        if work is None:
+            return torch.device("cuda" if cuda else "cpu")
+        return torch.device(auto_device(work, cuda_available=cuda))
     if name.startswith("cuda") and not torch.cuda.is_available():
         raise OptionError(f"device {name!r} requested but CUDA is not available here")
     return torch.device(name)
@@ -723,13 +750,16 @@ def fit_net(
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:
         raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")
-    device = resolve_device(opts.device)
+    resolve_device(opts.device)  # "cuda" without a GPU fails before any work
     norm = norm if norm is not None else Normalisation.fit(train)
     fingerprint = data_fingerprint(train, val)
+    on_gpu = opts.device != "cpu" and torch.cuda.is_available()
+    gpu = (torch.device(opts.device).index or 0) if opts.device.startswith("cuda") else 0
 
-    with torch.random.fork_rng(devices=[device.index or 0] if device.type == "cuda" else []):
+    with torch.random.fork_rng(devices=[gpu] if on_gpu else []):
         torch.manual_seed(opts.seed)
         net = build(norm)
+        device = resolve_device(opts.device, work=network_work(net, opts.batch_size))
         if net.window != window:
             raise ShapeError(f"the network has window {net.window}, the data were cut for {window}")
         net.to(device)
@@ -791,6 +821,7 @@ def fit_net(
                     **dict(info or {}),
                     "training": {
                         "options": opts.to_dict(),
+                        "device": device.type,  # what "auto" resolved to
                         "best_epoch": state.best_epoch,
                         "best_val_loss": state.best_val,
                         "data_sha256": fingerprint,

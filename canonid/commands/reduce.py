@@ -64,7 +64,11 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("--seed", type=int, default=0, help="seed (--sweep: the first of --seeds)")
-    _options.add_device(p, what="torch device (default auto: CUDA when present)")
+    _options.add_device(
+        p,
+        what="torch device (default auto: CUDA when present and the job is large enough to run "
+        "faster there)",
+    )
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads (per job)")
     p.add_argument(
         "--resume", action="store_true", help="continue the interrupted reduction in --out"

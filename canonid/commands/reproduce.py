@@ -62,7 +62,9 @@ def register(sub: Any) -> None:
     _options.add_where(p, jobs="run the jobs", sees="OUT")
     p.add_argument("--resume", action="store_true", help="continue the reproduction in OUT")
     _options.add_device(
-        p, what="torch device of the training jobs (default auto: CUDA when present)"
+        p,
+        what="torch device of the training jobs (default auto: CUDA when present and a job is "
+        "large enough to run faster there)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)

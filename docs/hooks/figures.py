@@ -128,6 +128,10 @@ FIGURES: dict[str, Cell | Code] = {
     # how long `make demo` takes, and what it runs
     "demo/wall": Cell("make demo", _row(run=DEMO_RUN), "wall time", whole=True),
     # the quick profile's training budget (canonid/profiles.py)
+    "device/threshold": Code(lambda: _auto_cuda_work() / 1e6),
+    "device/gpu/256/512": Cell(
+        "Device", _row(widths="256 × 256 × 256", K="512"), "GPU candidate-epochs per s"
+    ),
     "quick/train/epochs": Code(_quick("train", "epochs")),
     "quick/train/horizon": Code(_quick("train", "horizon")),
     "quick/train/val_horizon": Code(_quick("train", "val_horizon")),
@@ -135,6 +139,12 @@ FIGURES: dict[str, Cell | Code] = {
     "quick/train/windows_per_epoch": Code(_quick("train", "windows_per_epoch")),
     "quick/train/lr": Code(_quick("train", "lr")),
 }
+
+
+def _auto_cuda_work() -> int:
+    from canonid.learning.training import AUTO_CUDA_WORK
+
+    return AUTO_CUDA_WORK
 
 
 def _published(name: str, test: str, method: str) -> str:
