@@ -64,6 +64,7 @@ def register(sub: Any) -> None:
     _options.add_device(
         p, what="torch device of the training jobs (default auto: CUDA when present)"
     )
+    _options.add_figure_format(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -84,6 +85,7 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         device=args.device,
         command=" ".join(["canonid", *sys.argv[1:]]),
+        figure_format=args.figure_format,
     )
     result = reproduce(settings)
     print(
