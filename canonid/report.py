@@ -37,6 +37,12 @@ _EMPHASIS = re.compile(r"(?<![\w*])\*(?=[^\s*])(.+?)(?<=[^\s*])\*(?![\w*])")
 _IMAGE_TYPES = {".png": "image/png", ".svg": "image/svg+xml"}
 
 
+def _plain(text: str) -> str:
+    """``text`` without its Markdown marks, escaped (for a page title or an image's alt text)."""
+    text = _CODE.sub(r"\1", text)
+    return html.escape(_EMPHASIS.sub(r"\1", _STRONG.sub(r"\1", text)))
+
+
 def inline_html(text: str) -> str:
     """``text`` (Markdown's inline subset: ``**strong**``, ``*emphasis*``, ```code```) as
     escaped HTML; a code span's content is shown as written, emphasis marks and all."""
@@ -149,7 +155,7 @@ class Report:
             "<!doctype html>",
             '<html lang="en"><head><meta charset="utf-8">',
             '<meta name="viewport" content="width=device-width, initial-scale=1">',
-            f"<title>{e(self.title)}</title>",
+            f"<title>{_plain(self.title)}</title>",
             "<style>body{font-family:sans-serif;max-width:64em;margin:2em auto;padding:0 1em;"
             "line-height:1.45}.wide{overflow-x:auto}table{border-collapse:collapse;margin:1em 0}"
             "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}"
@@ -196,7 +202,7 @@ class Report:
             src = f"data:{kind};base64,{data}"
         else:
             src = e(self._rel(b.path, base))
-        return f'<figure><img src="{src}" alt="{e(b.caption)}">{caption}</figure>'
+        return f'<figure><img src="{src}" alt="{_plain(b.caption)}">{caption}</figure>'
 
     def write(self, folder: str | os.PathLike[str], name: str = "report") -> tuple[Path, Path]:
         """Write ``folder/name.md`` and ``folder/name.html`` atomically; return both paths."""
