@@ -329,12 +329,11 @@ class AnalysisReport:
         return lines
 
     def figure(self, path: str | Path) -> Path:
-        """Write the figure "bound and observed error versus ℓ" (PNG, log scale)."""
-        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        """Write the figure "bound and observed error versus ℓ" (log scale), in the format of
+        the suffix of ``path`` (``.png``, ``.pdf``, ``.svg``), without a date stamp."""
         from matplotlib.figure import Figure
 
-        fig = Figure(figsize=(6.4, 4.8), dpi=110)
-        FigureCanvasAgg(fig)
+        fig = Figure(figsize=(7, 4.8), layout="constrained")
         ax = fig.add_subplot(1, 1, 1)
         ells, bound, est, worst_err, med_err = [], [], [], [], []
         for r in self.results:
@@ -346,31 +345,42 @@ class AnalysisReport:
             est.append(2 * est_factor * math.sqrt(r.window) * self.W.radius)
             worst_err.append(r.check.max_error)
             med_err.append(r.check.median_error)
-        ax.semilogy(ells, bound, "o-", label="bound, certified constants (max ‖w̄‖)")
-        ax.semilogy(ells, est, "s--", label="bound, estimated constants (max ‖w̄‖)")
+        w_bar = r"$\max\,\Vert\bar{w}\Vert$"
+        ax.semilogy(ells, bound, "o-", label=f"bound, certified constants ({w_bar})")
+        ax.semilogy(ells, est, "s--", label=f"bound, estimated constants ({w_bar})")
         ax.semilogy(ells, np.maximum(worst_err, 1e-300), "v-", label="observed error, max")
         ax.semilogy(ells, np.maximum(med_err, 1e-300), "^:", label="observed error, median")
         for ell, b in zip(ells, bound):
             if not np.isfinite(b):
                 ax.annotate(
-                    "α_ℓ = 0\nno bound",
-                    xy=(ell, 0.97),
+                    "$\\alpha_\\ell = 0$:\nno bound",
+                    xy=(ell, 0.03),
                     xycoords=("data", "axes fraction"),
                     ha="center",
-                    va="top",
+                    va="bottom",
                     fontsize=8,
                 )
-        ax.set_xlabel("window ℓ")
-        ax.set_ylabel("‖x̂_t − x_t‖")
+        ax.set_xlabel(r"window $\ell$ [samples]")
+        ax.set_ylabel(
+            r"state error $\Vert\hat{x}_t - x_t\Vert$" + f" [{_norm_unit(self.system.state_units)}]"
+        )
         trials = self.settings.get("trials")
         ax.set_title(
-            f"{self.system.name}: Proposition 2 bound and observed error ({trials} trials/ℓ)"
+            f"{self.system.name}: Proposition 2 bound and observed error ({trials} trials per ℓ)"
         )
         ax.set_xticks(ells)
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
-        fig.tight_layout()
-        return atomic_write_figure(path, fig, format="png", metadata={"Software": None})
+        fig.legend(fontsize=8, loc="outside lower center", ncol=2, frameon=False)
+        return atomic_write_figure(path, fig, dpi=150, stamped=False)
+
+
+def _norm_unit(units: Sequence[str]) -> str:
+    """The unit of the Euclidean norm of a vector of ``units``: the one unit they share, else
+    the mixture (the norm adds their numbers as they are)."""
+    distinct = list(dict.fromkeys(units))
+    if len(distinct) == 1:
+        return "dimensionless" if distinct[0] == "-" else distinct[0]
+    return "mixed: " + ", ".join(distinct)
 
 
 def _factor(gamma: float, alpha: float, ell: int) -> float:

@@ -10,18 +10,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["PAPER_MODELS", "PAPER_WINDOWS", "TABLE1", "Table1Column", "table1_value"]
+from canonid.kernel.catalog import MODEL_LABELS
+
+__all__ = [
+    "MODEL_LABELS",
+    "PAPER_MODELS",
+    "PAPER_WINDOWS",
+    "TABLE1",
+    "Table1Column",
+    "table1_value",
+]
 
 PAPER_WINDOWS = (5, 10, 15, 20, 25, 30)
 #: model names as our CLI spells them, in the paper's column order
 PAPER_MODELS = ("classic-gru", "masti", "gru", "mlp")
-MODEL_LABELS = {
-    "classic-gru": "Classic GRU",
-    "masti": "Masti et al.",
-    "gru": "Ours (GRU)",
-    "mlp": "Ours (MLP)",
-    "arx": "ARX (linear)",
-}
 
 
 @dataclass(frozen=True)

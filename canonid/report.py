@@ -7,7 +7,11 @@ Markdown (figures linked by relative path) and as one self-contained HTML file (
     report.figure(run_dir / "rollout.png", "100-step rollouts on test trajectories")
     md_path, html_path = report.write(out_dir)
 
-Paths are stored as given and rendered relative to the folder the report is written to.
+Paths are stored as given and rendered relative to the folder the report is written to. Text
+(paragraphs, headings, table cells, captions, link labels) may use Markdown's inline subset:
+``**strong**``, ``*emphasis*`` and ```code```; the HTML renders it (:func:`inline_html`), the
+Markdown keeps it as written. Figures are embedded in the HTML page (PNG and SVG as images, any
+other file as a link).
 """
 
 from __future__ import annotations
@@ -15,6 +19,7 @@ from __future__ import annotations
 import base64
 import html
 import os
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +27,34 @@ from typing import Any
 
 from canonid.kernel.io import atomic_write_text
 
-__all__ = ["Report"]
+__all__ = ["Report", "inline_html"]
+
+#: a code span; what lies between two is text whose emphasis is rendered
+_CODE = re.compile(r"`([^`]+)`")
+_STRONG = re.compile(r"\*\*(?=\S)(.+?)(?<=\S)\*\*")
+_EMPHASIS = re.compile(r"(?<![\w*])\*(?=[^\s*])(.+?)(?<=[^\s*])\*(?![\w*])")
+#: the media type of a figure embedded in the page, by suffix
+_IMAGE_TYPES = {".png": "image/png", ".svg": "image/svg+xml"}
+
+
+def _plain(text: str) -> str:
+    """``text`` without its Markdown marks, escaped (for a page title or an image's alt text)."""
+    text = _CODE.sub(r"\1", text)
+    return html.escape(_EMPHASIS.sub(r"\1", _STRONG.sub(r"\1", text)))
+
+
+def inline_html(text: str) -> str:
+    """``text`` (Markdown's inline subset: ``**strong**``, ``*emphasis*``, ```code```) as
+    escaped HTML; a code span's content is shown as written, emphasis marks and all."""
+    parts = []
+    for i, piece in enumerate(_CODE.split(text)):
+        escaped = html.escape(piece)
+        if i % 2:
+            parts.append(f"<code>{escaped}</code>")
+        else:
+            escaped = _STRONG.sub(r"<strong>\1</strong>", escaped)
+            parts.append(_EMPHASIS.sub(r"<em>\1</em>", escaped))
+    return "".join(parts)
 
 
 @dataclass(frozen=True)
@@ -118,43 +150,59 @@ class Report:
 
     def to_html(self, base: str | os.PathLike[str]) -> str:
         base = Path(base)
-        e = html.escape
+        e, md = html.escape, inline_html
         parts = [
             "<!doctype html>",
-            '<html><head><meta charset="utf-8">',
-            f"<title>{e(self.title)}</title>",
-            "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto;}"
-            "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:2px 8px;"
-            "text-align:right}img{max-width:100%}</style>",
+            '<html lang="en"><head><meta charset="utf-8">',
+            '<meta name="viewport" content="width=device-width, initial-scale=1">',
+            f"<title>{_plain(self.title)}</title>",
+            "<style>body{font-family:sans-serif;max-width:64em;margin:2em auto;padding:0 1em;"
+            "line-height:1.45}.wide{overflow-x:auto}table{border-collapse:collapse;margin:1em 0}"
+            "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}"
+            "th{background:#f3f3f3}caption{caption-side:bottom;text-align:left;font-size:90%;"
+            "color:#444;padding-top:4px}code{background:#f3f3f3;padding:0 3px}"
+            "img{max-width:100%}figcaption{font-size:90%;color:#444}</style>",
             "</head><body>",
-            f"<h1>{e(self.title)}</h1>",
+            f"<h1>{md(self.title)}</h1>",
         ]
         for b in self.blocks:
             if isinstance(b, _Heading):
-                parts.append(f"<h{b.level}>{e(b.text)}</h{b.level}>")
+                parts.append(f"<h{b.level}>{md(b.text)}</h{b.level}>")
             elif isinstance(b, _Paragraph):
-                parts.append(f"<p>{e(b.text)}</p>")
+                parts.append(f"<p>{md(b.text)}</p>")
             elif isinstance(b, _Table):
-                parts.append("<table>")
+                parts.append('<div class="wide"><table>')
                 if b.caption:
-                    parts.append(f"<caption>{e(b.caption)}</caption>")
-                parts.append("<tr>" + "".join(f"<th>{e(c)}</th>" for c in b.header) + "</tr>")
-                parts += ["<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in b.rows]
-                parts.append("</table>")
-            elif isinstance(b, _Figure):
-                if b.path.is_file():
-                    data = base64.b64encode(b.path.read_bytes()).decode("ascii")
-                    src = f"data:image/png;base64,{data}"
-                else:
-                    src = e(self._rel(b.path, base))
+                    parts.append(f"<caption>{md(b.caption)}</caption>")
                 parts.append(
-                    f'<figure><img src="{src}" alt="{e(b.caption)}">'
-                    f"<figcaption>{e(b.caption)}</figcaption></figure>"
+                    "<thead><tr>" + "".join(f"<th>{md(c)}</th>" for c in b.header) + "</tr></thead>"
                 )
+                parts.append("<tbody>")
+                parts += [
+                    "<tr>" + "".join(f"<td>{md(c)}</td>" for c in r) + "</tr>" for r in b.rows
+                ]
+                parts.append("</tbody></table></div>")
+            elif isinstance(b, _Figure):
+                parts.append(self._figure_html(b, base))
             elif isinstance(b, _Link):
-                parts.append(f'<p><a href="{e(self._rel(b.path, base))}">{e(b.label)}</a></p>')
+                parts.append(f'<p><a href="{e(self._rel(b.path, base))}">{md(b.label)}</a></p>')
         parts.append("</body></html>")
         return "\n".join(parts) + "\n"
+
+    def _figure_html(self, b: _Figure, base: Path) -> str:
+        """A PNG or SVG figure embedded as an image; another file (a PDF) linked."""
+        e = html.escape
+        kind = _IMAGE_TYPES.get(b.path.suffix.lower())
+        caption = f"<figcaption>{inline_html(b.caption)}</figcaption>"
+        if kind is None:
+            href = e(self._rel(b.path, base))
+            return f'<figure><a href="{href}">{e(b.path.name)}</a>{caption}</figure>'
+        if b.path.is_file():
+            data = base64.b64encode(b.path.read_bytes()).decode("ascii")
+            src = f"data:{kind};base64,{data}"
+        else:
+            src = e(self._rel(b.path, base))
+        return f'<figure><img src="{src}" alt="{_plain(b.caption)}">{caption}</figure>'
 
     def write(self, folder: str | os.PathLike[str], name: str = "report") -> tuple[Path, Path]:
         """Write ``folder/name.md`` and ``folder/name.html`` atomically; return both paths."""

@@ -36,7 +36,7 @@ Layout of ``OUT``::
     runs/SYSTEM/MODEL-lL-sS/             one Table-1 job: canonid-train run folder + result.json
     analysis/SYSTEM/                     analysis.json, bound_vs_window.png, result.json
     compression/SYSTEM/                  the compression study (sweep.json, figures)
-    figures/                             table1_SYSTEM.png, rollouts_SYSTEM.png
+    figures/                             table1_SYSTEM.png, rollouts_SYSTEM.png (or .pdf, .svg)
     reproduction.json, report.md, report.html
 """
 
@@ -125,6 +125,8 @@ class ReproduceSettings:
         progress: progress bars on stderr.
         device: torch device of the training jobs.
         command: the command line that asked for it (shown in the report).
+        figure_format: the file format of the report's figures (``figures/``): ``png``, or
+            ``pdf`` (with a PNG twin that the HTML page shows) or ``svg``.
     """
 
     profile: str
@@ -140,6 +142,7 @@ class ReproduceSettings:
     progress: bool = True
     device: str = "auto"
     command: str | None = None
+    figure_format: str = "png"
 
     def __post_init__(self) -> None:
         known = scenario_names()
@@ -180,6 +183,7 @@ def settings_from_profile(
     progress: bool = True,
     device: str = "auto",
     command: str | None = None,
+    figure_format: str = "png",
 ) -> ReproduceSettings:
     """:class:`ReproduceSettings` from profile ``profile``; ``None`` keeps the profile's value."""
     stage = load_profile(profile).reproduce
@@ -199,6 +203,7 @@ def settings_from_profile(
         progress=progress,
         device=device,
         command=command,
+        figure_format=figure_format,
     )
 
 
@@ -426,6 +431,7 @@ class Reproduction:
                 "workers": s.workers,
                 "scheduler": s.scheduler,
                 "command": s.command,
+                "figure_format": s.figure_format,
             },
             "machine": dict(machine),
             "datasets": {k: v.to_dict() for k, v in self.datasets.items()},

@@ -18,10 +18,13 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from canonid.kernel.catalog import model_label
 from canonid.kernel.dataset import Dataset
 from canonid.kernel.io import atomic_write_figure
 from canonid.learning import Model
 from canonid.learning.evaluate import simulate_records
+from canonid.learning.plots import axis_label
+from canonid.models.registry import signal_units
 from canonid.paper import MODEL_LABELS, PAPER_WINDOWS, TABLE1
 from canonid.report import Report
 
@@ -45,16 +48,25 @@ def _scale(system: str) -> float:
 
 
 def _save(fig: Figure, path: Path) -> Path:
-    """Write ``fig`` as a PNG without a software stamp (same figure, same bytes), atomically."""
-    fig.tight_layout()
-    return atomic_write_figure(path, fig, format="png", dpi=110, metadata={"Software": None})
+    """Write ``fig`` in the format of the suffix of ``path``, without a software or date stamp
+    (same figure, same bytes), atomically."""
+    if fig.get_layout_engine() is None:
+        fig.tight_layout()
+    return atomic_write_figure(path, fig, dpi=150, stamped=False)
 
 
-def plot_table1(cells: Sequence[Any], system: str, path: Path) -> Path:
+def _figure(fig: Figure, folder: Path, name: str, figure_format: str) -> tuple[Path, Path]:
+    """Write ``fig`` as ``folder/name.FORMAT``; return that path and the one the HTML page shows
+    (a PDF's PNG twin, written beside it: a browser shows no PDF inline)."""
+    path = _save(fig, folder / f"{name}.{figure_format}")
+    return path, (_save(fig, folder / f"{name}.png") if figure_format == "pdf" else path)
+
+
+def plot_table1(cells: Sequence[Any], system: str) -> Figure:
     """Our MSE against ℓ per model (mean ± std over seeds, solid) and the paper's (dashed),
     log scale, in the paper's scale for the system."""
     scale = _scale(system)
-    fig = Figure(figsize=(6.4, 4.0))
+    fig = Figure(figsize=(7, 4.8), layout="constrained")
     ax = fig.subplots()
     models = sorted({c.model for c in cells if c.system == system}, key=_model_order)
     for k, model in enumerate(models):
@@ -71,7 +83,7 @@ def plot_table1(cells: Sequence[Any], system: str, path: Path) -> Path:
             fmt="o-",
             color=f"C{k}",
             capsize=3,
-            label=f"{MODEL_LABELS.get(model, model)} (canonid)",
+            label=f"{model_label(model)} (canonid)",
         )
         column = TABLE1.get(system)
         if column is not None and model in column.values:
@@ -81,20 +93,18 @@ def plot_table1(cells: Sequence[Any], system: str, path: Path) -> Path:
                 "x--",
                 color=f"C{k}",
                 alpha=0.6,
-                label=f"{MODEL_LABELS.get(model, model)} (paper)",
+                label=f"{model_label(model)} (paper)",
             )
     ax.set_yscale("log")
-    ax.set_xlabel("window ℓ")
-    ax.set_ylabel(f"100-step MSE [×{scale:g}]")
+    ax.set_xlabel("window ℓ [samples]")
+    ax.set_ylabel(f"100-step MSE [×{scale:g}, output units²]")
     ax.set_title(f"Table 1, {system_label(system)}", fontsize=10)
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7, ncol=2)
-    return _save(fig, path)
+    fig.legend(loc="outside lower center", fontsize=8, ncol=2, frameon=False)
+    return fig
 
 
-def plot_rollouts(
-    runs: Mapping[str, str], dataset: Any, path: Path, *, title: str, record: int = 0
-) -> Path:
+def plot_rollouts(runs: Mapping[str, str], dataset: Any, *, title: str, record: int = 0) -> Figure:
     """Open-loop simulations of one test record by every model in ``runs`` (model name → run
     folder), from a burn-in on the measured samples ``n_init−ℓ … n_init−1``, ``n_init =
     max(ℓ, 50)`` (capped to leave half the record), against the measured and noise-free
@@ -105,25 +115,30 @@ def plot_rollouts(
     window = max(m.window for m in models.values())
     n_init = min(max(window, 50), max(window, trajectory.T // 2))
     t = np.arange(trajectory.T) * dataset.dt
-    fig = Figure(figsize=(7.5, 2.2 * dataset.n_y + 0.6))
+    units = signal_units(dataset.metadata, dataset.output_names, "outputs")
+    fig = Figure(figsize=(7.5, max(4.5, 2.2 * dataset.n_y + 1.2)), layout="constrained")
     axes = fig.subplots(dataset.n_y, 1, squeeze=False, sharex=True)
     for i, name in enumerate(dataset.output_names):
         ax = axes[i, 0]
         ax.plot(t, trajectory.y[:, i], ".", ms=2, color="0.6", label="measured y")
         if trajectory.y_clean is not None:
             ax.plot(t, trajectory.y_clean[:, i], color="k", lw=1, label="noise-free y")
-        ax.set_ylabel(name)
+        ax.set_ylabel(axis_label(name, units[i]))
         ax.axvline(t[n_init], color="0.3", ls="--", lw=0.8)
     for k, (name, model) in enumerate(sorted(models.items(), key=lambda kv: _model_order(kv[0]))):
         (sim,) = simulate_records(model, [trajectory], n_init)
         for i in range(dataset.n_y):
-            axes[i, 0].plot(
-                t[n_init:], sim[:, i], color=f"C{k}", lw=1.1, label=MODEL_LABELS.get(name, name)
-            )
+            axes[i, 0].plot(t[n_init:], sim[:, i], color=f"C{k}", lw=1.1, label=model_label(name))
     axes[-1, 0].set_xlabel("time [s]")
-    axes[0, 0].legend(fontsize=7, ncol=3, loc="best")
+    fig.legend(
+        *axes[0, 0].get_legend_handles_labels(),
+        loc="outside lower center",
+        ncol=4,
+        fontsize=8,
+        frameon=False,
+    )
     fig.suptitle(title, fontsize=10)
-    return _save(fig, path)
+    return fig
 
 
 def _model_order(model: str) -> int:
@@ -166,7 +181,7 @@ def _table1_blocks(report: Report, cells: Sequence[Any], system: str, seeds: int
     ):
         header = ["ℓ"]
         for m in models:
-            header += [f"{MODEL_LABELS.get(m, m)} canonid", "paper"]
+            header += [f"{model_label(m)} canonid", "paper"]
         rows = []
         for w in windows:
             row = [str(w)]
@@ -218,7 +233,7 @@ def write_report(
         f"Profile **{settings.profile}** (canonid/profiles.py, stages `train` and "
         f"`reproduce`); systems {', '.join(settings.systems)}; windows ℓ = "
         f"{', '.join(map(str, settings.windows))}; models "
-        f"{', '.join(MODEL_LABELS.get(m, m) for m in settings.models)}; {settings.seeds} "
+        f"{', '.join(model_label(m) for m in settings.models)}; {settings.seeds} "
         f"seed(s). Written {_dt.datetime.now().astimezone().isoformat(timespec='seconds')}."
     )
     if settings.command:
@@ -267,7 +282,9 @@ def write_report(
                 "/".join(str(d.counts.get(s, 0)) for s in ("train", "val", "test")),
                 str(d.config.get("T")),
                 d.checksum[:12] + "…",
-                f"reused ({d.config})" if d.reused else f"generated in {d.seconds:.1f} s",
+                "reused (generated before from the same configuration)"
+                if d.reused
+                else f"generated in {d.seconds:.1f} s",
             ]
             for d in datasets.values()
         ],
@@ -288,10 +305,12 @@ def write_report(
     for system in settings.systems:
         report.heading(system_label(system), level=3)
         _table1_blocks(report, table, system, settings.seeds)
-        path = plot_table1(table, system, fig_dir / f"table1_{system}.png")
+        path, shown = _figure(
+            plot_table1(table, system), fig_dir, f"table1_{system}", settings.figure_format
+        )
         figures[f"table1_{system}"] = str(path)
         report.figure(
-            path,
+            shown,
             f"Table 1 as a figure, {system_label(system)}: canonid (solid, "
             "mean ± std over seeds) and the paper (dashed)",
         )
@@ -311,15 +330,15 @@ def write_report(
         if not runs:
             continue
         dataset = Dataset.load(datasets[system].path)
-        path = plot_rollouts(
+        fig = plot_rollouts(
             runs,
             dataset,
-            fig_dir / f"rollouts_{system}.png",
             title=f"{system_label(system)}: open-loop simulation of test record 0, ℓ = "
             f"{rollout_window}, seed 0 (burn-in before the dashed line)",
         )
+        path, shown = _figure(fig, fig_dir, f"rollouts_{system}", settings.figure_format)
         figures[f"rollouts_{system}"] = str(path)
-        report.figure(path, f"Rollouts, {system_label(system)}, ℓ = {rollout_window}")
+        report.figure(shown, f"Rollouts, {system_label(system)}, ℓ = {rollout_window}")
 
     _analysis_blocks(report, outcomes, learned, figures)
     _compression_blocks(report, compression, figures)
@@ -365,7 +384,7 @@ def _training_budget(train_runs: Sequence[Any]) -> list[list[str]]:
     for o in train_runs:
         options = {k: v for k, v in o.recipe["train_options"].items() if k != "seed"}
         text = ", ".join(f"{k}={v}" for k, v in options.items())
-        label = MODEL_LABELS.get(o.recipe["model"], o.recipe["model"])
+        label = model_label(o.recipe["model"])
         if label not in budgets.setdefault(text, []):
             budgets[text].append(label)
     return [[f"training: {', '.join(models)}", text] for text, models in budgets.items()]
@@ -414,7 +433,7 @@ def _analysis_blocks(
                 "max error/bound",
             ],
             rows,
-            caption=f"sets {o.result['sets']}; settings {o.recipe['settings']}",
+            caption=_analysis_caption(o.result["sets"], o.recipe["settings"]),
         )
         if o.result.get("limitations"):
             report.paragraph(
@@ -438,7 +457,7 @@ def _analysis_blocks(
                 ],
                 [
                     [
-                        MODEL_LABELS.get(c["model"], c["model"]),
+                        model_label(c["model"]),
                         str(c["window"]),
                         f"{c['within']} / {c['rows']}",
                         _fmt(c["max_ratio"]),
@@ -476,6 +495,25 @@ def _analysis_blocks(
                     "α_ℓ^{-1}‖w̄‖ (canonid.analysis.learned.state_probe)"
                 ),
             )
+
+
+def _boxes_text(sets: Mapping[str, Any]) -> str:
+    """``X = [0.05, 5] × [0.05, 5], U = [1, 3], …`` from ``{"X": {"lower", "upper"}, …}``."""
+    return ", ".join(
+        f"{name} = " + " × ".join(f"[{lo:g}, {hi:g}]" for lo, hi in zip(box["lower"], box["upper"]))
+        for name, box in sets.items()
+    )
+
+
+def _analysis_caption(sets: Mapping[str, Any], settings: Mapping[str, Any]) -> str:
+    """The analysis table's caption in words: its sets and budget."""
+    windows = ", ".join(str(w) for w in settings.get("windows", ()))
+    budget = f"{settings['budget_seconds']:g} s" if "budget_seconds" in settings else "no limit"
+    boxes = f" and {settings['boxes']:,} boxes" if "boxes" in settings else ""
+    return (
+        f"sets {_boxes_text(sets)}; windows ℓ = {windows}; {settings.get('trials')} Monte-Carlo "
+        f"trials per window; each certified search limited to {budget}{boxes}"
+    )
 
 
 def _compression_blocks(

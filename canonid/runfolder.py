@@ -13,6 +13,10 @@ study and the Table-1 jobs of ``canonid reproduce`` all write the same folder:
 * ``history.csv`` and ``training_curve.png`` (:func:`write_history`);
 * ``metrics.json`` (:data:`METRICS_FILE`) and ``rollouts.png`` (:func:`evaluate_run`).
 
+Figures are PNG unless another of :data:`canonid.kernel.io.FIGURE_FORMATS` is asked for
+(``training_curve.pdf``, ``rollouts.svg``, …; :func:`figure_file`); ``metrics.json`` names its
+figure.
+
 :func:`train_run` trains the model of a :class:`RunRecipe` into a folder and scores it: the one
 function behind ``canonid train``, the Table-1 jobs and the candidates of ``--window auto``.
 """
@@ -34,15 +38,17 @@ from typing import Any, ClassVar, TypeAlias, TypeVar
 from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
 from canonid.jobs import run_folder_lock
 from canonid.kernel.dataset import Dataset, Trajectory
-from canonid.kernel.errors import CheckpointError, DataError, OutputError
-from canonid.kernel.io import atomic_write_json, atomic_write_text, read_json
+from canonid.kernel.errors import CheckpointError, DataError, OptionError, OutputError
+from canonid.kernel.io import FIGURE_FORMATS, atomic_write_json, atomic_write_text, read_json
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, fit
 from canonid.learning.evaluate import default_n_init, evaluate
 from canonid.learning.plots import plot_rollouts, plot_training_curve
 from canonid.learning.training import CHECKPOINT_FILE
+from canonid.models.registry import signal_units
 
 __all__ = [
     "DATA_FLAGS",
+    "FIGURES",
     "HISTORY_FILE",
     "METRICS_FILE",
     "RECIPE_VERSION",
@@ -57,6 +63,7 @@ __all__ = [
     "check_recorded",
     "eval_defaults",
     "evaluate_run",
+    "figure_file",
     "load",
     "load_splits",
     "pick_split",
@@ -413,12 +420,14 @@ class RunEvaluation:
     Attributes:
         scores: the scores against the measured and, if any, the noise-free outputs.
         data_path, split, n_trajectories: the data scored.
+        figure: the file name of the rollouts figure written beside ``metrics.json``.
     """
 
     scores: Evaluation
     data_path: str
     split: str
     n_trajectories: int
+    figure: str | None = None
 
     @property
     def rollout_mse(self) -> float:
@@ -440,6 +449,7 @@ class RunEvaluation:
                 "split": self.split,
                 "n_trajectories": self.n_trajectories,
             },
+            **({"figure": self.figure} if self.figure else {}),
         }
 
 
@@ -593,8 +603,28 @@ def pick_split(dataset: Dataset, name: str | None, *, where: str) -> tuple[str, 
     return name, list(dataset.split(name))
 
 
-def write_history(run_dir: Path, history: list[dict[str, Any]]) -> None:
-    """``history.csv`` (one row per epoch, a column per key any row has) and its figure."""
+#: the figures of a run folder, by name without the format's suffix
+FIGURES = ("training_curve", "rollouts")
+
+
+def figure_file(name: str, figure_format: str) -> str:
+    """The file name of figure ``name`` (one of :data:`FIGURES`) in ``figure_format``."""
+    if figure_format not in FIGURE_FORMATS:
+        raise OptionError(
+            f"--figure-format {figure_format!r}: expected one of {', '.join(FIGURE_FORMATS)}"
+        )
+    return f"{name}.{figure_format}"
+
+
+def write_history(
+    run_dir: Path,
+    history: list[dict[str, Any]],
+    *,
+    best_epoch: int | None = None,
+    figure_format: str = "png",
+) -> None:
+    """``history.csv`` (one row per epoch, a column per key any row has) and its figure (the
+    kept epoch ``best_epoch`` marked)."""
     keys: list[str] = []
     for row in history:
         keys += [k for k in row if k not in keys]
@@ -604,7 +634,9 @@ def write_history(run_dir: Path, history: list[dict[str, Any]]) -> None:
     for row in history:
         writer.writerow({k: ("" if row.get(k) is None else row[k]) for k in keys})
     atomic_write_text(run_dir / HISTORY_FILE, buf.getvalue())
-    plot_training_curve(history, run_dir / "training_curve.png")
+    plot_training_curve(
+        history, run_dir / figure_file("training_curve", figure_format), best_epoch=best_epoch
+    )
 
 
 def eval_defaults(
@@ -632,8 +664,10 @@ def evaluate_run(
     horizon: int,
     stride: int,
     n_init: int | None,
+    figure_format: str = "png",
 ) -> RunEvaluation:
-    """Score ``model`` on ``dataset``; write metrics.json and rollouts.png to ``run_dir``."""
+    """Score ``model`` on ``dataset``; write metrics.json and rollouts.png (or .pdf, .svg:
+    ``figure_format``) to ``run_dir``."""
     name, trajs = pick_split(dataset, split, where=data_path)
     if n_init is None:
         n_init = default_n_init(
@@ -647,16 +681,19 @@ def evaluate_run(
         n_init=n_init,
         output_names=dataset.output_names,
     )
-    result = RunEvaluation(ev, data_path, name, len(trajs))
-    atomic_write_json(run_dir / METRICS_FILE, result.to_json())
+    figure = figure_file("rollouts", figure_format)
+    result = RunEvaluation(ev, data_path, name, len(trajs), figure)
     plot_rollouts(
         model,
         trajs,
-        run_dir / "rollouts.png",
+        run_dir / figure,
         n_init=ev.n_init,
         output_names=dataset.output_names,
+        output_units=signal_units(dataset.metadata, dataset.output_names, "outputs"),
         dt=dataset.dt,
+        source=f"{Path(data_path).name} [{name}]",
     )
+    atomic_write_json(run_dir / METRICS_FILE, result.to_json())
     return result
 
 
@@ -674,6 +711,7 @@ def train_run(
     eval_horizon: int | None = None,
     eval_stride: int = 1,
     callback: Callable[[EpochReport], None] | None = None,
+    figure_format: str = "png",
 ) -> RunResult:
     """Train the model of ``recipe`` into ``run_dir`` (or continue it from its checkpoint with
     ``resume``), write ``run.json``, the model, ``history.csv`` and the figures, and score it
@@ -729,7 +767,9 @@ def train_run(
             if not resume and not (run_dir / CHECKPOINT_FILE).exists():
                 _discard(run_dir)
             raise
-        write_history(run_dir, fitted.history)
+        write_history(
+            run_dir, fitted.history, best_epoch=fitted.best_epoch, figure_format=figure_format
+        )
         evaluation = evaluate_run(
             run_dir,
             fitted.model,
@@ -739,6 +779,7 @@ def train_run(
             horizon=horizon,
             stride=eval_stride,
             n_init=None,
+            figure_format=figure_format,
         )
     return RunResult(
         run_dir=run_dir,

@@ -46,7 +46,7 @@ class EvaluateRequest:
     Attributes:
         run: the run folder. data, data_options: a data file and loader options overriding the
             run's. split: the split scored. horizon, stride, n_init: the rollouts and the
-            simulation scores' initialisation.
+            simulation scores' initialisation. figure_format: the rollouts figure's format.
     """
 
     run: Path
@@ -56,6 +56,7 @@ class EvaluateRequest:
     horizon: int | None = None
     stride: int = 1
     n_init: int | None = None
+    figure_format: str = "png"
 
 
 def score_run(request: EvaluateRequest) -> RunEvaluation:
@@ -91,6 +92,7 @@ def score_run(request: EvaluateRequest) -> RunEvaluation:
             horizon=horizon,
             stride=request.stride,
             n_init=request.n_init,
+            figure_format=request.figure_format,
         )
 
 

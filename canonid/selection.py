@@ -27,14 +27,22 @@ from typing import Any, ClassVar
 from canonid.datagen.loaders import data_checksum
 from canonid.jobs import StoredJob, run_job
 from canonid.kernel.errors import CheckpointError, DataError, OptionError
-from canonid.kernel.io import atomic_copy, atomic_write_json, atomic_write_text, read_json
+from canonid.kernel.io import (
+    FIGURE_FORMATS,
+    atomic_copy,
+    atomic_write_json,
+    atomic_write_text,
+    read_json,
+)
 from canonid.learning import NETS
 from canonid.learning.training import CHECKPOINT_FILE
 from canonid.runfolder import (
+    FIGURES,
     HISTORY_FILE,
     METRICS_FILE,
     RUN_FILE,
     RunRecipe,
+    figure_file,
     load_splits,
     train_run,
 )
@@ -56,16 +64,16 @@ CANDIDATES_TABLE = "candidates.md"
 CANDIDATES_DIR = "candidates"
 SELECTION_FORMAT = "canonid-candidates"
 #: the files of the chosen candidate's run that become the run folder's (not its checkpoint:
-#: a selection continues by running it again, a candidate by resuming its own folder)
+#: a selection continues by running it again, a candidate by resuming its own folder), its
+#: figures in whichever format they were written
 ADOPTED = (
     RUN_FILE,
     "config.json",
     "weights.pt",
     "normalisation.json",
     HISTORY_FILE,
-    "training_curve.png",
     METRICS_FILE,
-    "rollouts.png",
+    *(figure_file(name, fmt) for name in FIGURES for fmt in FIGURE_FORMATS),
 )
 
 
@@ -90,6 +98,7 @@ class CandidateJob(StoredJob):
     data_sha256: str
     val_sha256: str | None = None
     eval_horizon: int | None = None
+    figure_format: str = "png"
     threads: int | None = None
     kind: ClassVar[str] = "candidate"
 
@@ -125,6 +134,7 @@ class CandidateJob(StoredJob):
             self.where,
             resume=(self.where / CHECKPOINT_FILE).is_file(),
             eval_horizon=self.eval_horizon,
+            figure_format=self.figure_format,
         )
         return {
             "window": self.run_recipe.window,
@@ -247,6 +257,7 @@ def plan_candidates(
     windows: Sequence[int],
     widths: Sequence[Sequence[int] | None] = (None,),
     eval_horizon: int | None = None,
+    figure_format: str = "png",
     threads: int | None = None,
 ) -> list[CandidateJob]:
     """One job per (window, width), in that order, each in ``run_dir/candidates/<name>``;
@@ -271,6 +282,7 @@ def plan_candidates(
                     data_sha256=data_sha256,
                     val_sha256=val_sha256,
                     eval_horizon=eval_horizon,
+                    figure_format=figure_format,
                     threads=threads,
                 )
             )

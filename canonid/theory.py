@@ -5,8 +5,8 @@ evaluates Proposition 2's bound and checks it by Monte-Carlo trials
 (:func:`canonid.analysis.report.analyze`); with a trained run it adds the learned model's checks
 (:func:`canonid.learned.learned_checks`, shared with ``canonid reproduce``) and, if asked, γ_f of
 the learned model on its training hull. Without a system it bounds γ_f of the learned model alone.
-It writes ``analysis.json`` and ``bound_vs_window.png`` (or ``learned_analysis.json``) and returns
-an :class:`AnalysisOutcome` whose text the command prints.
+It writes ``analysis.json`` and ``bound_vs_window.png`` (``.pdf``, ``.svg``: ``--figure-format``; or
+``learned_analysis.json``) and returns an :class:`AnalysisOutcome` whose text the command prints.
 
 The module imports neither torch nor CasADi; the analysis loads them.
 """
@@ -46,6 +46,7 @@ class AnalyzeRequest:
         run, data, learned_gamma: a trained run checked beside the theory, its data, and whether
             γ_f of its model is bounded too.
         out, progress: the output folder; a progress bar.
+        figure_format: the figure's file format (``png``, ``pdf`` or ``svg``).
     """
 
     system: str | None = None
@@ -64,6 +65,7 @@ class AnalyzeRequest:
     learned_gamma: bool = False
     out: Path | None = None
     progress: bool = True
+    figure_format: str = "png"
 
 
 @dataclass(frozen=True)
@@ -157,7 +159,7 @@ def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
         lines.append(_gamma_lines(report))
     lines.append(f"analysis written to {json_path.resolve()}")
     if report.checks:
-        figure = report.figure(out / "bound_vs_window.png")
+        figure = report.figure(out / f"bound_vs_window.{request.figure_format}")
         lines.append(f"  figure: {figure.resolve()}")
     violations = sum(c.violations for c in report.checks)
     return AnalysisOutcome("\n".join(lines), violations, report)

@@ -75,6 +75,7 @@ class TrainRequest:
             (``hidden="auto"``: select the widths).
         out, resume: the new run's folder, or the run to continue.
         eval_horizon, threads: the final score's rollout length; torch CPU threads.
+        figure_format: the figures' file format (one of :data:`canonid.kernel.io.FIGURE_FORMATS`).
         workers, scheduler, progress: where a selection's candidates run; progress bars.
         command: the command line that asked (recorded in ``run.json``).
     """
@@ -103,6 +104,7 @@ class TrainRequest:
     out: Path | None = None
     resume: Path | None = None
     eval_horizon: int | None = None
+    figure_format: str = "png"
     threads: int | None = None
     workers: int | None = None
     scheduler: str | None = None
@@ -349,6 +351,7 @@ def _select(request: TrainRequest) -> TrainOutcome:
         windows=windows,
         widths=WIDTH_CANDIDATES if hidden_auto else (None,),
         eval_horizon=request.eval_horizon,
+        figure_format=request.figure_format,
         threads=request.threads if request.threads is not None or local else 1,
     )
     # a failure before any candidate wrote (a bad --workers or scheduler) leaves no folder
@@ -485,6 +488,7 @@ def train(
                 resume=request.resume is not None,
                 eval_horizon=request.eval_horizon,
                 callback=progress,
+                figure_format=request.figure_format,
             )
     finally:
         bar.close()

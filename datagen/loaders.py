@@ -69,9 +69,11 @@ def _check_dt(dt: Any, where: str) -> float:
     return value
 
 
-def _trajectory(u: Any, y: Any, where: str, y_clean: Any = None) -> Trajectory:
+def _trajectory(
+    u: Any, y: Any, where: str, y_clean: Any = None, info: dict[str, Any] | None = None
+) -> Trajectory:
     try:
-        return Trajectory(u=u, y=y, y_clean=y_clean)
+        return Trajectory(u=u, y=y, y_clean=y_clean, info=info or {})
     except ShapeError as exc:
         raise DataError(f"{where}: {exc}") from None
 
@@ -337,7 +339,16 @@ def load_csv(
             sub = table[start:stop]  # a view: each experiment's rows are contiguous
             name = path.name if experiment_column is None else key
             label = name if experiment_column is None else f"{path.name}:{experiment_column}={key}"
-            trajs.append(_trajectory(sub[:, :n_u], sub[:, n_u:], f"{path}, experiment {name!r}"))
+            # the record's name in figures: the file, or the experiment column's value
+            shown = name if experiment_column is None else f"{experiment_column} = {key}"
+            trajs.append(
+                _trajectory(
+                    sub[:, :n_u],
+                    sub[:, n_u:],
+                    f"{path}, experiment {name!r}",
+                    info={"experiment": shown},
+                )
+            )
             labels.append(label)
     metadata = {
         "source": "csv",

@@ -21,13 +21,30 @@ __all__ = [
     "ACTIVATION_NAMES",
     "DEFAULT_NET_OPTIONS",
     "LINEAR_PATHS",
+    "MODEL_LABELS",
     "MODEL_NAMES",
     "PAPER_NET_OPTIONS",
+    "model_label",
     "net_options",
 ]
 
 #: the registered identification models, in table order (:func:`canonid.learning.model_names`)
 MODEL_NAMES = ("mlp", "gru", "classic-gru", "masti", "arx")
+
+#: each model's name in tables and figures (the paper's column names; ARX is ours)
+MODEL_LABELS = {
+    "classic-gru": "Classic GRU",
+    "masti": "Masti et al.",
+    "gru": "Ours (GRU)",
+    "mlp": "Ours (MLP)",
+    "arx": "ARX (linear)",
+}
+
+
+def model_label(model: str) -> str:
+    """The table name of ``model`` (its registry name when it has none)."""
+    return MODEL_LABELS.get(model, model)
+
 
 #: hidden-layer nonlinearities of the MLPs, by name (:data:`canonid.learning.nets.base.ACTIVATIONS`)
 ACTIVATION_NAMES = ("relu", "silu", "tanh")

@@ -39,6 +39,7 @@ import numpy as np
 from canonid.kernel.errors import DataError, OutputError
 
 __all__ = [
+    "FIGURE_FORMATS",
     "atomic_copy",
     "atomic_write_bytes",
     "atomic_write_figure",
@@ -91,6 +92,17 @@ def atomic_copy(
     return target
 
 
+#: the file formats figures are written in (``--figure-format``); the first is the default
+FIGURE_FORMATS = ("png", "pdf", "svg")
+
+#: per format, the metadata that leaves out the writer's software and date stamps
+_UNSTAMPED: dict[str, dict[str, None]] = {
+    "png": {"Software": None},
+    "pdf": {"Creator": None, "Producer": None, "CreationDate": None},
+    "svg": {"Creator": None, "Date": None},
+}
+
+
 class Savefig(Protocol):
     """What :func:`atomic_write_figure` needs of a figure (a matplotlib ``Figure`` has it)."""
 
@@ -103,15 +115,20 @@ def atomic_write_figure(
     *,
     format: str | None = None,
     durable: bool = True,
+    stamped: bool = True,
     **savefig: Any,
 ) -> Path:
     """Render ``figure`` in memory (``figure.savefig(buffer, format=..., **savefig)``) and write
     the bytes to ``path`` atomically; return the path, exactly as given (matplotlib's own
     ``savefig(path)`` would follow a symlink planted there and append a suffix to a name
-    without one). ``format`` defaults to the suffix of ``path`` (``png``, ``pdf``, ``svg``)."""
+    without one). ``format`` defaults to the suffix of ``path`` (``png``, ``pdf``, ``svg``);
+    ``stamped=False`` leaves out the software and date stamps of a PNG, PDF or SVG file."""
     target = Path(path)
+    fmt = format or target.suffix.lstrip(".").lower() or None
+    if not stamped and fmt in _UNSTAMPED:
+        savefig["metadata"] = {**_UNSTAMPED[fmt], **savefig.get("metadata", {})}
     buffer = io.BytesIO()
-    figure.savefig(buffer, format=format or target.suffix.lstrip(".").lower() or None, **savefig)
+    figure.savefig(buffer, format=fmt, **savefig)
     return atomic_write_bytes(target, buffer.getvalue(), durable=durable)
 
 

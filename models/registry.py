@@ -6,8 +6,8 @@ parameters to the system's constructor.
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, Literal
 
 from canonid.kernel.errors import UnknownSystemError
 from canonid.models.base import System
@@ -16,7 +16,7 @@ from canonid.models.linear import LINEAR_EXAMPLES
 from canonid.models.quadrotor import Quadrotor
 from canonid.models.tank import Tank
 
-__all__ = ["get_system", "register_system", "system_names"]
+__all__ = ["get_system", "register_system", "signal_units", "system_names"]
 
 _FACTORIES: dict[str, Callable[..., System]] = {
     "tank": Tank,
@@ -47,3 +47,29 @@ def get_system(name: str, **params: Any) -> System:
             f"unknown system {name!r}; expected one of: {', '.join(system_names())}"
         ) from None
     return factory(**params)
+
+
+def signal_units(
+    metadata: Mapping[str, Any], names: Sequence[str], kind: Literal["inputs", "outputs"]
+) -> list[str | None]:
+    """The unit of each signal in ``names`` (``None`` where unknown): from a dataset's
+    ``metadata["units"]`` (``{kind: {name: unit}}`` as ``canonid generate`` writes it, or a flat
+    ``{name: unit}``), else from the registered system the metadata name (``metadata["system"]``,
+    a name or a description with a ``"name"``) when its signals are these ``names``."""
+    units = metadata.get("units")
+    if isinstance(units, Mapping):
+        table = units.get(kind) if isinstance(units.get(kind), Mapping) else units
+        found = [table.get(n) for n in names]
+        if any(isinstance(u, str) for u in found):
+            return [u if isinstance(u, str) else None for u in found]
+    system = metadata.get("system")
+    name = system.get("name") if isinstance(system, Mapping) else system
+    if not isinstance(name, str) or name not in _FACTORIES:
+        return [None] * len(names)
+    known = get_system(name)
+    signals = dict(
+        zip(known.output_names, known.output_units)
+        if kind == "outputs"
+        else zip(known.input_names, known.input_units)
+    )
+    return [signals.get(n) for n in names]

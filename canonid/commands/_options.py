@@ -1,12 +1,15 @@
 """Command-line options that several commands share, each written once: where the jobs run,
-the profile and the torch device (no import of torch: ``canonid generate`` uses it)."""
+the profile, the torch device (no import of torch: ``canonid generate`` uses it) and the figures'
+file format."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 from typing import Any
 
-__all__ = ["add_device", "add_profile", "add_where"]
+from canonid.kernel.io import FIGURE_FORMATS
+
+__all__ = ["add_device", "add_figure_format", "add_profile", "add_where"]
 
 DEVICES = ("auto", "cpu", "cuda")
 
@@ -49,3 +52,14 @@ def add_profile(
 def add_device(parser: Any, *, what: str, default: str | None = "auto") -> None:
     """``--device {auto,cpu,cuda}``: the torch device of ``what``."""
     parser.add_argument("--device", choices=DEVICES, default=default, help=what)
+
+
+def add_figure_format(parser: Any) -> None:
+    """``--figure-format {png,pdf,svg}``: the file format of the figures a command writes."""
+    parser.add_argument(
+        "--figure-format",
+        choices=FIGURE_FORMATS,
+        default=FIGURE_FORMATS[0],
+        help=f"file format of the figures (default {FIGURE_FORMATS[0]}; pdf and svg are vector "
+        "graphics for a paper)",
+    )

@@ -16,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _paths
+from canonid.commands import _options, _paths
 from canonid.theory import AnalyzeRequest, run_analysis
 
 __all__ = ["register", "run"]
@@ -94,6 +94,7 @@ def register(sub: Any) -> None:
         type=_paths.folder,
         help="output folder (default runs/analyze-SYSTEM, or RUN/analysis without SYSTEM)",
     )
+    _options.add_figure_format(p)
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -111,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
         "W",
         "tol",
     )
-    options += ("seed", "run", "learned_gamma", "data", "out")
+    options += ("seed", "run", "learned_gamma", "data", "out", "figure_format")
     request = AnalyzeRequest(**{k: getattr(args, k) for k in options}, progress=not args.quiet)
     outcome = run_analysis(request)
     print(outcome.text)

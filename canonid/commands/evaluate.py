@@ -13,7 +13,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _data
+from canonid.commands import _data, _options
 from canonid.scoring import EvaluateRequest, metrics_table, score_run
 
 __all__ = ["register", "run"]
@@ -53,13 +53,19 @@ def register(sub: Any) -> None:
         help="samples skipped by the scores (default max(ℓ, 50), at most the longest record "
         "minus one, or what the data name; the rule of canonid.evaluate too)",
     )
+    _options.add_figure_format(p)
     _data.add_data_options(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     options = {key: getattr(args, key) for key in ("run", "data", "split", "horizon", "stride")}
-    request = EvaluateRequest(**options, n_init=args.n_init, data_options=_data.data_options(args))
+    request = EvaluateRequest(
+        **options,
+        n_init=args.n_init,
+        data_options=_data.data_options(args),
+        figure_format=args.figure_format,
+    )
     print(metrics_table(score_run(request).to_json()))
     print(f"metrics written to {args.run / 'metrics.json'}")
     return 0

@@ -66,6 +66,7 @@ def register(sub: Any) -> None:
         what="torch device of the training jobs (default auto: CUDA when present and a job is "
         "large enough to run faster there)",
     )
+    _options.add_figure_format(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -86,6 +87,7 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         device=args.device,
         command=" ".join(["canonid", *sys.argv[1:]]),
+        figure_format=args.figure_format,
     )
     result = reproduce(settings)
     print(

@@ -3,8 +3,9 @@
 The run folder holds ``run.json`` (the recipe: data, options, profile; what ``--resume`` reads),
 the model (``config.json``, ``weights.pt``, ``normalisation.json``), ``checkpoint.pt``,
 ``history.csv`` and ``training_curve.png``, then ``metrics.json`` and ``rollouts.png`` from the
-evaluation on the test split (the validation split when there is none). ``--window auto`` and
-``--hidden auto`` train candidates and keep the best on validation (:mod:`canonid.selection`).
+evaluation on the test split (the validation split when there is none); ``--figure-format pdf``
+or ``svg`` writes the figures as vector graphics. ``--window auto`` and ``--hidden auto`` train
+candidates and keep the best on validation (:mod:`canonid.selection`).
 """
 
 from __future__ import annotations
@@ -163,6 +164,7 @@ def register(sub: Any) -> None:
         help="rollout length of the final evaluation (default 100, or the final training "
         "rollout length when that is shorter, or what the scored records hold)",
     )
+    _options.add_figure_format(p)
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
     _options.add_where(
         p,
@@ -197,7 +199,8 @@ def request(args: argparse.Namespace) -> TrainRequest:
         "activation",
     )
     options += ("residual", "feedthrough", "linear", "paper_options", "out", "resume")
-    options += ("eval_horizon", "threads", "workers", "scheduler", *TRAIN_OPTION_FIELDS)
+    options += ("eval_horizon", "figure_format", "threads", "workers", "scheduler")
+    options += TRAIN_OPTION_FIELDS
     return TrainRequest(
         **{key: getattr(args, key) for key in options},
         data_options=_data.data_options(args),
