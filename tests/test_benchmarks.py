@@ -338,9 +338,10 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
 
 
 def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_path, capsys):
-    from canonid.commands.benchmark import _extra_train_args, train_request
+    from canonid.benchmark import train_args
+    from canonid.commands.benchmark import train_request
 
-    extra = _extra_train_args("--epochs 7 --batch-size 64")
+    extra = train_args("--epochs 7 --batch-size 64")
     request = train_request(["data.npz", "--model", "mlp", "--window", "3", *extra])
     assert (request.epochs, request.batch_size, request.profile) == (7, 64, None)  # default
     write_benchmark("ced", tmp_path)

@@ -1,12 +1,17 @@
 """Command-line options that several commands share, each written once: where the jobs run,
-the profile and the torch device (no import of torch: ``canonid generate`` uses it)."""
+the profile and the torch device (no import of torch: ``canonid generate`` uses it); and the
+typed request built from the parsed options."""
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypeVar
 
-__all__ = ["add_device", "add_profile", "add_where"]
+__all__ = ["add_device", "add_profile", "add_where", "request"]
+
+_Request = TypeVar("_Request")
 
 DEVICES = ("auto", "cpu", "cuda")
 
@@ -49,3 +54,10 @@ def add_profile(
 def add_device(parser: Any, *, what: str, default: str | None = "auto") -> None:
     """``--device {auto,cpu,cuda}``: the torch device of ``what``."""
     parser.add_argument("--device", choices=DEVICES, default=default, help=what)
+
+
+def request(kind: type[_Request], args: argparse.Namespace, **given: Any) -> _Request:
+    """The application's request ``kind`` (a dataclass): every field that an option of the same
+    name (its argparse ``dest``) holds in ``args``, but those that ``given`` sets."""
+    names = {f.name for f in dataclasses.fields(kind) if f.init} - given.keys()  # type: ignore[arg-type]
+    return kind(**{n: getattr(args, n) for n in names if hasattr(args, n)}, **given)

@@ -13,7 +13,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _data
+from canonid.commands import _data, _options
 from canonid.scoring import EvaluateRequest, metrics_table, score_run
 
 __all__ = ["register", "run"]
@@ -58,8 +58,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    options = {key: getattr(args, key) for key in ("run", "data", "split", "horizon", "stride")}
-    request = EvaluateRequest(**options, n_init=args.n_init, data_options=_data.data_options(args))
+    request = _options.request(EvaluateRequest, args, data_options=_data.data_options(args))
     print(metrics_table(score_run(request).to_json()))
     print(f"metrics written to {args.run / 'metrics.json'}")
     return 0

@@ -85,11 +85,5 @@ def run(args: argparse.Namespace) -> int:
         device=args.device,
         command=" ".join(["canonid", *sys.argv[1:]]),
     )
-    result = reproduce(settings)
-    print(
-        f"reproduction ({settings.profile} profile): {len(result.outcomes)} jobs, "
-        f"{result.jobs_run} run now, {len(result.outcomes) - result.jobs_run} already finished"
-    )
-    print(f"report: {result.report_html.resolve()}")
-    print(f"        {result.report_md.resolve()}")
+    print(reproduce(settings).overview())
     return 0
