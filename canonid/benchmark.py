@@ -21,7 +21,6 @@ import dataclasses
 import math
 import os
 import shlex
-from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -187,33 +186,43 @@ def plot_part(
     return atomic_write_figure(path, fig, dpi=110)
 
 
+#: where the docs say how the published figures were made and how canonid's differ
+PROTOCOL_DOCS = 'docs "Standard benchmarks", "Published results"'
+
+
 def report_table(report: BenchmarkReport) -> str:
-    """Scores beside the published baselines, one row per test part."""
-    methods: list[str] = []
-    for b in report.baselines:
-        if b.method not in methods:
-            methods.append(b.method)
-    value = {(b.test, b.method): b.rmse for b in report.baselines}
+    """canonid's scores and the published baselines, one row per method and one column per
+    test part, in the scoring units: each published figure as its source prints it, the lowest
+    per part marked ``*``, each method's source numbered below."""
+    from canonid.datagen.benchmarks import baseline_rows
+
+    tests = [s.test for s in report.scores]
     units = report.scores[0].units if report.scores else ""
-    rows = [("test", "n_init", f"canonid [{units}]", *methods)]
-    for s in report.scores:
-        published: Sequence[str] = [
-            f"{value[(s.test, m)]:.3f}" if (s.test, m) in value else "-" for m in methods
-        ]
-        score = f"{s.rmse:.3f}" if math.isfinite(s.rmse) else "not finite"
-        rows.append((s.test, str(s.n_init), score, *published))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    n_init = report.scores[0].n_init if report.scores else 0
+    rows, sources = baseline_rows(report.baselines, tests)
+    ours = [f"{s.rmse:.3f}" if math.isfinite(s.rmse) else "not finite" for s in report.scores]
+    cells = [
+        ("method", *tests, "source"),
+        (f"canonid ({report.model}, ℓ = {report.window})", *ours, "this run"),
+        *(
+            (method, *("-" if b is None else b.figure + "*" * b.best for b in row), cite)
+            for method, row, cite in rows
+        ),
+    ]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(cells[0]) - 1)]
+    lines = ["  ".join([*(c.ljust(w) for c, w in zip(r, widths)), r[-1]]) for r in cells]
     head = (
         f"{report.title} ({report.definition}): {report.model} ℓ = {report.window}, profile "
-        f"{report.profile}; simulation RMSE after n_init measured samples"
+        f"{report.profile}; simulation RMSE [{units}] after the first n_init = {n_init} "
+        "measured samples of each test part"
     )
-    sources = sorted({b.source for b in report.baselines})
-    tail = (
-        [f"published baselines: {s}" for s in sources]
-        if sources
-        else ["published baselines: none entered for this benchmark"]
-    )
+    if not sources:
+        return "\n".join([head, *lines, "published baselines: none entered for this benchmark"])
+    tail = [
+        "* the lowest published figure on the test part",
+        *(f"[{i}] {source}" for i, source in enumerate(sources, 1)),
+        f"how the published figures were made and how canonid's differ: {PROTOCOL_DOCS}",
+    ]
     return "\n".join([head, *lines, *tail])
 
 
