@@ -10,7 +10,8 @@ top-level packages, from its root.
 
 ``--baseline REF`` measures the tree of git revision ``REF`` too (exported to a temporary
 folder and run with the same interpreter), the two trees taking turns run by run, so both see
-the same machine load. Reports the median and minimum wall time and the median CPU time (user +
+the same machine load. Each tree's modules are compiled to bytecode first, as an installed
+wheel's are. Reports the median and minimum wall time and the median CPU time (user +
 system, which depends little on the load) of ``--repeats`` runs, and the load average before
 and after. Writes the "Start-up" section of ``benchmarks/RESULTS.md``.
 """
@@ -77,6 +78,18 @@ def _importable(tree: Path, scratch: Path) -> Path:
     return source_tree(tree, scratch / f"links-{len(_PATHS)}")
 
 
+#: the folders of a tree that hold the package's modules (both layouts)
+PACKAGE_FOLDERS = ("canonid", "kernel", "models", "datagen", "learning", "analysis")
+
+
+def _compile(tree: Path) -> None:
+    """Write the bytecode of ``tree``'s modules, as installing a wheel does: an interpreter
+    that may not write it (``PYTHONDONTWRITEBYTECODE``) would otherwise compile every module
+    it imports on every run, and a fresh export never has any."""
+    folders = [str(tree / f) for f in PACKAGE_FOLDERS if (tree / f).is_dir()]
+    subprocess.run([sys.executable, "-m", "compileall", "-q", *folders], check=True)
+
+
 def _env(tree: Path) -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": str(_PATHS[tree])}
 
@@ -128,6 +141,7 @@ def main() -> int:
             trees = {f"`{args.baseline}`": old, **trees}
         for tree in trees.values():
             _PATHS[tree] = _importable(tree, scratch)
+            _compile(tree)
         load_before = _load()
         for tree in trees.values():  # warm the file cache once
             for case in commands.values():

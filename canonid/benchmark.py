@@ -20,7 +20,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Sequence
+import shlex
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -45,10 +45,12 @@ __all__ = [
     "PartScore",
     "benchmark_list",
     "check_window",
+    "parse_window",
     "plot_part",
     "report_table",
     "run_benchmark",
     "score_parts",
+    "train_args",
 ]
 
 REPORT_FILE = "benchmark.json"
@@ -184,58 +186,154 @@ def plot_part(
     return atomic_write_figure(path, fig, dpi=110)
 
 
+#: where the docs say how the published figures were made and how canonid's differ
+PROTOCOL_DOCS = 'docs "Standard benchmarks", "Published results"'
+
+
 def report_table(report: BenchmarkReport) -> str:
-    """Scores beside the published baselines, one row per test part."""
-    methods: list[str] = []
-    for b in report.baselines:
-        if b.method not in methods:
-            methods.append(b.method)
-    value = {(b.test, b.method): b.rmse for b in report.baselines}
+    """canonid's scores and the published baselines, one row per method and one column per
+    test part, in the scoring units: each published figure as its source prints it, the lowest
+    per part marked ``*``, each method's source numbered below."""
+    from canonid.datagen.benchmarks import baseline_rows
+
+    tests = [s.test for s in report.scores]
     units = report.scores[0].units if report.scores else ""
-    rows = [("test", "n_init", f"canonid [{units}]", *methods)]
-    for s in report.scores:
-        published: Sequence[str] = [
-            f"{value[(s.test, m)]:.3f}" if (s.test, m) in value else "-" for m in methods
-        ]
-        score = f"{s.rmse:.3f}" if math.isfinite(s.rmse) else "not finite"
-        rows.append((s.test, str(s.n_init), score, *published))
-    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    n_init = report.scores[0].n_init if report.scores else 0
+    rows, sources = baseline_rows(report.baselines, tests)
+    ours = [f"{s.rmse:.3f}" if math.isfinite(s.rmse) else "not finite" for s in report.scores]
+    cells = [
+        ("method", *tests, "source"),
+        (f"canonid ({report.model}, ℓ = {report.window})", *ours, "this run"),
+        *(
+            (method, *("-" if b is None else b.figure + "*" * b.best for b in row), cite)
+            for method, row, cite in rows
+        ),
+    ]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(cells[0]) - 1)]
+    lines = ["  ".join([*(c.ljust(w) for c, w in zip(r, widths)), r[-1]]) for r in cells]
     head = (
         f"{report.title} ({report.definition}): {report.model} ℓ = {report.window}, profile "
-        f"{report.profile}; simulation RMSE after n_init measured samples"
+        f"{report.profile}; simulation RMSE [{units}] after the first n_init = {n_init} "
+        "measured samples of each test part"
     )
-    sources = sorted({b.source for b in report.baselines})
-    tail = (
-        [f"published baselines: {s}" for s in sources]
-        if sources
-        else ["published baselines: none entered for this benchmark"]
-    )
+    if not sources:
+        return "\n".join([head, *lines, "published baselines: none entered for this benchmark"])
+    tail = [
+        "* the lowest published figure on the test part",
+        *(f"[{i}] {source}" for i, source in enumerate(sources, 1)),
+        f"how the published figures were made and how canonid's differ: {PROTOCOL_DOCS}",
+    ]
     return "\n".join([head, *lines, *tail])
+
+
+#: canonid train options that the benchmark sets itself (and help, which would exit)
+RESERVED_TRAIN_OPTIONS = (
+    "--model",
+    "--window",
+    "--profile",
+    "--out",
+    "--seed",
+    "--threads",
+    "--resume",
+    "--val",
+    "-h",
+    "--help",
+)
+
+
+def train_args(text: str) -> list[str]:
+    """``--train-args``: further ``canonid train`` options, split like a shell; the options the
+    benchmark sets (:data:`RESERVED_TRAIN_OPTIONS`) are refused, also when abbreviated
+    (``--mod``) or joined to their value (``--model=gru``, ``-hx``)."""
+    try:
+        extra = shlex.split(text)
+    except ValueError as exc:
+        raise OptionError(f"--train-args: cannot split {text!r} ({exc})") from None
+    taken = [a for a in extra if _reserved(a)]
+    if taken:
+        raise OptionError(
+            f"--train-args: {', '.join(taken)} set by canonid benchmark itself; give them as "
+            "its own options"
+        )
+    return extra
+
+
+def _reserved(arg: str) -> bool:
+    """Whether ``arg`` names (or abbreviates) an option the benchmark sets itself."""
+    name = arg.split("=")[0]
+    if name.startswith("--val-") or (name.startswith("-h") and not name.startswith("--")):
+        return True
+    # an abbreviation the train parser would take for one of them, were abbreviations allowed
+    return (
+        len(name) > 2
+        and name.startswith("--")
+        and any(o.startswith(name) for o in RESERVED_TRAIN_OPTIONS)
+    )
+
+
+def parse_window(text: str | None) -> int | Literal["auto"] | None:
+    """``--window``: an integer, ``auto``, or ``None`` (the benchmark's default)."""
+    if text is None:
+        return None
+    if text == "auto":
+        return "auto"
+    if not (text.isascii() and text.isdigit()):  # '²'.isdigit() is true, int('²') fails
+        raise OptionError(f"--window: expected an integer or auto, got {text!r}")
+    return int(text)
+
+
+#: the options a resumed run takes from its run.json instead: field → command-line flag
+_FIXED_ON_RESUME = {
+    "files": "--dir",
+    "model": "--model",
+    "window": "--window",
+    "profile": "--profile",
+    "out": "--out",
+    "seed": "--seed",
+    "val_fraction": "--val-fraction",
+}
 
 
 @dataclass(frozen=True, kw_only=True)
 class BenchmarkRequest:
     """A benchmark run: train on benchmark ``name``'s official training part (from ``files``,
-    default the package's cache) as ``train`` asks (its data, model, window, profile, folder,
-    seed and threads are the benchmark's: ``None`` here means its default), with the last
-    ``val_fraction`` of every training record validating; score every official test part.
+    default the package's cache) with ``model`` (default ``mlp``), ``window`` (default
+    min(:data:`DEFAULT_WINDOW`, n_init)) and ``profile`` (default
+    :data:`~canonid.profiles.DEFAULT_PROFILE`) as ``train`` asks (its data, model, window,
+    profile, folder, seed and threads are the benchmark's), with the last ``val_fraction``
+    (default 0.2) of every training record validating; score every official test part.
 
     ``resume``: continue the benchmark run in that folder as ``canonid train --resume`` does
-    (``train`` may then hold only what a resumed run may change), then score it; ``name``, if
-    given, must be the run's benchmark."""
+    (``train`` may then hold only what a resumed run may change, and the options the run
+    recorded are not given), then score it; ``name``, if given, must be the run's benchmark.
+    Checked when built."""
 
     name: str | None = None
     files: Path | None = None
-    model: str = "mlp"
+    model: str | None = None
     window: int | Literal["auto"] | None = None
-    profile: str = DEFAULT_PROFILE
+    profile: str | None = None
     out: Path | None = None
     seed: int | None = None
     threads: int | None = None
-    val_fraction: float = 0.2
+    val_fraction: float | None = None
     train: TrainRequest = field(default_factory=TrainRequest)
     resume: Path | None = None
+
+    def __post_init__(self) -> None:
+        if self.resume is not None:
+            given = [f for k, f in _FIXED_ON_RESUME.items() if getattr(self, k) is not None]
+            if given:
+                raise OptionError(
+                    f"{', '.join(given)} cannot be given with --resume: the run continues as "
+                    "its run.json records it"
+                )
+        elif self.name is None:
+            raise OptionError(
+                f"give a benchmark NAME ({', '.join(BENCHMARKS)}), --resume RUN or --list"
+            )
+        if self.train.data is not None:  # DATA is the benchmark's
+            raise OptionError(f"--train-args: {self.train.data!r} is not an option")
 
 
 def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
@@ -257,21 +355,21 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
 
     if request.resume is not None:
         return _resume(request)
-    if request.name is None:
-        raise OptionError("give a benchmark NAME, or --resume RUN")
+    assert request.name is not None  # checked when the request was built
     bench = benchmark(request.name)
+    model = request.model or "mlp"
     window = request.window if request.window is not None else min(DEFAULT_WINDOW, bench.n_init)
     if isinstance(window, int):
         check_window(window, bench)
-    run_dir = request.out or Path("runs") / f"{bench.name}-{request.model}"
+    run_dir = request.out or Path("runs") / f"{bench.name}-{model}"
     wanted = dataclasses.replace(
         request.train,
         data=str(run_dir / DATA_FILE),
-        model=request.model,
+        model=model,
         window=window,
         # --window auto tries only the windows the official rule can feed
         window_candidates=tuple(w for w in WINDOW_CANDIDATES if w <= bench.n_init),
-        profile=request.profile,
+        profile=request.profile or DEFAULT_PROFILE,
         out=run_dir,
         seed=request.seed,
         threads=request.threads,
@@ -280,7 +378,11 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     if not (run_dir / CHECKPOINT_FILE).exists():  # a run to continue is checked under the lock
         check_request(wanted)  # every training option, before the files are read
     dataset = load_benchmark(bench.name, request.files)
-    split = split_train_val(dataset, val_fraction=request.val_fraction, record_tails=True)
+    split = split_train_val(
+        dataset,
+        val_fraction=0.2 if request.val_fraction is None else request.val_fraction,
+        record_tails=True,
+    )
     checksum = _checksum(split)
     with run_folder_lock(run_dir, new=True):
         todo = _continue_or_start(wanted, run_dir, checksum)

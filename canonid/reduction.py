@@ -43,7 +43,7 @@ from matplotlib.figure import Figure
 
 from canonid.jobs import Job, check_folder, run_folder_lock
 from canonid.kernel.dataset import as_trajectories
-from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.errors import CheckpointError, DataError, OptionError
 from canonid.kernel.io import atomic_write_figure, atomic_write_json, read_json
 from canonid.learning import EpochReport, Model
 from canonid.learning.evaluate import evaluate, simulate_records
@@ -74,6 +74,7 @@ from canonid.runner import EpochBar, run_jobs
 __all__ = [
     "DEFAULT_RATES",
     "REDUCTION_FILE",
+    "ReduceRequest",
     "ReductionJob",
     "ReductionResult",
     "SweepPlan",
@@ -82,6 +83,7 @@ __all__ = [
     "rate_label",
     "reduce_one",
     "reduce_run",
+    "reduce_runs",
     "run_reduction_job",
 ]
 
@@ -459,6 +461,13 @@ class SweepResult:
             )
         return "\n".join(lines)
 
+    def summary(self) -> str:
+        """What ``canonid reduce --sweep`` prints: :meth:`table` and where the files are."""
+        return (
+            f"{self.table()}\nfigures: {self.heatmap}, {self.reduced_mse}; results: "
+            f"{self.folder / SWEEP_FILE}"
+        )
+
 
 @dataclass(frozen=True)
 class SweepPlan:
@@ -559,6 +568,78 @@ def compression_sweep(
         },
     )
     return sweep
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReduceRequest:
+    """``canonid reduce`` as asked: one reduction of ``runs[0]`` at rate ``compression`` into
+    ``out`` (default ``RUN-r<rate>`` beside the run), or with ``sweep`` the compression study of
+    ``runs`` over ``rates`` (default :data:`DEFAULT_RATES`) and ``seeds`` seeds from ``seed``
+    into ``out`` (default ``runs/compression-sweep``), on ``workers`` / ``scheduler`` (each job
+    on ``threads`` torch threads, default 1). ``profile``, ``epochs``, ``linear_skip``,
+    ``device``, ``resume`` (one reduction only) and ``command``: see :class:`ReductionJob`."""
+
+    runs: Sequence[Path]
+    compression: float | None = None
+    sweep: bool = False
+    profile: str = "quick"
+    out: Path | None = None
+    epochs: int | None = None
+    linear_skip: bool | None = None
+    seed: int = 0
+    device: str = "cpu"
+    threads: int | None = None
+    resume: bool = False
+    rates: Sequence[float] | None = None
+    seeds: int = 3
+    workers: int = 0
+    scheduler: str | None = None
+    progress: bool = True
+    command: tuple[str, ...] = ()
+
+
+def reduce_runs(request: ReduceRequest) -> ReductionResult | SweepResult:
+    """One reduction (:func:`reduce_one`) or the compression study (:func:`compression_sweep`)
+    as ``request`` asks; the options that do not fit the mode are refused."""
+    if request.sweep:
+        if request.resume:
+            raise OptionError("--resume is for one reduction; a sweep always resumes its jobs")
+        if request.seeds < 1:
+            raise OptionError(f"--seeds must be >= 1, got {request.seeds}")
+        plan = SweepPlan(
+            runs=tuple(str(r) for r in request.runs),
+            out=str(request.out or Path("runs") / "compression-sweep"),
+            rates=tuple(request.rates or DEFAULT_RATES),
+            seeds=tuple(range(request.seed, request.seed + request.seeds)),
+            profile=request.profile,
+            epochs=request.epochs,
+            linear_skip=request.linear_skip,
+            device=request.device,
+            threads=request.threads if request.threads is not None else 1,
+            command=request.command,
+        )
+        return compression_sweep(
+            plan, workers=request.workers, scheduler=request.scheduler, progress=request.progress
+        )
+    if len(request.runs) != 1:
+        raise OptionError(f"--compression reduces one RUN, got {len(request.runs)} (use --sweep)")
+    if request.compression is None:
+        raise OptionError("give --compression R (one reduction) or --sweep (the study)")
+    source = Path(request.runs[0])
+    job = ReductionJob(
+        source=str(source),
+        compression=request.compression,
+        out=str(request.out or source.parent / f"{source.name}-{rate_label(request.compression)}"),
+        profile=request.profile,
+        seed=request.seed,
+        epochs=request.epochs,
+        linear_skip=request.linear_skip,
+        device=request.device,
+        threads=request.threads,
+        resume=request.resume,
+        command=request.command,
+    )
+    return reduce_one(job, progress=request.progress)
 
 
 # ---------------------------------------------------------------------- figures

@@ -416,6 +416,14 @@ class Reproduction:
         """Jobs executed by this call (the others were finished before)."""
         return sum(o.ran for o in self.outcomes)
 
+    def overview(self) -> str:
+        """What ``canonid reproduce`` prints: the jobs run now and where the report is."""
+        return (
+            f"reproduction ({self.settings.profile} profile): {len(self.outcomes)} jobs, "
+            f"{self.jobs_run} run now, {len(self.outcomes) - self.jobs_run} already finished\n"
+            f"report: {self.report_html.resolve()}\n        {self.report_md.resolve()}"
+        )
+
     def to_dict(self, machine: Mapping[str, Any]) -> dict[str, Any]:
         """The body of ``reproduction.json``."""
         s = self.settings

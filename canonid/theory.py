@@ -77,6 +77,15 @@ class AnalysisOutcome:
     violations: int = 0
     report: AnalysisReport | None = None
 
+    def warning(self) -> str | None:
+        """The line that reports violations of Proposition 2 (``None`` when there are none)."""
+        if not self.violations:
+            return None
+        return (
+            f"warning: {self.violations} violation(s) of Proposition 2 with certified "
+            "constants — this is a bug, please report it with analysis.json"
+        )
+
 
 def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
     """Run the analysis of ``request`` (see the module docstring)."""

@@ -60,6 +60,7 @@ __all__ = [
     "DEFAULT_DIR",
     "Baseline",
     "Benchmark",
+    "baseline_rows",
     "baselines_markdown",
     "benchmark",
     "benchmark_names",
@@ -520,21 +521,36 @@ def benchmark(name: str) -> Benchmark:
         raise DataError(f"unknown benchmark {name!r}; choose one of {benchmark_names()}") from None
 
 
+def baseline_rows(
+    baselines: Sequence[Baseline], tests: Sequence[str]
+) -> tuple[list[tuple[str, list[Baseline | None], str]], list[str]]:
+    """``baselines`` as one row per method, in their order: (method, its figure on each of
+    ``tests`` or ``None``, its citation ``[i]`` and note), and the sources the ``[i]`` number; a
+    method with no figure on ``tests`` has no row."""
+    sources = list(dict.fromkeys(b.source for b in baselines))
+    figures = {(b.method, b.test): b for b in baselines}
+    rows = []
+    for method in dict.fromkeys(b.method for b in baselines):
+        row = [figures.get((method, test)) for test in tests]
+        if all(b is None for b in row):  # no figure on these parts
+            continue
+        # one method, one source: the row's first figure names it (and its note, if any)
+        first = next(b for b in row if b is not None)
+        cite = f"[{sources.index(first.source) + 1}]" + (f"; {first.note}" if first.note else "")
+        rows.append((method, row, cite))
+    return rows, sources
+
+
 def baselines_markdown(name: str) -> str:
     """Benchmark ``name``'s published results as Markdown: a table with one row per method and
     one column per test part (the figures as published, the lowest per part in bold, – where a
     method has none), then the numbered list of the sources the last column refers to."""
     bench = benchmark(name)
-    sources = list(dict.fromkeys(b.source for b in bench.baselines))
-    figures = {(b.method, b.test): b for b in bench.baselines}
+    rows, sources = baseline_rows(bench.baselines, bench.test_parts)
     head = ["method", *(f"{test} [{bench.score_units}]" for test in bench.test_parts), "source"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for method in dict.fromkeys(b.method for b in bench.baselines):
-        row = [figures.get((method, test)) for test in bench.test_parts]
+    for method, row, cite in rows:
         cells = ["–" if b is None else f"**{b.figure}**" if b.best else b.figure for b in row]
-        # one method, one source: the row's first figure names it (and its note, if any)
-        first = next(b for b in row if b is not None)
-        cite = f"[{sources.index(first.source) + 1}]" + (f"; {first.note}" if first.note else "")
         lines.append("| " + " | ".join([method, *cells, cite]) + " |")
     lines += ["", *(f"{i}. {source}" for i, source in enumerate(sources, 1))]
     return "\n".join(lines)

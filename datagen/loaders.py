@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import codecs
 import csv
-import hashlib
 import io
 import itertools
 import math
@@ -40,7 +39,7 @@ import numpy as np
 
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import DataError, ShapeError
-from canonid.kernel.io import read_json, read_npz, sha256_file
+from canonid.kernel.io import read_json, read_npz, sha256_bytes, sha256_file
 
 __all__ = [
     "data_checksum",
@@ -499,7 +498,7 @@ def data_checksum(path: PathLike) -> str:
         if not files:
             raise DataError(f"{p}: a folder without dataset.npz or CSV files")
         listing = "".join(f"{f.name}\t{sha256_file(f)}\n" for f in files)
-        return hashlib.sha256(listing.encode()).hexdigest()
+        return sha256_bytes(listing.encode())
     return sha256_file(regular_file(p, "data file"))
 
 

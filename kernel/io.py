@@ -20,15 +20,12 @@ They live in the kernel, under every layer; they need only numpy.
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import math
 import os
 import re
 import stat
-import tempfile
-import zipfile
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
@@ -56,6 +53,9 @@ __all__ = [
 ]
 
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+
+# tempfile, zipfile and hashlib are imported where a write, an .npz or a checksum needs them:
+# reading a CSV needs none of them, and canonid.load_data's start-up is measured
 
 
 def atomic_write_bytes(
@@ -140,6 +140,8 @@ def _replacing(
     unique temporary file created exclusively beside the target, renamed over it. Any failure
     leaves the target as it was and no temporary file; an ``OSError`` becomes an
     :class:`OutputError` naming the target."""
+    import tempfile
+
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
@@ -244,6 +246,8 @@ def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:
 
 def npz_bytes(arrays: Mapping[str, np.ndarray]) -> bytes:
     """The bytes of an uncompressed ``.npz`` holding ``arrays``, identical for identical input."""
+    import zipfile
+
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as zf:
         for key in sorted(arrays):
@@ -270,6 +274,8 @@ def write_npz(
 def read_npz(path: str | os.PathLike[str], *, what: str = "array file") -> dict[str, np.ndarray]:
     """Read every array of an ``.npz`` (no pickle) of real numbers; anything else (not a zip,
     corrupt, truncated, complex or text arrays) raises DataError."""
+    import zipfile
+
     p = Path(path)
     if not p.is_file():
         raise DataError(f"{what} not found: {p}")
@@ -289,10 +295,14 @@ def read_npz(path: str | os.PathLike[str], *, what: str = "array file") -> dict[
 
 
 def sha256_bytes(data: bytes) -> str:
+    import hashlib
+
     return hashlib.sha256(data).hexdigest()
 
 
 def sha256_file(path: str | os.PathLike[str]) -> str:
+    import hashlib
+
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for chunk in iter(lambda: fh.read(1 << 20), b""):

@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 from test_benchmarks import EXPECTED
 
+from canonid.benchmark import BenchmarkReport, PartScore, report_table
 from canonid.datagen.benchmarks import BENCHMARKS, CHAMPNEYS, baselines_markdown
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -326,3 +327,71 @@ def test_the_docs_show_each_benchmarks_published_results_from_the_registry(name)
         f"{DOCS}: the {name} table differs from the registry's; replace the section with:\n"
         f"{expected}"
     )
+
+
+def _printed(name: str, scores: list[float], baselines: list | None = None) -> str:
+    """What ``canonid benchmark NAME`` prints for a run that scored ``scores`` on the parts."""
+    bench = BENCHMARKS[name]
+    parts = [
+        PartScore(test, rmse, bench.score_units, bench.n_init, 100)
+        for test, rmse in zip(bench.test_parts, scores, strict=True)
+    ]
+    report = BenchmarkReport(
+        benchmark=name,
+        title=bench.title,
+        definition="nonlinear_benchmarks 1.0.1",
+        files=[],
+        model="mlp",
+        window=10,
+        profile="quick",
+        validation="the last 20 %",
+        scores=parts,
+        baselines=list(bench.baselines) if baselines is None else baselines,
+        rule="",
+    )
+    return report_table(report)
+
+
+@pytest.mark.parametrize("path", _texts())
+@pytest.mark.parametrize("name", list(BENCHMARKS))
+def test_the_printed_table_shows_each_published_figure_as_published(path, name):
+    """One row per method, one column per test part: every figure with the digits of
+    BASELINES.md, the lowest per part marked, canonid's row in the same units, every source
+    numbered once."""
+    published = {(t, m): f for (b, t, m), (f, _) in _figures(_read(path)).items() if b == name}
+    bench = BENCHMARKS[name]
+    ours = [0.5 + i / 8 for i in range(len(bench.test_parts))]
+    head, header, canonid, *rest = _printed(name, ours).splitlines()
+    assert f"simulation RMSE [{bench.score_units}]" in head and f"n_init = {bench.n_init}" in head
+    assert re.split(r" {2,}", header) == ["method", *bench.test_parts, "source"]
+    assert re.split(r" {2,}", canonid) == [
+        "canonid (mlp, ℓ = 10)",
+        *(f"{v:.3f}" for v in ours),
+        "this run",
+    ]
+    rows = [re.split(r" {2,}", line) for line in rest[: len({m for _, m in published})]]
+    assert len({r[0] for r in rows}) == len(rows)  # one row per method
+    printed = {
+        (test, row[0]): cell
+        for row in rows
+        for test, cell in zip(bench.test_parts, row[1:-1], strict=True)
+        if cell != "-"
+    }
+    assert {k: c.rstrip("*") for k, c in printed.items()} == published
+    lowest: dict[str, str] = {}
+    for (test, _), figure in published.items():
+        lowest[test] = min(lowest.get(test, figure), figure, key=float)
+    assert {t: c[:-1] for (t, _), c in printed.items() if c.endswith("*")} == lowest
+    tail = rest[len(rows) :]
+    sources = sorted({b.source for b in bench.baselines})
+    assert sorted(line.split("] ", 1)[1] for line in tail if line.startswith("[")) == sources
+    assert tail[0].startswith("* ") and "Standard benchmarks" in tail[-1]
+
+
+def test_a_benchmark_without_published_figures_says_so():
+    table = _printed("emps", [1.0], baselines=[]).splitlines()
+    assert [re.split(r" {2,}", line)[0] for line in table[1:3]] == [
+        "method",
+        "canonid (mlp, ℓ = 10)",
+    ]
+    assert table[3:] == ["published baselines: none entered for this benchmark"]

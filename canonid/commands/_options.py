@@ -1,15 +1,19 @@
 """Command-line options that several commands share, each written once: where the jobs run,
-the profile, the torch device (no import of torch: ``canonid generate`` uses it) and the figures'
-file format."""
+the profile, the torch device (no import of torch: ``canonid generate`` uses it), the figures'
+file format; and the typed request built from the parsed options."""
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, TypeVar
 
 from canonid.kernel.io import FIGURE_FORMATS
 
-__all__ = ["add_device", "add_figure_format", "add_profile", "add_where"]
+__all__ = ["add_device", "add_figure_format", "add_profile", "add_where", "request"]
+
+_Request = TypeVar("_Request")
 
 DEVICES = ("auto", "cpu", "cuda")
 
@@ -51,6 +55,8 @@ def add_profile(
 
 def add_device(parser: Any, *, what: str, default: str | None = "auto") -> None:
     """``--device {auto,cpu,cuda}``: the torch device of ``what``."""
+    if default == "auto":
+        what += " (default auto: CUDA when present and the job is large enough to run faster there)"
     parser.add_argument("--device", choices=DEVICES, default=default, help=what)
 
 
@@ -63,3 +69,10 @@ def add_figure_format(parser: Any) -> None:
         help=f"file format of the figures (default {FIGURE_FORMATS[0]}; pdf and svg are vector "
         "graphics for a paper)",
     )
+
+
+def request(kind: type[_Request], args: argparse.Namespace, **given: Any) -> _Request:
+    """The application's request ``kind`` (a dataclass): every field that an option of the same
+    name (its argparse ``dest``) holds in ``args``, but those that ``given`` sets."""
+    names = {f.name for f in dataclasses.fields(kind) if f.init} - given.keys()  # type: ignore[arg-type]
+    return kind(**{n: getattr(args, n) for n in names if hasattr(args, n)}, **given)

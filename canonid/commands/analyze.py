@@ -100,27 +100,10 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    options: tuple[str, ...] = (
-        "system",
-        "window",
-        "windows",
-        "trials",
-        "budget",
-        "boxes",
-        "X",
-        "U",
-        "W",
-        "tol",
-    )
-    options += ("seed", "run", "learned_gamma", "data", "out", "figure_format")
-    request = AnalyzeRequest(**{k: getattr(args, k) for k in options}, progress=not args.quiet)
+    request = _options.request(AnalyzeRequest, args, progress=not args.quiet)
     outcome = run_analysis(request)
     print(outcome.text)
-    if outcome.violations:
-        print(
-            f"warning: {outcome.violations} violation(s) of Proposition 2 with certified "
-            "constants — this is a bug, please report it with analysis.json",
-            file=sys.stderr,
-        )
-        return 1
-    return 0
+    warning = outcome.warning()
+    if warning:
+        print(warning, file=sys.stderr)
+    return 1 if warning else 0

@@ -24,9 +24,8 @@ An interrupted benchmark is finished by running the same command again, or by ``
 from __future__ import annotations
 
 import argparse
-import shlex
 from pathlib import Path
-from typing import Any, Literal, NoReturn
+from typing import Any, NoReturn
 
 from canonid.benchmark import (
     BENCHMARKS,
@@ -34,8 +33,10 @@ from canonid.benchmark import (
     REPORT_FILE,
     BenchmarkRequest,
     benchmark_list,
+    parse_window,
     report_table,
     run_benchmark,
+    train_args,
 )
 from canonid.commands import _options, _paths, train
 from canonid.kernel.catalog import MODEL_NAMES
@@ -120,94 +121,17 @@ def train_request(argv: list[str]) -> TrainRequest:
     return train.request(parser.parse_args(["train", *argv]))
 
 
-#: canonid train options that the benchmark sets itself (and help, which would exit)
-_OWN = (
-    "--model",
-    "--window",
-    "--profile",
-    "--out",
-    "--seed",
-    "--threads",
-    "--resume",
-    "--val",
-    "-h",
-    "--help",
-)
-#: the benchmark's own options a resumed run takes from its run.json instead
-_FIXED_ON_RESUME = ("dir", "model", "window", "profile", "out", "seed", "val_fraction")
-
-
-def _extra_train_args(text: str) -> list[str]:
-    """``--train-args`` split like a shell; the options the benchmark sets are refused, also
-    when abbreviated (``--mod``) or joined to their value (``--model=gru``, ``-hx``)."""
-    try:
-        extra = shlex.split(text)
-    except ValueError as exc:
-        raise OptionError(f"--train-args: cannot split {text!r} ({exc})") from None
-    taken = [a for a in extra if _reserved(a)]
-    if taken:
-        raise OptionError(
-            f"--train-args: {', '.join(taken)} set by canonid benchmark itself; give them as "
-            "its own options"
-        )
-    return extra
-
-
-def _reserved(arg: str) -> bool:
-    """Whether ``arg`` names (or abbreviates) an option the benchmark sets itself."""
-    name = arg.split("=")[0]
-    if name.startswith("--val-") or (name.startswith("-h") and not name.startswith("--")):
-        return True
-    # an abbreviation the train parser would take for one of them, were abbreviations allowed
-    return len(name) > 2 and name.startswith("--") and any(o.startswith(name) for o in _OWN)
-
-
-def _window(text: str | None) -> int | Literal["auto"] | None:
-    """``--window``: an integer, ``auto``, or ``None`` (the benchmark's default)."""
-    if text is None:
-        return None
-    if text == "auto":
-        return "auto"
-    if not (text.isascii() and text.isdigit()):  # '²'.isdigit() is true, int('²') fails
-        raise OptionError(f"--window: expected an integer or auto, got {text!r}")
-    return int(text)
-
-
 def run(args: argparse.Namespace) -> int:
     if args.list:
         print(benchmark_list(args.dir))
         return 0
-    if args.resume is not None:
-        given = [
-            f"--{k.replace('_', '-')}" for k in _FIXED_ON_RESUME if getattr(args, k) is not None
-        ]
-        if given:
-            raise OptionError(
-                f"{', '.join(given)} cannot be given with --resume: the run continues as its "
-                "run.json records it"
-            )
-    elif args.name is None:
-        raise OptionError(
-            f"give a benchmark NAME ({', '.join(BENCHMARKS)}), --resume RUN or --list"
-        )
-    extra = _extra_train_args(args.train_args) + (["--no-progress"] if args.no_progress else [])
-    chosen = {
-        key: getattr(args, key)
-        for key in ("model", "profile", "out", "val_fraction")
-        if getattr(args, key) is not None
-    }
-    trained = train_request(extra)
-    if trained.data is not None:  # DATA is the benchmark's
-        raise OptionError(f"--train-args: {trained.data!r} is not an option")
-    request = BenchmarkRequest(
-        **chosen,
-        name=args.name,
-        seed=args.seed,
+    extra = train_args(args.train_args) + (["--no-progress"] if args.no_progress else [])
+    request = _options.request(
+        BenchmarkRequest,
+        args,
         files=args.dir,
-        window=_window(args.window),
-        threads=args.threads,
-        resume=args.resume,
-        train=trained,
+        window=parse_window(args.window),
+        train=train_request(extra),
     )
     report, run_dir = run_benchmark(request)
     print(report_table(report))

@@ -59,13 +59,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    options = {key: getattr(args, key) for key in ("run", "data", "split", "horizon", "stride")}
-    request = EvaluateRequest(
-        **options,
-        n_init=args.n_init,
-        data_options=_data.data_options(args),
-        figure_format=args.figure_format,
-    )
+    request = _options.request(EvaluateRequest, args, data_options=_data.data_options(args))
     print(metrics_table(score_run(request).to_json()))
     print(f"metrics written to {args.run / 'metrics.json'}")
     return 0

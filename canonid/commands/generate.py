@@ -81,13 +81,10 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    options = ("system", "seed", "noise", "horizon", "steps", "out", "workers", "scheduler")
-    design = ("excitation", "amplitude", "band", "lines", "clock", "references")
-    request = GenerateRequest(
-        **{key: getattr(args, key) for key in (*options, *design, "resume", "plot")},
-        counts={
-            k: n for k in ("train", "val", "test") if (n := getattr(args, f"n_{k}")) is not None
-        },
+    request = _options.request(
+        GenerateRequest,
+        args,
+        counts={k: n for k in SPLITS if (n := getattr(args, f"n_{k}")) is not None},
         progress=not args.no_progress,
     )
     print(generate(request))

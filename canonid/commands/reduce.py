@@ -13,7 +13,6 @@ from pathlib import Path
 from typing import Any
 
 from canonid.commands import _options, _paths
-from canonid.kernel.errors import OptionError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 
 __all__ = ["register", "run"]
@@ -64,11 +63,7 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("--seed", type=int, default=0, help="seed (--sweep: the first of --seeds)")
-    _options.add_device(
-        p,
-        what="torch device (default auto: CUDA when present and the job is large enough to run "
-        "faster there)",
-    )
+    _options.add_device(p, what="torch device")
     p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads (per job)")
     p.add_argument(
         "--resume", action="store_true", help="continue the interrupted reduction in --out"
@@ -88,60 +83,14 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
-def _one(args: argparse.Namespace) -> int:
-    from canonid.reduction import ReductionJob, rate_label, reduce_one  # torch, matplotlib
-
-    if len(args.runs) != 1:
-        raise OptionError(f"--compression reduces one RUN, got {len(args.runs)} (use --sweep)")
-    source: Path = args.runs[0]
-    out = args.out or source.parent / f"{source.name}-{rate_label(args.compression)}"
-    options: tuple[str, ...] = (
-        "compression",
-        "profile",
-        "seed",
-        "epochs",
-        "linear_skip",
-        "device",
-        "resume",
-    )
-    options += ("threads",)
-    job = ReductionJob(
-        **{key: getattr(args, key) for key in options},
-        source=str(source),
-        out=str(out),
-        command=("canonid", *sys.argv[1:]),
-    )
-    print(reduce_one(job, progress=not args.no_progress).summary())
-    return 0
-
-
-def _sweep(args: argparse.Namespace) -> int:
-    from canonid.reduction import DEFAULT_RATES, SweepPlan, compression_sweep
-
-    if args.resume:
-        raise OptionError("--resume is for one reduction; a sweep always resumes its jobs")
-    if args.seeds < 1:
-        raise OptionError(f"--seeds must be >= 1, got {args.seeds}")
-    out = args.out or Path("runs") / "compression-sweep"
-    plan = SweepPlan(
-        runs=tuple(str(r) for r in args.runs),
-        out=str(out),
-        rates=tuple(args.rates or DEFAULT_RATES),
-        seeds=tuple(range(args.seed, args.seed + args.seeds)),
-        profile=args.profile,
-        epochs=args.epochs,
-        linear_skip=args.linear_skip,
-        device=args.device,
-        threads=args.threads if args.threads is not None else 1,
-        command=("canonid", *sys.argv[1:]),
-    )
-    sweep = compression_sweep(
-        plan, workers=args.workers, scheduler=args.scheduler, progress=not args.no_progress
-    )
-    print(sweep.table())
-    print(f"figures: {sweep.heatmap}, {sweep.reduced_mse}; results: {out / 'sweep.json'}")
-    return 0
-
-
 def run(args: argparse.Namespace) -> int:
-    return _sweep(args) if args.sweep else _one(args)
+    from canonid.reduction import ReduceRequest, reduce_runs  # torch, matplotlib
+
+    request = _options.request(
+        ReduceRequest,
+        args,
+        progress=not args.no_progress,
+        command=("canonid", *sys.argv[1:]),
+    )
+    print(reduce_runs(request).summary())
+    return 0

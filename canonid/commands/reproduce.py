@@ -61,11 +61,7 @@ def register(sub: Any) -> None:
     )
     _options.add_where(p, jobs="run the jobs", sees="OUT")
     p.add_argument("--resume", action="store_true", help="continue the reproduction in OUT")
-    _options.add_device(
-        p,
-        what="torch device of the training jobs (default auto: CUDA when present and a job is "
-        "large enough to run faster there)",
-    )
+    _options.add_device(p, what="torch device of the training jobs")
     _options.add_figure_format(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
@@ -89,11 +85,5 @@ def run(args: argparse.Namespace) -> int:
         command=" ".join(["canonid", *sys.argv[1:]]),
         figure_format=args.figure_format,
     )
-    result = reproduce(settings)
-    print(
-        f"reproduction ({settings.profile} profile): {len(result.outcomes)} jobs, "
-        f"{result.jobs_run} run now, {len(result.outcomes) - result.jobs_run} already finished"
-    )
-    print(f"report: {result.report_html.resolve()}")
-    print(f"        {result.report_md.resolve()}")
+    print(reproduce(settings).overview())
     return 0

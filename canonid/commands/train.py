@@ -26,7 +26,6 @@ from canonid.kernel.catalog import (
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
     AUTO,
-    TRAIN_OPTION_FIELDS,
     WIDTH_CANDIDATES,
     WINDOW_CANDIDATES,
     TrainRequest,
@@ -189,20 +188,9 @@ def _window_arg(text: str) -> int | str:
 
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
-    options: tuple[str, ...] = (
-        "data",
-        "model",
-        "window",
-        "profile",
-        "val",
-        "val_fraction",
-        "activation",
-    )
-    options += ("residual", "feedthrough", "linear", "paper_options", "out", "resume")
-    options += ("eval_horizon", "figure_format", "threads", "workers", "scheduler")
-    options += TRAIN_OPTION_FIELDS
-    return TrainRequest(
-        **{key: getattr(args, key) for key in options},
+    return _options.request(
+        TrainRequest,
+        args,
         data_options=_data.data_options(args),
         hidden=parse_widths(args.hidden),
         progress=not args.no_progress,
