@@ -25,7 +25,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import statistics
 import sys
 import time
 from collections.abc import Sequence
@@ -42,7 +44,7 @@ from _data import ensure_dataset  # noqa: E402
 from _results import write_section  # noqa: E402
 
 WINDOW = 10
-ROWS = ROOT / "runs" / "defaults_study.jsonl"
+ROWS = ROOT / "benchmarks" / "studies" / "defaults_study.jsonl"
 SECTION = "Defaults study"
 GENERATED = {"tank": "tank-s0", "drone2d": "drone2d-small"}
 
@@ -155,6 +157,81 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+#: the column of today's defaults: the reference every other column is compared with
+REFERENCE = "3e-3, clip 1, skip from zero (now)"
+SELECTION = "Defaults study: the choice on validation"
+
+
+def choose(rows: list[dict[str, Any]], reference: str = REFERENCE) -> tuple[list[dict], str]:
+    """Each column's best validation losses against ``reference``'s, and the column the rule
+    keeps: the lowest mean over systems of the mean over seeds of ``ln(val / val_reference)``,
+    among the columns that are options of the code and have every case the reference has.
+    Test scores are not read."""
+    found = {(r["system"], r["seed"], r["label"]): r["best_val"] for r in rows}
+    cases = sorted({(r["system"], r["seed"]) for r in rows if r["label"] == reference})
+    systems = sorted({s for s, _ in cases})
+    out = []
+    for label in dict.fromkeys(r["label"] for r in rows):
+        option = all(r.get("code_option", True) for r in rows if r["label"] == label)
+        logs: dict[str, list[float]] = {s: [] for s in systems}
+        for system, seed in cases:
+            v = found.get((system, seed, label))
+            if v is not None:
+                logs[system].append(math.log(v / found[(system, seed, reference)]))
+        per_system = {s: statistics.fmean(v) for s, v in logs.items() if v}
+        out.append(
+            {
+                "label": label,
+                "cases": sum(len(v) for v in logs.values()),
+                "per_system": per_system,
+                "score": statistics.fmean(per_system.values()) if per_system else math.nan,
+                "complete": all(
+                    len(logs[s]) == sum(1 for c in cases if c[0] == s) for s in systems
+                ),
+                "option": option,
+            }
+        )
+    eligible = [c for c in out if c["complete"] and c["option"]]
+    return out, min(eligible, key=lambda c: c["score"])["label"]
+
+
+def selection_section(rows: list[dict[str, Any]]) -> str:
+    columns, kept = choose(rows)
+    systems = sorted({s for c in columns for s in c["per_system"]})
+    n_cases = max(c["cases"] for c in columns)
+    lines = [
+        'The columns of the section "Defaults study" compared by their **best validation '
+        "losses** only (normalised rollout MSE on each system's validation split; the test "
+        f"scores are not read): for every case (system and seed) that the column of today's "
+        f"defaults ({REFERENCE}) has, the ratio of the column's best validation loss to that "
+        "column's, as a geometric mean over seeds per system, then over systems. The rule keeps "
+        f"the lowest among the columns that are options of the code and cover all {n_cases} "
+        "cases.",
+        "",
+        "| column | cases | "
+        + " | ".join(f"{s}: validation ratio" for s in systems)
+        + " | mean over systems | eligible |",
+        "|---|---:|" + "---:|" * (len(systems) + 1) + "---|",
+    ]
+    for c in sorted(columns, key=lambda c: (not (c["complete"] and c["option"]), c["score"])):
+        ratios = [
+            f"{math.exp(c['per_system'][s]):.3f}" if s in c["per_system"] else "—" for s in systems
+        ]
+        why = (
+            "yes"
+            if c["complete"] and c["option"]
+            else ("no: not an option of the code" if not c["option"] else "no: cases missing")
+        )
+        name = f"**{c['label']}**" if c["label"] == kept else c["label"]
+        lines.append(
+            f"| {name} | {c['cases']} | "
+            + " | ".join(ratios)
+            + f" | {math.exp(c['score']):.3f} | {why} |"
+        )
+    lines += ["", f"Kept on validation: **{kept}**."]
+    return "\n".join(lines)
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -167,7 +244,15 @@ def main() -> int:
     one.add_argument("--rows", type=Path, default=ROWS)
     tab = sub.add_parser("table", help="write the section from the rows")
     tab.add_argument("--rows", type=Path, default=ROWS)
+    pick = sub.add_parser("select", help="choose a column on validation; write its section")
+    pick.add_argument("--rows", type=Path, default=ROWS)
     args = parser.parse_args()
+    if args.command == "select":
+        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
+        body = selection_section(rows)
+        write_section(SELECTION, body)
+        print(body)
+        return 0
     if args.command == "table":
         rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
         body = table(rows)

@@ -32,19 +32,22 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import io
 import itertools
 import logging
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
 from canonid.kernel.dataset import Trajectory
-from canonid.kernel.errors import OptionError, ShapeError
+from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
+from canonid.kernel.io import atomic_write_bytes
 from canonid.learning.canonical import pairs_to_state
 from canonid.learning.data import Normalisation, WindowBank
 from canonid.learning.linear import initialise_linear
@@ -52,12 +55,18 @@ from canonid.learning.model import Model, load_state
 from canonid.learning.nets import OursMLP, build_net
 from canonid.learning.presets import net_options as preset_net_options
 from canonid.learning.training import (
+    CHECKPOINT_FILE,
+    CHECKPOINT_VERSION,
     MAX_RECOVERIES,
+    RESUMABLE_CHANGES,
     FitResult,
     TrainOptions,
     _check_rollout_lengths,
     _draw_windows,
     _fit_validation_horizon,
+    _load_checkpoint,
+    _rng_state,
+    _to_cpu,
     _training_pair,
     _validation_starts,
     data_fingerprint,
@@ -308,6 +317,43 @@ class _Stack:
         self.epochs_run, self.stopped = [0] * n, ["completed"] * n
         # positions (into the lists above) of the candidates still in the stack
         self.active = list(range(n))
+
+    # -------------------------------------------------------------- checkpoint
+    _LISTS = (
+        "steps",
+        "ema_steps",
+        "lr_scale",
+        "recoveries",
+        "history",
+        "best_val",
+        "best_epoch",
+        "epochs_run",
+        "stopped",
+        "active",
+    )
+
+    def state(self) -> dict[str, Any]:
+        """Everything training changes, on the CPU (what :meth:`load` restores)."""
+        return {
+            "params": _to_cpu(self.params),
+            "m": _to_cpu(self.m),
+            "v": _to_cpu(self.v),
+            "ema": None if self.ema is None else _to_cpu(self.ema),
+            "best": [_to_cpu(b) for b in self.best],
+            "rng": _rng_state(self.rng.bit_generator.state, encode=True),
+            **{name: copy.deepcopy(getattr(self, name)) for name in self._LISTS},
+        }
+
+    def load(self, state: Mapping[str, Any]) -> None:
+        device = self.scale.device
+        for name in ("params", "m", "v"):
+            setattr(self, name, {k: v.to(device) for k, v in state[name].items()})
+        if self.ema is not None:
+            self.ema = {k: v.to(device) for k, v in state["ema"].items()}
+        self.best = [{k: v.to(device) for k, v in b.items()} for b in state["best"]]
+        self.rng.bit_generator.state = _rng_state(state["rng"], encode=False)
+        for name in self._LISTS:
+            setattr(self, name, list(state[name]))
 
     # -------------------------------------------------------------- validation
     def kept(self) -> dict[str, torch.Tensor]:
@@ -597,6 +643,8 @@ def fit_batched(
     net_options: Mapping[str, Any] | None = None,
     ensemble: int = 3,
     callback: Callable[[int], None] | None = None,
+    run_dir: str | Path | None = None,
+    resume: bool = False,
 ) -> BatchedResult:
     """Train ``candidates`` of Ours (MLP) at once and choose among them on validation.
 
@@ -613,7 +661,13 @@ def fit_batched(
             candidate's ``hidden`` replaces the widths.
         ensemble: how many of the best candidates of the chosen window to average and score
             (< 2: no ensemble).
-        callback: called with the epoch number after every epoch.
+        callback: called with the epoch number after every epoch (after its checkpoint).
+        run_dir: where to write :data:`CHECKPOINT_FILE` every ``options.checkpoint_every``
+            epochs, at the last epoch and when every candidate has stopped (atomically).
+        resume: continue from ``run_dir``'s checkpoint, which must have been written for the
+            same candidates, network, data and training options (``epochs``, ``patience``,
+            ``checkpoint_every`` and ``device`` may change): the result has the bytes of a run
+            that was never interrupted.
     """
     base = options or TrainOptions()
     if not candidates:
@@ -654,14 +708,53 @@ def fit_batched(
         )
         for key, idx in groups.items()
     ]
-    for stack in stacks:
-        stack.start()
-    for epoch in range(1, base.epochs + 1):
+    identity = {
+        "model": "mlp-batched",
+        "net": dict(config),
+        "data": fingerprint,
+        "options": {k: v for k, v in base.to_dict().items() if k not in RESUMABLE_CHANGES},
+        "extra": {
+            "candidates": [[c.label, ell] for c, ell in zip(candidates, windows, strict=True)]
+        },
+    }
+    checkpoint = Path(run_dir) / CHECKPOINT_FILE if run_dir is not None else None
+    first = 1
+    if resume:
+        if checkpoint is None:
+            raise CheckpointError("resume=True needs the run_dir holding the checkpoint")
+        state = _load_checkpoint(checkpoint, identity)
+        for stack, saved in zip(stacks, state["stacks"], strict=True):
+            stack.load(saved)
+        first = int(state["epoch"]) + 1
+    else:
+        for stack in stacks:
+            stack.start()
+
+    def save(epoch: int) -> None:
+        if checkpoint is None:
+            return
+        payload = {
+            "version": CHECKPOINT_VERSION,
+            "identity": identity,
+            "epoch": epoch,
+            "stacks": [stack.state() for stack in stacks],
+        }
+        buf = io.BytesIO()
+        torch.save(payload, buf)
+        atomic_write_bytes(checkpoint, buf.getvalue())
+
+    for epoch in range(first, base.epochs + 1):
         live = [s for s in stacks if s.active]
         if not live:
             break
         for stack in live:
             stack.train_epoch(epoch)
+        if (
+            epoch % base.checkpoint_every == 0
+            or epoch == base.epochs
+            or not any(s.active for s in stacks)
+        ):
+            save(epoch)
         if callback is not None:
             callback(epoch)
 

@@ -6,13 +6,17 @@ from __future__ import annotations
 import importlib
 import inspect
 import math
+import signal
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
 from learning_helpers import damped_siso, trajectories
 
-from canonid.kernel.errors import OptionError
+from canonid.kernel.errors import CheckpointError, OptionError
 from canonid.learning import TrainOptions, fit
 from canonid.learning.batched import (
     Candidate,
@@ -261,3 +265,115 @@ def test_no_candidate_is_refused(data):
     train, val = data
     with pytest.raises(OptionError, match="at least one candidate"):
         fit_batched(train, val, [], window=3, options=options())
+
+
+class _Interrupt(Exception):
+    """Stands for a process that stops between two epochs (a checkpoint was written)."""
+
+
+def _stop_after(epoch: int):
+    def callback(done: int) -> None:
+        if done == epoch:
+            raise _Interrupt
+
+    return callback
+
+
+def _same_result(a, b, tmp_path) -> None:
+    assert (a.chosen, a.ensemble, a.ensemble_val_loss) == (
+        b.chosen,
+        b.ensemble,
+        b.ensemble_val_loss,
+    )
+    for i, (ra, rb) in enumerate(zip(a.runs, b.runs, strict=True)):
+        fa, fb = ra.model.save(tmp_path / f"a-{i}"), rb.model.save(tmp_path / f"b-{i}")
+        for name in ("weights.pt", "config.json", "normalisation.json"):
+            assert (fa / name).read_bytes() == (fb / name).read_bytes(), (i, name)
+        strip = [
+            [{k: v for k, v in row.items() if k != "seconds"} for row in r.history]
+            for r in (ra, rb)
+        ]
+        assert strip[0] == strip[1]
+        assert (ra.best_epoch, ra.stopped, ra.epochs_run) == (
+            rb.best_epoch,
+            rb.stopped,
+            rb.epochs_run,
+        )
+
+
+def test_an_interrupted_run_resumed_gives_the_bytes_of_an_uninterrupted_one(data, tmp_path):
+    train, val = data
+    # two windows (two stacks); two candidates stop early at epoch 6, after the interruption
+    grid = [*candidate_grid(seed=[0, 1], lr=[3e-3, 1e-2]), Candidate.of(window=4)]
+    opts = options(epochs=8, checkpoint_every=2, patience=1, val_every=1, curriculum_epochs=1)
+    common = {"window": 3, "options": opts, "net_options": TINY}
+    whole = fit_batched(train, val, grid, **common)
+    assert sorted(r.stopped for r in whole.runs).count("early_stopping") == 2
+    with pytest.raises(_Interrupt):
+        fit_batched(train, val, grid, **common, run_dir=tmp_path, callback=_stop_after(5))
+    resumed = fit_batched(train, val, grid, **common, run_dir=tmp_path, resume=True)
+    _same_result(whole, resumed, tmp_path / "models")
+
+
+KILLED_BATCHED = """
+import os, signal, sys
+sys.path.insert(0, sys.argv[1])
+from test_batched import TINY, data, options
+from canonid.learning.batched import candidate_grid, fit_batched
+
+train, val = data.__wrapped__()
+grid = candidate_grid(seed=[0, 1, 2])
+kill = int(sys.argv[3])
+
+def callback(epoch):
+    if epoch == kill:
+        os.kill(os.getpid(), signal.SIGKILL)  # after epoch 5's checkpoint (every 2: epoch 4)
+
+fit_batched(train, val, grid, window=3, options=options(epochs=7, checkpoint_every=2),
+            net_options=TINY, run_dir=sys.argv[2], callback=callback)
+"""
+
+
+def test_kill_9_then_resume_gives_the_same_bytes(data, tmp_path):
+    train, val = data
+    grid = candidate_grid(seed=[0, 1, 2])
+    opts = options(epochs=7, checkpoint_every=2)
+    tests = str(Path(__file__).resolve().parent)
+    proc = subprocess.run(
+        [sys.executable, "-c", KILLED_BATCHED, tests, str(tmp_path), "5"],
+        capture_output=True,
+        text=True,
+    )
+    assert proc.returncode == -signal.SIGKILL, proc.stderr
+    resumed = fit_batched(
+        train, val, grid, window=3, options=opts, net_options=TINY, run_dir=tmp_path, resume=True
+    )
+    whole = fit_batched(train, val, grid, window=3, options=opts, net_options=TINY)
+    _same_result(whole, resumed, tmp_path / "models")
+
+
+def test_a_checkpoint_of_other_candidates_is_refused(data, tmp_path):
+    train, val = data
+    opts = options(epochs=2)
+    fit_batched(
+        train,
+        val,
+        candidate_grid(seed=[0, 1]),
+        window=3,
+        options=opts,
+        net_options=TINY,
+        run_dir=tmp_path,
+    )
+    with pytest.raises(CheckpointError, match="candidates"):
+        fit_batched(
+            train,
+            val,
+            candidate_grid(seed=[0, 2]),
+            window=3,
+            options=opts,
+            net_options=TINY,
+            run_dir=tmp_path,
+            resume=True,
+        )
+    with pytest.raises(CheckpointError, match="needs the run_dir"):
+        fit_batched(train, val, candidate_grid(seed=[0]), window=3, options=opts, resume=True)
