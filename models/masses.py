@@ -37,7 +37,7 @@ to springs) gives modal damping ``ζ_j = (c/k) ω_j / 2``::
 The slowest mode decays with time constant ``1 / (ζ1 ω1) = 14.43 s`` = 721 samples (its
 impulse response falls to 1 % after 4.6 time constants, about 3,300 samples); the fastest is
 sampled 17.4 times per period. The hardening joint stiffens the wall spring by ``3 cubic q1²``:
-with the default ``cubic = 300 N/m³`` that is 36 % of ``k1`` at ``|q1| = 0.2 m``.
+with the default ``cubic = 1000 N/m³`` that is 30 % of ``k1`` at ``|q1| = 0.1 m``.
 
 Discretisation
 --------------
@@ -100,9 +100,9 @@ class MassChain(System):
         mass: _TRIPLE = (1.0, 1.0, 1.0),
         stiffness: _TRIPLE = (100.0, 100.0, 100.0),
         damping: _TRIPLE = (0.7, 0.7, 0.7),
-        cubic: float = 300.0,
+        cubic: float = 1000.0,
         rate_hz: float = 50.0,
-        force_max: float = 10.0,
+        force_max: float = 20.0,
         position_box: float = 0.6,
         velocity_box: float = 3.0,
         noise: float = 0.05,
