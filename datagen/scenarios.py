@@ -280,6 +280,44 @@ _DRONE2D_ID = replace(
     ),
 )
 
+
+# ---------------------------------------------------------------------------- chain of masses
+def _zero_reference(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
+    return np.zeros((T, system.n_u))
+
+
+def _feedforward(system: System, options: Mapping[str, Any]) -> Controller:
+    from canonid.datagen.controllers.feedforward import Feedforward
+
+    return Feedforward(system.n_u)
+
+
+#: a multisine over the whole band below Nyquist, so that the regressor of a long window is not
+#: rank-deficient (a band-limited input's lags are nearly collinear); RMS 4 N peaks near 15 N,
+#: inside U = [-20, 20] N, and moves the wall joint (|q1| up to about 0.16 m) enough that its cubic
+#: term changes the outputs by about a third of their RMS
+MASSES_ID_DESIGN = Multisine(band=(0.1, 25.0), lines=400, amplitude=4.0)
+
+_MASSES_ID = Scenario(
+    system="masses",
+    name="masses-id",
+    T=2000,
+    split_sizes={"train": 20, "val": 5, "test": 5},
+    reference=_zero_reference,
+    reference_names=("F_nominal",),
+    initial_state=_zero_state,
+    controller=_feedforward,
+    clip_input=True,
+    design=MASSES_ID_DESIGN,
+    measure_window=60,
+    notes=(
+        "Open loop (the chain is stable): each flight starts at rest and is driven by a "
+        "random-phase multisine force on mass 3, 400 lines on the 0.025 Hz grid of a 40-s "
+        "flight (2000 samples at 50 Hz) between 0.1 Hz and Nyquist (25 Hz), RMS 4 N, "
+        "clipped to U; the reference is zero and there is no feedback."
+    ),
+)
+
 _SCENARIOS: dict[str, Scenario] = {
     "tank": Scenario(
         system="tank",
@@ -298,6 +336,7 @@ _SCENARIOS: dict[str, Scenario] = {
     "drone2d": _DRONE2D,
     "drone2d-id": _DRONE2D_ID,
     "quadrotor": _QUADROTOR,
+    "masses-id": _MASSES_ID,
 }
 
 

@@ -16,6 +16,7 @@ _EXPORTS = {
     "LearnedSystem": "canonid.models.learned",
     "LinearSystem": "canonid.models.linear",
     "linear_example": "canonid.models.linear",
+    "MassChain": "canonid.models.masses",
     "get_system": "canonid.models.registry",
     "register_system": "canonid.models.registry",
     "system_names": "canonid.models.registry",

@@ -13,6 +13,7 @@ from canonid.kernel.errors import UnknownSystemError
 from canonid.models.base import System
 from canonid.models.drone2d import Drone2D
 from canonid.models.linear import LINEAR_EXAMPLES
+from canonid.models.masses import MassChain
 from canonid.models.quadrotor import Quadrotor
 from canonid.models.tank import Tank
 
@@ -22,6 +23,7 @@ _FACTORIES: dict[str, Callable[..., System]] = {
     "tank": Tank,
     "drone2d": Drone2D,
     "quadrotor": Quadrotor,
+    "masses": MassChain,
     **LINEAR_EXAMPLES,
 }
 

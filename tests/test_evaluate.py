@@ -157,3 +157,35 @@ def test_a_simulation_that_blows_up_is_written_null_and_flagged(records, capsys)
     json.dumps(body, allow_nan=False)  # what atomic_write_json demands
     text = table({**body, "data": {"path": "test.csv", "split": "test"}})
     assert "not finite" in text and "blew up (inf or NaN)" in text
+
+
+def test_a_mimo_table_has_one_row_per_output_under_each_target(rng):
+    """Each output's scores are printed below the row over all outputs, with the values of
+    metrics.json's ``*_per_output`` lists; a single-output table has no such rows."""
+    from canonid.scoring import metrics_table as table
+
+    class Echo2(EchoModel):
+        name, n_u, n_y = "echo2", 2, 2
+
+    u = rng.normal(size=(80, 2))
+    noise = np.array([0.05, 0.4]) * rng.uniform(-1, 1, size=(80, 2))
+    records = [SimpleNamespace(u=u, y=u + noise, y_clean=u)]
+    ev = evaluate(Echo2(3), records, horizon=20, n_init=10, output_names=["left", "right"])
+    body = {**ev.to_json(), "data": {"path": "d.npz", "split": "test"}}
+    lines = table(body).splitlines()
+    for target, scores in (("y (measured)", body), ("y_clean", body["clean"])):
+        at = next(i for i, line in enumerate(lines) if line.startswith(target))
+        for k, name in enumerate(["left", "right"]):
+            cells = lines[at + 1 + k].split()
+            assert cells[0] == name
+            assert float(cells[4]) == pytest.approx(scores["fit_percent_per_output"][k], abs=0.006)
+            assert float(cells[2]) == pytest.approx(scores["rmse_per_output"][k], rel=1e-3)
+    per = body["fit_percent_per_output"]
+    assert per[0] > per[1]  # the noisier output fits worse, and the table shows which
+    single = evaluate(
+        EchoModel(3),
+        [SimpleNamespace(u=u[:, :1], y=u[:, :1], y_clean=None)],
+        horizon=20,
+        n_init=10,
+    )
+    assert len(table({**single.to_json(), "data": {"path": "d", "split": "t"}}).splitlines()) == 3
