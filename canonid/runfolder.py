@@ -11,7 +11,11 @@ study and the Table-1 jobs of ``canonid reproduce`` all write the same folder:
   read back for the run (:func:`run_data`) are the data it was trained on, or refused;
 * the model (``config.json``, ``weights.pt``, ``normalisation.json``) and ``checkpoint.pt``;
 * ``history.csv`` and ``training_curve.png`` (:func:`write_history`);
-* ``metrics.json`` (:data:`METRICS_FILE`) and ``rollouts.png`` (:func:`evaluate_run`).
+* ``metrics.json`` (:data:`METRICS_FILE`) and ``rollouts.png`` (:func:`evaluate_run`): the
+  scores training wrote, which nothing else rewrites;
+* ``evaluations/NAME/`` (:data:`EVALUATIONS_DIR`): one folder per ``canonid evaluate`` (its own
+  ``metrics.json`` and ``rollouts.png``), named by the data it scored and its options
+  (:func:`canonid.scoring.evaluation_name`).
 
 Figures are PNG unless another of :data:`canonid.kernel.io.FIGURE_FORMATS` is asked for
 (``training_curve.pdf``, ``rollouts.svg``, …; :func:`figure_file`); ``metrics.json`` names its
@@ -48,6 +52,7 @@ from canonid.models.registry import signal_units
 
 __all__ = [
     "DATA_FLAGS",
+    "EVALUATIONS_DIR",
     "FIGURES",
     "HISTORY_FILE",
     "METRICS_FILE",
@@ -83,9 +88,12 @@ DATA_FLAGS = {
     "inputs": "--inputs",
     "outputs": "--outputs",
     "experiment_column": "--experiment-column",
+    "time_column": "--time-column",
     "dt": "--dt",
 }
 METRICS_FILE = "metrics.json"
+#: the folder of a run's evaluations, one subfolder each (``canonid evaluate``)
+EVALUATIONS_DIR = "evaluations"
 HISTORY_FILE = "history.csv"
 RECIPE_FORMAT = "canonid-run"
 #: the version of :class:`RunRecipe`'s JSON (a recipe without one is of version 1)
@@ -358,6 +366,7 @@ _OPTION_TYPES: dict[str, tuple[Callable[[Any], bool], str]] = {
     "inputs": (_is_names, "a list of column names"),
     "outputs": (_is_names, "a list of column names"),
     "experiment_column": (_is_text, "a column name"),
+    "time_column": (_is_text, "a column name"),
     "dt": (lambda v: _is_real(v) and v > 0, "a positive number of seconds"),
 }
 
@@ -421,6 +430,9 @@ class RunEvaluation:
         scores: the scores against the measured and, if any, the noise-free outputs.
         data_path, split, n_trajectories: the data scored.
         figure: the file name of the rollouts figure written beside ``metrics.json``.
+        data_sha256: the checksum of the data scored (:func:`data_checksum`), if recorded.
+        request: what asked for the scores (``canonid evaluate``'s options and the checksum of
+            the weights scored), written as ``evaluation``; ``None`` for training's own score.
     """
 
     scores: Evaluation
@@ -428,6 +440,8 @@ class RunEvaluation:
     split: str
     n_trajectories: int
     figure: str | None = None
+    data_sha256: str | None = None
+    request: Mapping[str, Any] | None = None
 
     @property
     def rollout_mse(self) -> float:
@@ -441,15 +455,19 @@ class RunEvaluation:
 
     def to_json(self) -> dict[str, Any]:
         """The body of ``metrics.json``."""
+        data: dict[str, Any] = {
+            "path": self.data_path,
+            "split": self.split,
+            "n_trajectories": self.n_trajectories,
+        }
+        if self.data_sha256 is not None:
+            data["sha256"] = self.data_sha256
         return {
             "schema": 1,
             **self.scores.to_json(),
-            "data": {
-                "path": self.data_path,
-                "split": self.split,
-                "n_trajectories": self.n_trajectories,
-            },
+            "data": data,
             **({"figure": self.figure} if self.figure else {}),
+            **({} if self.request is None else {"evaluation": dict(self.request)}),
         }
 
 
@@ -665,9 +683,12 @@ def evaluate_run(
     stride: int,
     n_init: int | None,
     figure_format: str = "png",
+    data_sha256: str | None = None,
+    request: Mapping[str, Any] | None = None,
 ) -> RunEvaluation:
-    """Score ``model`` on ``dataset``; write metrics.json and rollouts.png (or .pdf, .svg:
-    ``figure_format``) to ``run_dir``."""
+    """Score ``model`` on ``dataset``; write rollouts.png (or .pdf, .svg: ``figure_format``),
+    then metrics.json (the last file: a folder with it is complete) to ``run_dir``
+    (``data_sha256``, ``request``: what :class:`RunEvaluation` records)."""
     name, trajs = pick_split(dataset, split, where=data_path)
     if n_init is None:
         n_init = default_n_init(
@@ -682,7 +703,9 @@ def evaluate_run(
         output_names=dataset.output_names,
     )
     figure = figure_file("rollouts", figure_format)
-    result = RunEvaluation(ev, data_path, name, len(trajs), figure)
+    result = RunEvaluation(
+        ev, data_path, name, len(trajs), figure, data_sha256=data_sha256, request=request
+    )
     plot_rollouts(
         model,
         trajs,

@@ -2,10 +2,14 @@
 
 :func:`score_run` reads the model of a run folder and either the data it was trained on, split
 again exactly as training split them (``run.json``), or a file read with the run's loader options
-(a CSV or ``.npz`` file's records form the split :data:`USER_DATA_SPLIT`); it scores the ``test``
-split (else ``val``, or the one asked for) with :func:`canonid.runfolder.evaluate_run`, which
-writes ``metrics.json`` and ``rollouts.png``. ``n_init`` defaults to
-:func:`canonid.learning.evaluate.default_n_init`, the rule of ``canonid.evaluate`` too.
+overridden by those given (a CSV or ``.npz`` file's records form the split
+:data:`USER_DATA_SPLIT`); it scores the ``test`` split (else ``val``, or the one asked for) with
+:func:`canonid.runfolder.evaluate_run` into its own folder ``RUN/evaluations/NAME``
+(:func:`evaluation_name`): the data's name and checksum and the options, so that training's
+``metrics.json`` and every other evaluation stay. The same evaluation asked again of the same
+weights is not redone (its folder is read back); of other weights (a run trained further) it is
+refused. ``n_init`` defaults to :func:`canonid.learning.evaluate.default_n_init`, the rule of
+``canonid.evaluate`` too.
 :func:`metrics_table` is the short table that ``train``, ``evaluate`` and ``reduce`` print.
 
 The module imports no torch; scoring loads it.
@@ -13,23 +17,31 @@ The module imports no torch; scoring loads it.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import hashlib
+import json
+import re
+import shutil
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from canonid.kernel.errors import DataError, OptionError
+from canonid.kernel.errors import DataError, OptionError, OutputError
 
 if TYPE_CHECKING:
     from canonid.kernel.dataset import Dataset
-    from canonid.runfolder import RunEvaluation
 
 __all__ = [
     "USER_DATA_SPLIT",
     "EvaluateRequest",
+    "Scored",
     "check_signal_names",
+    "evaluation_name",
+    "load_with_run_options",
     "metrics_table",
+    "run_options",
     "score_run",
     "scoring_data",
     "user_data_as_test",
@@ -59,11 +71,32 @@ class EvaluateRequest:
     figure_format: str = "png"
 
 
-def score_run(request: EvaluateRequest) -> RunEvaluation:
-    """Score the model of ``request.run``; write its ``metrics.json`` and ``rollouts.png``."""
+@dataclass(frozen=True)
+class Scored:
+    """What :func:`score_run` did: the ``metrics.json`` body of the evaluation in ``folder``,
+    and whether that folder held it already (``reused``: nothing was written)."""
+
+    folder: Path
+    metrics: Mapping[str, Any]
+    reused: bool
+
+
+def score_run(request: EvaluateRequest) -> Scored:
+    """Score the model of ``request.run`` into ``RUN/evaluations/NAME`` (see the module
+    docstring): its own ``metrics.json`` and ``rollouts.png``."""
+    from canonid.datagen.loaders import data_checksum
     from canonid.jobs import run_folder_lock
+    from canonid.kernel.io import read_json, sha256_file
     from canonid.learning import Model
-    from canonid.runfolder import eval_defaults, evaluate_run, pick_split
+    from canonid.runfolder import (
+        EVALUATIONS_DIR,
+        METRICS_FILE,
+        eval_defaults,
+        evaluate_run,
+        pick_split,
+        read_recipe,
+        scoring_source,
+    )
 
     for flag, value in (("--horizon", request.horizon), ("--stride", request.stride)):
         if value is not None and value < 1:
@@ -82,18 +115,76 @@ def score_run(request: EvaluateRequest) -> RunEvaluation:
         where=f"{data_path} [{name}]",
         fit=request.horizon is None,
     )
+    if request.data is None:  # the file the split came from: a --val FILE run's val is FILE
+        data_path = scoring_source(read_recipe(request.run), name)
+    checksum = data_checksum(data_path)
+    asked: dict[str, Any] = {
+        "split": name,
+        "horizon": request.horizon,
+        "stride": request.stride,
+        "n_init": request.n_init,
+        **({"figure_format": request.figure_format} if request.figure_format != "png" else {}),
+    }
+    changed: dict[str, Any] = {}
+    if request.data is not None:
+        asked["data_options"] = run_options(request.run, request.data, request.data_options)
+        own = run_options(request.run, request.data, {})
+        changed = {k: v for k, v in asked["data_options"].items() if own.get(k) != v}
+    weights = request.run / "weights.pt"
+    record = {**asked, "weights_sha256": sha256_file(weights) if weights.is_file() else None}
+    tag = {**asked, "data_options": changed}
+    folder = request.run / EVALUATIONS_DIR / evaluation_name(data_path, checksum, tag)
     with run_folder_lock(request.run, flag="RUN"):  # no other writer of the run meanwhile
-        return evaluate_run(
-            request.run,
-            model,
-            dataset,
-            data_path=data_path,
-            split=name,
-            horizon=horizon,
-            stride=request.stride,
-            n_init=request.n_init,
-            figure_format=request.figure_format,
-        )
+        done = folder / METRICS_FILE
+        if done.is_file():
+            metrics = read_json(done, what="metrics")
+            if metrics.get("evaluation") == record:
+                return Scored(folder, metrics, reused=True)
+            raise OutputError(
+                f"{folder} holds this evaluation of other weights (the run was trained further "
+                "since); remove that folder to score the run's weights now"
+            )
+        folder.mkdir(parents=True, exist_ok=True)
+        try:
+            result = evaluate_run(
+                folder,
+                model,
+                dataset,
+                data_path=data_path,
+                split=name,
+                horizon=horizon,
+                stride=request.stride,
+                n_init=request.n_init,
+                figure_format=request.figure_format,
+                data_sha256=checksum,
+                request=record,
+            )
+        except BaseException:
+            if not done.is_file():  # nothing half-written
+                shutil.rmtree(folder, ignore_errors=True)
+                with contextlib.suppress(OSError):
+                    folder.parent.rmdir()  # the evaluations folder, if this was its first
+            raise
+    return Scored(folder, result.to_json(), reused=False)
+
+
+def evaluation_name(data_path: str | Path, sha256: str, asked: Mapping[str, Any]) -> str:
+    """``STEM-SHA8-SPLIT[-OPTIONS]``: the folder of one evaluation, named by the data scored
+    (its file or folder name without suffix, the first 8 hex digits of its checksum), the split
+    and the options given (``h20``, ``stride5``, ``ninit10``, a figure format other than
+    ``png``; ``csv`` and 8 hex digits of the loader options, when they are not the run's own)."""
+    stem = re.sub(r"[^A-Za-z0-9._-]+", "_", Path(data_path).stem)[:40].strip("._") or "data"
+    parts = [stem, sha256[:8], re.sub(r"[^A-Za-z0-9._-]+", "_", str(asked["split"]))]
+    for key, label in (("horizon", "h"), ("stride", "stride"), ("n_init", "ninit")):
+        value = asked.get(key)
+        if value is not None and not (key == "stride" and value == 1):
+            parts.append(f"{label}{value}")
+    if asked.get("figure_format"):
+        parts.append(str(asked["figure_format"]))
+    if asked.get("data_options"):
+        text = json.dumps(asked["data_options"], sort_keys=True)
+        parts.append("csv" + hashlib.sha256(text.encode()).hexdigest()[:8])
+    return "-".join(parts)
 
 
 def scoring_data(
@@ -109,13 +200,12 @@ def scoring_data(
 
     Without ``data``, the run's own data split as training split them (default: ``test``, else
     ``val``). With ``data``, that file read with the run's recorded loader options overridden by
-    those ``given`` (a canonid dataset takes none), checked against the ``model``'s ``info``.
+    those ``given`` (:func:`load_with_run_options`), checked against the ``model``'s ``info``.
     """
-    from canonid.datagen.loaders import is_dataset
-    from canonid.runfolder import DATA_FLAGS, RUN_FILE, check_compatible, load, recipe_of, run_data
+    from canonid.runfolder import DATA_FLAGS, RUN_FILE, check_compatible, recipe_of, run_data
 
-    recipe = recipe_of(run_dir)
     if data is None:
+        recipe = recipe_of(run_dir)
         if recipe is None:
             raise DataError(
                 f"{run_dir / RUN_FILE} not found: the run names no data; give --data FILE"
@@ -127,15 +217,51 @@ def scoring_data(
             )
         dataset, default_split = run_data(recipe)
         return dataset, recipe.data, split or default_split
-    options = dict(given)
-    if not is_dataset(data):
-        recorded = recipe.data_options if recipe is not None else {}
-        options = {k: recorded.get(k) if given.get(k) is None else given[k] for k in DATA_FLAGS}
-    dataset = user_data_as_test(load(data, options))
+    dataset = user_data_as_test(load_with_run_options(run_dir, data, given))
     check_compatible(dataset, model, where=str(data))
     explicit = any(given.get(k) is not None for k in ("inputs", "outputs"))
     check_signal_names(dataset, model, where=str(data), explicit=explicit)
     return dataset, str(data), split
+
+
+def run_options(run_dir: Path, data: str | Path, given: Mapping[str, Any]) -> dict[str, Any]:
+    """The loader options that read ``data`` for the run in ``run_dir``: those it recorded
+    (``run.json``), each overridden by one ``given`` (not ``None``); none for a canonid dataset."""
+    from canonid.datagen.loaders import is_dataset
+    from canonid.runfolder import DATA_FLAGS, recipe_of
+
+    if is_dataset(data):
+        return dict(given)
+    recipe = recipe_of(run_dir)
+    recorded = recipe.data_options if recipe is not None else {}
+    return {k: recorded.get(k) if given.get(k) is None else given[k] for k in DATA_FLAGS}
+
+
+def load_with_run_options(run_dir: Path, data: str | Path, given: Mapping[str, Any]) -> Dataset:
+    """``data`` read with :func:`run_options`; a problem reading it names the options that came
+    from the run, and how to override them."""
+    from canonid.runfolder import DATA_FLAGS, load
+
+    options = run_options(run_dir, data, given)
+    try:
+        return load(data, options)
+    except DataError as exc:
+        inherited = [
+            f"{DATA_FLAGS[k]} {_shown(v)}"
+            for k, v in options.items()
+            if given.get(k) is None and v not in (None, "")
+        ]
+        if not inherited:
+            raise
+        raise DataError(
+            f"{exc} (read with the run's options {', '.join(inherited)}: give another to "
+            "override one, e.g. --experiment-column none)"
+        ) from None
+
+
+def _shown(value: Any) -> str:
+    """An option's value as typed on the command line."""
+    return ",".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
 
 
 def check_signal_names(

@@ -8,10 +8,14 @@ split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
 * :func:`load_csv` — one file or several. Columns are named; ``inputs`` and ``outputs`` pick
   them. Either every file is one experiment, or ``experiment_column`` names a column whose value
   identifies the experiment of each row (experiments in order of first appearance, rows in file
-  order; the rows of one experiment must be contiguous). ``dt`` (seconds) is required: CSV files
-  carry no sampling time. Files are UTF-8 text, read as a stream; each column read is named
-  once in the header and every cell of it is a finite number in plain notation (ASCII digits,
-  optional sign, decimal point and exponent: not ``1_000`` or ``１２``, which ``float`` reads).
+  order; the rows of one experiment must be contiguous). A time column in seconds
+  (``time_column``, else one named ``t`` or ``time``: :data:`TIME_COLUMNS`) gives the sampling
+  time ``dt`` when it is not given, its spacing checked uniform; a time that goes back within a
+  record warns that records were joined (name the ``experiment_column``). Without a time column
+  ``dt`` (seconds) is required. Files are UTF-8 text, read as a stream; each column read is
+  named once in the header and every cell of it is a finite number in plain notation (ASCII
+  digits, optional sign, decimal point and exponent: not ``1_000`` or ``１２``, which ``float``
+  reads).
 * :func:`load_npz` — arrays ``u`` and ``y``, each ``(T, n)`` for one experiment or ``(N, T, n)``
   for ``N`` of equal length, or pairs ``u_0, y_0, u_1, y_1, …`` for experiments of any length;
   optional ``y_clean`` (same layout) and a scalar ``dt`` (else the ``dt`` argument).
@@ -26,12 +30,14 @@ import codecs
 import csv
 import io
 import itertools
+import logging
 import math
 import operator
 import os
 import re
 import stat
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +60,14 @@ __all__ = [
 ]
 
 PathLike = str | os.PathLike[str]
+
+log = logging.getLogger(__name__)
+
+#: the header names (compared in lower case) read as a time column in seconds when none is named
+TIME_COLUMNS = ("t", "time", "t_s", "time_s", "t [s]", "time [s]", "t (s)", "time (s)")
+#: the relative spread of a time column's steps still read as one sampling time (printed times
+#: are rounded)
+TIME_STEP_RTOL = 1e-3
 
 
 def _check_dt(dt: Any, where: str) -> float:
@@ -314,10 +328,16 @@ def load_csv(
     *,
     inputs: Sequence[str],
     outputs: Sequence[str],
-    dt: float,
+    dt: float | None = None,
     experiment_column: str | None = None,
+    time_column: str | None = None,
 ) -> Dataset:
-    """Read experiments from CSV (see the module docstring); one ``"train"`` split."""
+    """Read experiments from CSV (see the module docstring); one ``"train"`` split.
+
+    ``experiment_column``: ``None`` or ``""`` for none. ``time_column``: a column of times in
+    seconds, ``""`` for none, ``None`` for one named as in :data:`TIME_COLUMNS` if the header
+    has it. ``dt``: the sampling time in seconds, else the time column's step.
+    """
     files = [Path(paths)] if isinstance(paths, (str, os.PathLike)) else [Path(p) for p in paths]
     where = ", ".join(str(f) for f in files)
     if not files:
@@ -328,36 +348,165 @@ def load_csv(
     overlap = sorted(set(inputs) & set(outputs))
     if overlap:
         raise DataError(f"{where}: column(s) {overlap} given as both input and output")
-    dt = _check_dt(dt, where)
-    n_u = len(inputs)
+    experiment_column = experiment_column or None
+    if time_column and time_column in [*inputs, *outputs, experiment_column]:
+        raise DataError(f"{where}: column {time_column!r} given as the time column and another")
+    given_dt = None if dt is None else _check_dt(dt, where)
+    n_u, n_y = len(inputs), len(outputs)
     trajs: list[Trajectory] = []
     labels: list[str] = []
+    clocks: list[_Clock] = []
     for path in files:
-        runs, table = _read_csv(path, [*inputs, *outputs], experiment_column)
+        clock = _time_column(path, time_column, [*inputs, *outputs, experiment_column])
+        columns = [*inputs, *outputs, *([clock] if clock else [])]
+        runs, table = _read_csv(path, columns, experiment_column)
         for key, start, stop in runs:
             sub = table[start:stop]  # a view: each experiment's rows are contiguous
             name = path.name if experiment_column is None else key
             label = name if experiment_column is None else f"{path.name}:{experiment_column}={key}"
             # the record's name in figures: the file, or the experiment column's value
             shown = name if experiment_column is None else f"{experiment_column} = {key}"
-            trajs.append(
-                _trajectory(
-                    sub[:, :n_u],
-                    sub[:, n_u:],
-                    f"{path}, experiment {name!r}",
-                    info={"experiment": shown},
-                )
-            )
+            u, y = sub[:, :n_u], sub[:, n_u : n_u + n_y]
+            where = f"{path}, experiment {name!r}"
+            trajs.append(_trajectory(u, y, where, info={"experiment": shown}))
             labels.append(label)
+            if clock:
+                clocks.append(_Clock(path, clock, start, sub[:, -1], bool(time_column)))
+    if not clocks and given_dt is None:
+        raise DataError(
+            f"{where}: CSV data need the sampling time: give dt in seconds (CLI: --dt SECONDS), "
+            "or a time column (CLI: --time-column COL)"
+        )
+    dt = _sampling_time(clocks, given_dt, where)
     metadata = {
         "source": "csv",
         "files": [str(f) for f in files],
         "experiment_column": experiment_column,
+        "time_column": clocks[0].column if clocks else None,
+        "dt_from": "given" if given_dt is not None else "time column",
         "experiments": labels,
     }
     return _dataset(
         trajs, dt=dt, input_names=inputs, output_names=outputs, metadata=metadata, where=where
     )
+
+
+def _time_column(path: Path, asked: str | None, taken: Sequence[str | None]) -> str | None:
+    """The time column of ``path``: ``asked`` (``""``: none), else the one header name of
+    :data:`TIME_COLUMNS` that is not a column ``taken``, if any."""
+    if asked is not None:
+        return asked or None
+    header = _header(regular_file(path, "CSV file"))  # a FIFO is named, not opened
+    found = [h for h in header if h.lower() in TIME_COLUMNS and h not in taken]
+    return found[0] if len(found) == 1 else None
+
+
+def _header(path: Path) -> list[str]:
+    """The stripped column names of ``path``'s first line (``[]`` when it cannot be read; the
+    reader then names the problem)."""
+    try:
+        with path.open(newline="", encoding="utf-8-sig", errors="replace") as f:
+            return [h.strip() for h in next(csv.reader(f), [])]
+    except (OSError, csv.Error):
+        return []
+
+
+@dataclass(frozen=True)
+class _Clock:
+    """The time column of one experiment: ``times`` of its rows, the first at data row
+    ``first_row`` (0-based, blank lines not counted) of ``path``; ``named``: the caller named
+    the column (else it was found by its name)."""
+
+    path: Path
+    column: str
+    first_row: int
+    times: np.ndarray
+    named: bool
+
+    def steps(self) -> np.ndarray:
+        """The steps between rows, where the time goes forward; a step back (a restart: two
+        records joined) warns, a time that stays is refused."""
+        steps = np.diff(self.times)
+        back = np.flatnonzero(steps < 0)
+        if back.size:
+            row = int(back[0]) + 1
+            line = _line_of_row(self.path, self.first_row + row)
+            log.warning(
+                "%s, line %d: time column %r goes back from %g to %g (%d time(s) in all), so "
+                "the rows before and after are joined into one record; if they are separate "
+                "experiments, name the column that tells them apart (CLI: --experiment-column "
+                "COL)",
+                self.path,
+                line,
+                self.column,
+                self.times[row - 1],
+                self.times[row],
+                back.size,
+            )
+        still = np.flatnonzero(steps == 0)
+        if still.size:
+            row = int(still[0]) + 1
+            raise DataError(
+                f"{self.path}, line {_line_of_row(self.path, self.first_row + row)}: time "
+                f"column {self.column!r} repeats {self.times[row]:g}; each row is one sample"
+            )
+        return steps[steps > 0]
+
+
+def _sampling_time(clocks: Sequence[_Clock], given: float | None, where: str) -> float:
+    """``given``, else the step of the time columns (uniform within :data:`TIME_STEP_RTOL`,
+    rounded to 12 significant digits); a given ``dt`` that the uniform step of a named time
+    column contradicts is refused, a non-uniform time column read with a given ``dt`` warns."""
+    steps = [(c, c.steps()) for c in clocks]
+    forward = [s for _, s in steps if s.size]
+    if not forward:
+        if given is None:
+            raise DataError(f"{where}: the time column has no two rows to give dt; give --dt")
+        return given
+    every = np.concatenate(forward)
+    step = float(f"{every.sum() / every.size:.12g}")
+    spread_tol = TIME_STEP_RTOL * step
+    name = ", ".join(sorted({repr(c.column) for c in clocks}))
+    if float(np.abs(every - step).max()) > spread_tol:
+        clock = next(c for c, s in steps if s.size and np.abs(s - step).max() > spread_tol)
+        summary = f"steps from {every.min():g} s to {every.max():g} s"
+        if given is None:
+            raise DataError(
+                f"{clock.path}: time column {name} is not uniformly spaced ({summary}); give "
+                "the sampling time with --dt SECONDS to read the rows as samples every dt"
+            )
+        log.warning(
+            "%s: time column %s is not uniformly spaced (%s); the rows are read as samples "
+            "every dt = %g s as given",
+            clock.path,
+            name,
+            summary,
+            given,
+        )
+        return given
+    # a column found by its name may count samples, or time in other units than a given dt's
+    named = any(c.named for c in clocks)
+    if given is not None and named and not math.isclose(step, given, rel_tol=TIME_STEP_RTOL):
+        raise DataError(
+            f"{where}: dt = {given:g} s was given, but time column {name} steps by {step:g} s; "
+            "leave dt out to use the time column, or give the right one"
+        )
+    return given if given is not None else step
+
+
+def _line_of_row(path: Path, row: int) -> int:
+    """The line of data row ``row`` (0-based, blank lines not counted, as :func:`_parse_csv`
+    counts them) of ``path``, read again: only a message needs it."""
+    with path.open("rb") as raw:
+        reader = csv.reader(io.TextIOWrapper(raw, encoding="utf-8-sig", newline=""))
+        next(reader, None)
+        seen = -1
+        for cells in reader:
+            if cells and (cells[0].strip() or "".join(cells).strip()):
+                seen += 1
+                if seen == row:
+                    return reader.line_num
+    return 0
 
 
 # ---------------------------------------------------------------------------------------- npz
@@ -509,10 +658,11 @@ def load_data(
     outputs: Sequence[str] | None = None,
     dt: float | None = None,
     experiment_column: str | None = None,
+    time_column: str | None = None,
 ) -> Dataset:
     """Read ``path`` by its kind: a canonid dataset (``.npz`` with its ``.json`` sidecar, or a
     folder holding ``dataset.npz``), a CSV file or a folder of CSV files (one experiment each,
-    in name order), or an ``.npz`` of arrays."""
+    in name order; the options of :func:`load_csv`), or an ``.npz`` of arrays."""
     p = Path(path)
     if is_dataset(p):
         return Dataset.load(p)
@@ -520,10 +670,10 @@ def load_data(
         files = sorted(p.glob("*.csv"))
         if not files:
             raise DataError(f"{p}: a folder without dataset.npz or CSV files")
-        return _csv(files, inputs, outputs, dt, experiment_column)
+        return _csv(files, inputs, outputs, dt, experiment_column, time_column)
     regular_file(p, "data file")
     if p.suffix.lower() == ".csv":
-        return _csv([p], inputs, outputs, dt, experiment_column)
+        return _csv([p], inputs, outputs, dt, experiment_column, time_column)
     if p.suffix.lower() == ".npz":
         return load_npz(p, dt=dt)
     raise DataError(f"{p}: unknown data format (expected a dataset, .csv or .npz)")
@@ -535,6 +685,7 @@ def _csv(
     outputs: Sequence[str] | None,
     dt: float | None,
     experiment_column: str | None,
+    time_column: str | None,
 ) -> Dataset:
     where = ", ".join(str(f) for f in files)
     if not inputs or not outputs:
@@ -542,21 +693,19 @@ def _csv(
             f"{where}: CSV data need the input and output column names (CLI: --inputs COL,... "
             f"--outputs COL,...); the header has {_csv_header(files[0])}"
         )
-    if dt is None:
-        raise DataError(f"{where}: CSV data need the sampling time dt in seconds (CLI: --dt)")
     return load_csv(
-        files, inputs=inputs, outputs=outputs, dt=dt, experiment_column=experiment_column
+        files,
+        inputs=inputs,
+        outputs=outputs,
+        dt=dt,
+        experiment_column=experiment_column,
+        time_column=time_column,
     )
 
 
 def _csv_header(path: Path) -> str:
     """The column names of ``path``'s first line, quoted, for an error message."""
-    try:
-        with path.open(newline="", encoding="utf-8", errors="replace") as f:
-            names = next(csv.reader(f), [])
-    except OSError as exc:
-        return f"no readable first line ({exc.strerror})"
-    names = [n.strip() for n in names if n.strip()]
+    names = [n for n in _header(path) if n]
     return ", ".join(repr(n) for n in names) if names else "no column names"
 
 

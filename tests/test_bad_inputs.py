@@ -345,8 +345,10 @@ def test_a_file_system_that_refuses_writes_gives_one_line(
     shutil.copytree(good["run"], run)
     monkeypatch.setattr(os, "replace", refuse)
     code = main(["evaluate", str(run)])
-    one_line_error(capsys, code, f"cannot write {run / 'metrics.json'}: {os.strerror(reason)}")
-    assert not [p for p in run.iterdir() if p.name.endswith(".tmp")]
+    err = one_line_error(capsys, code, f"cannot write {run / 'evaluations'}", os.strerror(reason))
+    assert "metrics.json" in err
+    assert not [p for p in run.rglob("*") if p.name.endswith(".tmp")]
+    assert not (run / "evaluations").exists()  # nothing half-written
 
 
 def test_an_os_error_outside_our_writers_gives_one_line(good, tmp_path, capsys, monkeypatch):

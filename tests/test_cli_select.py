@@ -7,7 +7,7 @@ import dataclasses
 import json
 
 import pytest
-from cli_helpers import one_line_error
+from cli_helpers import evaluated, one_line_error
 from learning_helpers import siso_dataset_file
 
 from canonid.cli import main
@@ -50,10 +50,10 @@ def test_window_auto_keeps_the_lowest_validation_loss_and_writes_the_table(selec
 
 
 def test_the_chosen_run_is_the_folders_model(selection, capsys):
-    assert main(["evaluate", str(selection)]) == 0
-    metrics = json.loads((selection / "metrics.json").read_text())
-    assert metrics["window"] == Selection.read(selection).best.window
     capsys.readouterr()
+    assert main(["evaluate", str(selection)]) == 0
+    metrics = evaluated(selection, capsys.readouterr().out)
+    assert metrics["window"] == Selection.read(selection).best.window
 
 
 def test_running_the_selection_again_reuses_every_candidate(selection, dataset_path, capsys):

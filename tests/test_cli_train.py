@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from cli_helpers import evaluated
 from learning_helpers import damped_siso, siso_dataset_file, trajectories
 
 from canonid.cli import main
@@ -66,10 +67,11 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
     config = json.loads((run / "config.json").read_text())
     assert config["model"] == "mlp" and config["net"]["residual"] is True
 
-    (run / "metrics.json").unlink()
+    trained = (run / "metrics.json").read_bytes()
     assert main(["evaluate", str(run), "--horizon", "20", "--stride", "5", "--n-init", "10"]) == 0
     out = capsys.readouterr().out
-    again = json.loads((run / "metrics.json").read_text())
+    again = evaluated(run, out)
+    assert (run / "metrics.json").read_bytes() == trained  # training's scores stay
     per = again["clean"]["rollout_mse_per_record"]
     worst = max(range(2), key=lambda i: per[i])
     assert "rollout_mse" in out and "largest rollout_mse per record (y_clean; of 2)" in out
@@ -112,7 +114,13 @@ def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys
     assert metrics["data"]["split"] == "val" and metrics["data"]["n_trajectories"] == 1
     assert metrics["clean"] is None and metrics["output_names"] == ["level"]
     capsys.readouterr()
-    assert main(["train", *csv_args, "--model", "mlp", *common]) == 1
+    # without --dt, the time column gives it (named 'time', so found); switched off, none does
+    timed = tmp_path / "timed"
+    assert main(["train", *csv_args, "--model", "mlp", *common, "--out", str(timed)]) == 0
+    assert json.loads((timed / "config.json").read_text())["info"]["dt"] == 1.0
+    capsys.readouterr()
+    off = ["--time-column", "none", "--out", str(tmp_path / "x")]
+    assert main(["train", *csv_args, "--model", "mlp", *common, *off]) == 1
     assert "need the sampling time" in capsys.readouterr().err
 
 
@@ -247,8 +255,7 @@ def test_evaluate_on_the_command_line_and_in_python_score_alike(dataset_path, tm
     assert main(["train", str(dataset_path), *common, "--out", str(run)]) == 0
     short = Dataset.load(siso_dataset_file(tmp_path / "short", T=40))
     assert main(["evaluate", str(run), "--data", str(tmp_path / "short" / "dataset.npz")]) == 0
-    capsys.readouterr()
-    cli = json.loads((run / "metrics.json").read_text())
+    cli = evaluated(run, capsys.readouterr().out)
     library = canonid.evaluate(
         canonid.Model.load(run), short.split("test"), horizon=cli["rollout_horizon"]
     ).to_json()

@@ -9,9 +9,10 @@ import shutil
 
 import numpy as np
 import pytest
-from cli_helpers import one_line_error
+from cli_helpers import evaluated, one_line_error
 
 from canonid.cli import main
+from canonid.datagen.loaders import data_checksum
 from canonid.models.registry import get_system
 
 DT = 2.0
@@ -67,16 +68,20 @@ def test_train_with_a_val_csv_scores_the_val_file(trained, csv_files):
     assert config["info"]["data"]["splits"] == {"train": 3, "val": 1}
 
 
-def test_evaluate_rebuilds_the_runs_split_and_keeps_the_held_out_score(trained, capsys):
-    written = json.loads((trained / "metrics.json").read_text())
+def test_evaluate_rebuilds_the_runs_split_and_keeps_the_held_out_score(trained, csv_files, capsys):
+    before = (trained / "metrics.json").read_bytes()
+    written = json.loads(before)
     capsys.readouterr()
     assert main(["evaluate", str(trained)]) == 0
-    again = json.loads((trained / "metrics.json").read_text())
-    assert again["data"]["split"] == "val" and "[val]" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    again = evaluated(trained, out)
+    assert again["data"]["split"] == "val" and "[val]" in out
+    assert again["data"]["path"] == written["data"]["path"] == str(csv_files[1].resolve())
     assert again["rollout_mse"] == pytest.approx(written["rollout_mse"], rel=1e-12)
     assert main(["evaluate", str(trained), "--split", "train"]) == 0
-    scored = json.loads((trained / "metrics.json").read_text())["data"]
+    scored = evaluated(trained, capsys.readouterr().out)["data"]
     assert scored["split"] == "train" and scored["n_trajectories"] == 3
+    assert (trained / "metrics.json").read_bytes() == before
 
 
 def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
@@ -87,8 +92,16 @@ def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
     assert main(["evaluate", str(trained), "--data", str(test_csv)]) == 0
     out = capsys.readouterr().out
     assert f"{test_csv} [all]" in out
-    metrics = json.loads((trained / "metrics.json").read_text())
-    assert metrics["data"] == {"path": str(test_csv), "split": "all", "n_trajectories": 2}
+    metrics = evaluated(trained, out)
+    checksum = data_checksum(test_csv)
+    assert metrics["data"] == {
+        "path": str(test_csv),
+        "split": "all",
+        "n_trajectories": 2,
+        "sha256": checksum,
+    }
+    assert f"evaluations/{test_csv.stem}-{checksum[:8]}-all/" in out
+    assert metrics["evaluation"]["data_options"]["dt"] == DT
     assert metrics["n_rollouts"] == 2 * (RECORD - 3 - 100 + 1)
     code = main(["evaluate", str(trained), "--data", str(test_csv), "--dt", "1.0"])
     one_line_error(capsys, code, str(test_csv), "dt = 1 s, the run's is 2 s")
@@ -162,7 +175,7 @@ def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, ca
     # records shorter than the default n_init and horizon are scored on what they hold
     short = _write_tank_csv(tmp_path / "short.csv", [8], T=40)
     assert main(["evaluate", str(run), "--data", str(short)]) == 0
-    metrics = json.loads((run / "metrics.json").read_text())
+    metrics = evaluated(run, capsys.readouterr().out)
     assert metrics["n_init"] == 39 and metrics["rollout_horizon"] == 40 - 3
     # a split too short for the window is refused before any training
     code = main([*argv, "--window", "120", "--out", str(tmp_path / "x")])
@@ -185,10 +198,10 @@ def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, ca
 def test_resume_refuses_what_it_would_ignore(trained, tmp_path, capsys, extra, needle):
     run = tmp_path / "run"
     shutil.copytree(trained, run)
-    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
     code = main(["train", "--resume", str(run), "--epochs", "3", "--no-progress", *extra])
     one_line_error(capsys, code, needle)
-    assert {p.name: p.read_bytes() for p in run.iterdir()} == before
+    assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
 
 
 def test_resume_with_the_same_options_and_an_eval_horizon_runs(trained, tmp_path):

@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import pytest
-from cli_helpers import one_line_error
+from cli_helpers import evaluated, one_line_error
 from learning_helpers import siso_dataset_file
 
 from canonid.cli import main
@@ -75,7 +75,7 @@ def test_evaluate_from_another_folder_scores_the_runs_data_not_those_at_the_same
     run = _copy(run, tmp_path)
     monkeypatch.chdir(elsewhere)
     assert main(["evaluate", str(run)]) == 0, capsys.readouterr().err
-    metrics = json.loads((run / "metrics.json").read_text())
+    metrics = evaluated(run, capsys.readouterr().out)
     assert metrics["data"]["path"] == str(data)
 
 
@@ -117,7 +117,7 @@ def test_an_old_run_json_resolves_its_relative_data_where_it_was_trained(
     siso_dataset_file(elsewhere / "data", T=90)  # a trap: other data at the same relative path
     monkeypatch.chdir(elsewhere)
     assert main(["evaluate", str(old / "runs" / "mlp")]) == 0, capsys.readouterr().err
-    metrics = json.loads((old / "runs" / "mlp" / "metrics.json").read_text())
+    metrics = evaluated(old / "runs" / "mlp", capsys.readouterr().out)
     assert metrics["data"]["path"] == str(old / "data")
     assert any("records no checksum" in r.getMessage() for r in caplog.records)
 

@@ -1,10 +1,10 @@
-"""``canonid evaluate`` — score a trained run on test data; rewrite its ``metrics.json``.
+"""``canonid evaluate`` — score a trained run on test data, beside what training wrote.
 
 Reads the model of ``RUN`` and either the data it was trained on, split again exactly as
-training split them (``RUN/run.json``), or ``--data FILE`` read with the run's data options (a
-CSV or ``.npz`` file's records form the split ``all``); scores the ``test`` split (else ``val``,
-or ``--split``) with :func:`canonid.scoring.score_run`, writes ``RUN/metrics.json`` and
-``RUN/rollouts.png`` and prints a short table.
+training split them (``RUN/run.json``), or ``--data FILE`` read with the run's data options,
+each overridable (a CSV or ``.npz`` file's records form the split ``all``); scores the ``test``
+split (else ``val``, or ``--split``) with :func:`canonid.scoring.score_run` into
+``RUN/evaluations/NAME/`` (``metrics.json``, ``rollouts.png``) and prints a short table.
 """
 
 from __future__ import annotations
@@ -25,7 +25,10 @@ def register(sub: Any) -> None:
         description=(
             "Score the model of RUN on test data: the paper's metric (MSE of open-loop rollouts "
             "after an ℓ-sample burn-in, physical units) and RMSE / NRMSE / fit % of a full "
-            "open-loop simulation of each record after n_init samples. Rewrites RUN/metrics.json."
+            "open-loop simulation of each record after n_init samples. Writes metrics.json and "
+            "rollouts.png to RUN/evaluations/DATA-SHA256[:8]-SPLIT[-OPTIONS]/, named by the data "
+            "and the options; training's RUN/metrics.json stays. The same evaluation again is "
+            "read back, not redone."
         ),
     )
     p.add_argument("run", type=Path, metavar="RUN", help="run folder written by canonid train")
@@ -33,8 +36,8 @@ def register(sub: Any) -> None:
         "--data",
         type=Path,
         metavar="FILE",
-        help="data (default: the run's data, split as training split them); CSV options "
-        "default to the run's",
+        help="data (default: the run's data, split as training split them); the CSV options "
+        "below default to those the run recorded",
     )
     p.add_argument(
         "--split",
@@ -54,12 +57,16 @@ def register(sub: Any) -> None:
         "minus one, or what the data name; the rule of canonid.evaluate too)",
     )
     _options.add_figure_format(p)
-    _data.add_data_options(p)
+    _data.add_data_options(p, recorded=True)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     request = _options.request(EvaluateRequest, args, data_options=_data.data_options(args))
-    print(metrics_table(score_run(request).to_json()))
-    print(f"metrics written to {args.run / 'metrics.json'}")
+    scored = score_run(request)
+    print(metrics_table(scored.metrics))
+    if scored.reused:
+        print(f"already evaluated: {scored.folder} (remove it to score again)")
+    else:
+        print(f"metrics written to {scored.folder / 'metrics.json'}")
     return 0
