@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from canonid.datagen.loaders import is_dataset
 from canonid.kernel.errors import DataError, OutputError, SetError
 from canonid.kernel.io import atomic_write_json
 from canonid.learning import Model
@@ -29,7 +28,6 @@ from canonid.models.sets import Box
 from canonid.runfolder import (
     RUN_FILE,
     check_compatible,
-    load,
     load_splits,
     pick_split,
     recipe_of,
@@ -78,10 +76,9 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
             raise DataError(f"{run_dir / RUN_FILE} not found: the run names no data; give them")
         dataset, train, *_ = load_splits(recipe)  # the training split as `train` cut it
     else:
-        from canonid.scoring import check_signal_names
+        from canonid.scoring import check_signal_names, load_with_run_options
 
-        recorded = recipe.data_options if recipe is not None else {}
-        dataset = load(data, {} if is_dataset(data) else dict(recorded))
+        dataset = load_with_run_options(run_dir, data, {})
         # the sets of another sampling time or other signals would describe another model
         check_compatible(dataset, model.info, where=str(data))
         check_signal_names(dataset, model.info, where=str(data), explicit=False)

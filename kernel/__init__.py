@@ -23,6 +23,7 @@ _EXPORTS = {
     "OutputError": "canonid.kernel.errors",
     "SetError": "canonid.kernel.errors",
     "ShapeError": "canonid.kernel.errors",
+    "UnknownSplitError": "canonid.kernel.errors",
     "UnknownSystemError": "canonid.kernel.errors",
     "lazy_exports": "canonid.kernel.lazy",
 }

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.errors import DataError, ShapeError, UnknownSplitError
 from canonid.kernel.io import atomic_write_json, read_json, read_npz, sha256_file, write_npz
 from canonid.kernel.validate import as_matrix
 
@@ -311,8 +311,14 @@ class Dataset:
         try:
             return tuple(self.splits[name])
         except KeyError:
-            raise DataError(
-                f"dataset has no split {name!r}; it has {sorted(self.splits)}"
+            hint = (
+                " (a CSV or .npz file's records are all 'train': cut a validation split off "
+                "with canonid.datagen.loaders.split_train_val(data))"
+                if name == "val" and set(self.splits) == {"train"}
+                else ""
+            )
+            raise UnknownSplitError(
+                f"dataset has no split {name!r}; it has {sorted(self.splits)}{hint}"
             ) from None
 
     def counts(self) -> dict[str, int]:

@@ -15,6 +15,7 @@ __all__ = [
     "OutputError",
     "SetError",
     "ShapeError",
+    "UnknownSplitError",
     "UnknownSystemError",
 ]
 
@@ -40,6 +41,13 @@ class UnknownSystemError(CanonidError, KeyError):
 
 class DataError(CanonidError, ValueError):
     """A data file or dataset is missing, corrupt, truncated or inconsistent."""
+
+
+class UnknownSplitError(DataError, KeyError):
+    """A split name that the dataset does not have."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
 
 
 class OptionError(CanonidError, ValueError):

@@ -345,6 +345,12 @@ def _training_pair(
     train: Sequence[Any], val: Sequence[Any]
 ) -> tuple[tuple[Trajectory, ...], tuple[Trajectory, ...]]:
     """Training and validation data as trajectories (converted once), with the same signals."""
+    if val is None:
+        raise OptionError(
+            "val: validation trajectories are required (training keeps the epoch that scores "
+            "best on them); cut some off the training data, e.g. "
+            "canonid.datagen.loaders.split_train_val(dataset)"
+        )
     train_t = as_trajectories(train, what="training data")
     val_t = as_trajectories(val, what="validation data")
     if (val_t[0].n_u, val_t[0].n_y) != (train_t[0].n_u, train_t[0].n_y):

@@ -89,6 +89,14 @@ def test_fit_defaults_to_the_options_canonid_train_uses(monkeypatch):
     assert seen["options"] is custom and seen["net_options"] == {"hidden": [8]}
 
 
+def test_fit_without_validation_data_names_the_argument():
+    import numpy as np
+
+    data = canonid.Dataset.from_arrays(np.ones((30, 1)), np.ones((30, 1)), dt=1.0)
+    with pytest.raises(canonid.kernel.OptionError, match=r"^val: validation trajectories .*"):
+        canonid.fit(data.split("train"), None, window=2, options=canonid.train_options("tiny"))
+
+
 def test_public_names_are_listed_once():
     assert sorted(canonid.__all__) == sorted(["__version__", *canonid._EXPORTS])
     assert set(canonid.__all__) <= set(dir(canonid))

@@ -109,6 +109,71 @@ def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
     one_line_error(capsys, code, "--dt apply to --data FILE")
 
 
+def test_a_held_out_csv_without_the_experiment_column_is_scored_beside_training(
+    trained, tmp_path, capsys, caplog
+):
+    """The run recorded --experiment-column run: a held-out CSV without that column is refused
+    in one line naming the inherited option and the way out, which scores it in a folder of
+    its own; asked again, the evaluation is read back, and training's files stay."""
+    before = {p: p.read_bytes() for p in trained.glob("*") if p.is_file()}
+    held_out = tmp_path / "held_out.csv"
+    held_out.write_text(
+        "time,pump,level\n" + "".join(f"{t * DT},2.0,{0.5 + 0.001 * t}\n" for t in range(80))
+    )
+    code = main(["evaluate", str(trained), "--data", str(held_out)])
+    one_line_error(capsys, code, "no column(s) ['run']", "--experiment-column run", "none")
+    argv = ["evaluate", str(trained), "--data", str(held_out), "--experiment-column", "none"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    first = evaluated(trained, out)
+    assert first["data"]["path"] == str(held_out) and first["data"]["n_trajectories"] == 1
+    assert first["evaluation"]["data_options"]["experiment_column"] == ""
+    folder = next(p for p in (trained / "evaluations").iterdir() if "held_out" in p.name)
+    assert (folder / "rollouts.png").stat().st_size > 0
+    assert folder.name.startswith(f"held_out-{data_checksum(held_out)[:8]}-all-csv")
+    # the same evaluation again: read back, nothing rewritten
+    stamp = (folder / "metrics.json").stat().st_mtime_ns
+    assert main(argv) == 0
+    assert "already evaluated" in capsys.readouterr().out
+    assert (folder / "metrics.json").stat().st_mtime_ns == stamp
+    # dt comes from the time column (2 s), so none was needed; a restart of it warns
+    restarted = tmp_path / "two_records.csv"
+    body = "".join(f"{t * DT},2.0,{0.5 + 0.001 * t}\n" for t in range(60))
+    restarted.write_text("time,pump,level\n" + body + body)
+    argv = ["evaluate", str(trained), "--data", str(restarted), "--experiment-column", "none"]
+    assert main(argv) == 0
+    warned = [r.getMessage() for r in caplog.records if "goes back" in r.getMessage()]
+    assert warned and f"{restarted}, line 62: time column 'time'" in warned[0]
+    assert "--experiment-column" in warned[0]
+    after = {p: p.read_bytes() for p in trained.glob("*") if p.is_file()}
+    assert after == before
+
+
+def test_an_evaluation_of_other_weights_is_not_overwritten(trained, tmp_path, capsys):
+    run = tmp_path / "run"
+    shutil.copytree(trained, run)
+    shutil.rmtree(run / "evaluations", ignore_errors=True)
+    assert main(["evaluate", str(run), "--horizon", "20"]) == 0
+    first = evaluated(run, capsys.readouterr().out)
+    weights = run / "weights.pt"
+    weights.write_bytes(weights.read_bytes() + b"\0")  # stands for weights trained further
+    folder = next((run / "evaluations").iterdir())
+    saved = (folder / "metrics.json").read_bytes()
+    code = main(["evaluate", str(run), "--horizon", "20"])
+    one_line_error(capsys, code, str(folder), "other weights", "remove that folder")
+    assert (folder / "metrics.json").read_bytes() == saved
+    assert json.loads(saved) == first
+
+
+def test_evaluate_help_says_the_csv_options_default_to_the_runs(capsys):
+    with pytest.raises(SystemExit):
+        main(["evaluate", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "Each option defaults to the one the run recorded in RUN/run.json" in text
+    assert "'none' to switch a column off" in text and "--time-column COL|none" in text
+    assert text.count("(default: the run's)") == 5
+
+
 def test_analyze_run_checks_a_csv_trained_tank_model(trained, csv_files, tmp_path, capsys):
     out = tmp_path / "analysis"
     quick = ["--boxes", "40", "--budget", "5", "--quiet", "--out", str(out)]

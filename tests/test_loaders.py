@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import re
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from canonid.datagen.loaders import (
     data_checksum,
@@ -211,3 +214,74 @@ def test_csv_and_io_data_give_the_same_model_as_arrays(tmp_path):
     for name in ("csv", "io"):
         for key, value in weights["arrays"].items():
             np.testing.assert_array_equal(weights[name][key], value)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    dt=st.floats(1e-4, 1e3, allow_nan=False),
+    start=st.floats(-1e3, 1e3, allow_nan=False),
+    rows=st.integers(2, 40),
+    decimals=st.sampled_from([None, 9]),
+)
+def test_the_time_column_gives_dt(tmp_path_factory, dt, start, rows, decimals):
+    """Times written in full or rounded to 9 decimals: dt is their step, to the rounding."""
+    path = tmp_path_factory.mktemp("timed") / "timed.csv"
+    times = [start + k * dt for k in range(rows)]
+    shown = [repr(t) if decimals is None else f"{t:.{decimals}f}" for t in times]
+    write_csv(path, [[t, 1.0, 2.0] for t in shown], ["time", "u", "y"])
+    data = load_csv(path, inputs=["u"], outputs=["y"])
+    spread = 0 if decimals is None else 1e-9 / (rows - 1)
+    assert data.dt == pytest.approx(dt, rel=1e-9, abs=2 * spread + 1e-12 * abs(start))
+    assert data.metadata["time_column"] == "time" and data.metadata["dt_from"] == "time column"
+    # a named time column, and none at all
+    assert load_csv(path, inputs=["u"], outputs=["y"], time_column="time").dt == data.dt
+    with pytest.raises(DataError, match="need the sampling time: give dt"):
+        load_csv(path, inputs=["u"], outputs=["y"], time_column="")
+
+
+def test_time_column_problems_are_named(tmp_path, caplog):
+    path = tmp_path / "runs.csv"
+    rows = [[t * 0.5, 1.0, 2.0] for t in range(5)] * 2  # two records, no experiment column
+    write_csv(path, rows, ["t", "u", "y"])
+    with caplog.at_level("WARNING"):
+        data = load_csv(path, inputs=["u"], outputs=["y"])
+    assert data.dt == 0.5 and data.counts() == {"train": 1}
+    (message,) = [r.getMessage() for r in caplog.records]
+    assert f"{path}, line 7: time column 't' goes back from 2 to 0" in message
+    assert "joined into one record" in message and "--experiment-column" in message
+    # uneven steps: refused without dt, read as every dt (with a warning) when dt is given
+    write_csv(path, [[t, 1.0, 2.0] for t in (0.0, 0.5, 1.0, 1.7)], ["time", "u", "y"])
+    with pytest.raises(DataError, match=r"time column 'time' is not uniformly spaced.*--dt"):
+        load_csv(path, inputs=["u"], outputs=["y"])
+    caplog.clear()
+    assert load_csv(path, inputs=["u"], outputs=["y"], dt=0.5).dt == 0.5
+    assert "not uniformly spaced" in caplog.records[0].getMessage()
+    # a repeated time; a named time column that contradicts the dt given
+    write_csv(path, [[t, 1.0, 2.0] for t in (0.0, 0.5, 0.5)], ["time", "u", "y"])
+    where = re.escape(str(path))
+    with pytest.raises(DataError, match=rf"{where}, line 4: time column 'time' repeats 0\.5"):
+        load_csv(path, inputs=["u"], outputs=["y"])
+    write_csv(path, [[t, 1.0, 2.0] for t in (0.0, 0.5, 1.0)], ["time", "u", "y"])
+    with pytest.raises(DataError, match=r"dt = 2 s was given, but time column 'time' steps by"):
+        load_csv(path, inputs=["u"], outputs=["y"], dt=2.0, time_column="time")
+    # found by its name only, the column may count samples: the dt given wins
+    assert load_csv(path, inputs=["u"], outputs=["y"], dt=2.0).dt == 2.0
+
+
+def test_rows_of_one_experiment_must_be_contiguous(tmp_path):
+    path = tmp_path / "mixed.csv"
+    write_csv(path, [["a", 1.0, 2.0], ["b", 1.0, 2.0], ["a", 1.0, 2.0]], ["run", "u", "y"])
+    where = re.escape(str(path))
+    with pytest.raises(DataError, match=rf"{where}, line 4: experiment 'a' .* started on line 2"):
+        load_csv(path, inputs=["u"], outputs=["y"], dt=1.0, experiment_column="run")
+
+
+def test_a_csv_dataset_has_only_a_train_split_and_says_how_to_get_val(tmp_path):
+    path = tmp_path / "one.csv"
+    write_csv(path, [[1.0, 2.0]] * 10, ["u", "y"])
+    data = load_data(path, inputs=["u"], outputs=["y"], dt=1.0)
+    with pytest.raises(KeyError, match=r"no split 'val'; it has \['train'\].*split_train_val"):
+        data.split("val")
+    with pytest.raises(DataError):
+        data.split("test")
+    assert split_train_val(data).split("val")
