@@ -23,7 +23,7 @@ import re
 import subprocess
 import sys
 import types
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -112,7 +112,8 @@ def _cwd(path: Path) -> Iterator[None]:
         os.chdir(old)
 
 
-def _run_bash(snippet: Snippet, workdir: Path) -> None:
+def _run_bash(snippet: Snippet, workdir: Path) -> str:
+    """Run a bash snippet in ``workdir``; its stdout."""
     env = dict(os.environ)
     env["PATH"] = f"{Path(sys.executable).parent}{os.pathsep}{env.get('PATH', '')}"
     env.setdefault("MPLBACKEND", "Agg")
@@ -128,26 +129,40 @@ def _run_bash(snippet: Snippet, workdir: Path) -> None:
     if done.returncode != 0:
         tail = (done.stdout + done.stderr)[-3000:]
         raise SnippetError(f"{snippet.where}: bash exited {done.returncode}\n{tail}")
+    return done.stdout
 
 
-def run_page(path: Path, workdir: Path) -> list[Snippet]:
+#: called before and after each snippet runs: ``(snippet, None)`` before, ``(snippet, its
+#: stdout)`` after (a Python snippet's is ``""``), to check what the page's commands did
+Watch = Callable[[Snippet, "str | None"], None]
+
+
+def run_page(path: Path, workdir: Path, watch: Watch | None = None) -> list[Snippet]:
     """Run every runnable snippet of ``path`` in ``workdir``; return those that ran."""
     # a real module, so that classes a snippet defines (dataclasses) find their module
     module = types.ModuleType("__snippet__")
     sys.modules[module.__name__] = module
     try:
-        return _run_all(snippets(path), workdir, module.__dict__)
+        return _run_all(snippets(path), workdir, module.__dict__, watch)
     finally:
         del sys.modules[module.__name__]
 
 
-def _run_all(found: list[Snippet], workdir: Path, namespace: dict[str, object]) -> list[Snippet]:
+def _run_all(
+    found: list[Snippet],
+    workdir: Path,
+    namespace: dict[str, object],
+    watch: Watch | None = None,
+) -> list[Snippet]:
     ran = []
     for snippet in found:
         if snippet.not_run is not None:
             continue
+        if watch is not None:
+            watch(snippet, None)
+        stdout = ""
         if snippet.lang == "bash":
-            _run_bash(snippet, workdir)
+            stdout = _run_bash(snippet, workdir)
         else:
             code = compile(snippet.code, snippet.where, "exec")
             # numpy's default error handling, as a user has it (the suite's is stricter)
@@ -156,5 +171,7 @@ def _run_all(found: list[Snippet], workdir: Path, namespace: dict[str, object]) 
                     exec(code, namespace)
                 except Exception as exc:
                     raise SnippetError(f"{snippet.where}: {type(exc).__name__}: {exc}") from exc
+        if watch is not None:
+            watch(snippet, stdout)
         ran.append(snippet)
     return ran

@@ -7,6 +7,7 @@ import argparse
 import contextlib
 import importlib.util
 import io
+import math
 import os
 import re
 import shlex
@@ -15,7 +16,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from doc_snippets import SnippetError, run_page, snippets
+from doc_snippets import Snippet, SnippetError, run_page, snippets
 
 from canonid.cli import build_parser
 
@@ -57,9 +58,67 @@ def test_readme_links_exist():
     assert not missing, f"README.md links to missing files: {missing}"
 
 
+class HeldOutKeepsTraining:
+    """ "Your own data": training's ``metrics.json`` is the same bytes before and after the
+    held-out evaluation, which is written into a folder of its own; checked after every
+    snippet from the evaluation on."""
+
+    def __init__(self, workdir: Path) -> None:
+        self.metrics = workdir / "runs" / "csv-mlp" / "metrics.json"
+        self.before: bytes | None = None
+        self.evaluated = False
+
+    def __call__(self, snippet: Snippet, stdout: str | None) -> None:
+        evaluation = "canonid evaluate runs/csv-mlp --data held_out.csv" in snippet.code
+        if evaluation and stdout is None:
+            self.before = self.metrics.read_bytes()
+        if self.before is not None and stdout is not None:
+            assert self.metrics.read_bytes() == self.before, snippet.where
+            if evaluation:
+                self.evaluated = True
+                assert (
+                    "[all]" in stdout and "metrics written to runs/csv-mlp/evaluations/" in stdout
+                )
+                assert "held_out-" in stdout
+
+
+class AnalyzeBracketsAreFinite:
+    """The README's ``canonid analyze`` example prints finite certified brackets: γ_f ≤ a
+    number, α_ℓ ≥ a positive number, a finite bound, and a finite error/bound ratio."""
+
+    def __init__(self, workdir: Path) -> None:
+        self.rows: list[list[float]] = []
+
+    def __call__(self, snippet: Snippet, stdout: str | None) -> None:
+        if stdout is None or "canonid analyze" not in snippet.code:
+            return
+        lines = stdout.splitlines()
+        head = next(i for i, line in enumerate(lines) if line.split()[:2] == ["ℓ", "γ_f"])
+        for line in lines[head + 2 :]:
+            cells = line.split()
+            if not cells or not cells[0].isdigit():
+                break
+            self.rows.append([float(c) for c in cells[1:8]])
+        assert self.rows, stdout
+        for gamma_lo, gamma_up, alpha_lo, alpha_up, bound, error, ratio in self.rows:
+            assert all(math.isfinite(v) for v in (gamma_up, bound, ratio)), stdout
+            assert 0 < gamma_lo <= gamma_up and 0 < alpha_lo <= alpha_up, stdout
+            assert 0 < ratio <= 1 and error <= bound, stdout
+
+
+#: what a page's commands must have done, beside running (a checker per page)
+WATCHES = {"docs/your-data.md": HeldOutKeepsTraining, "README.md": AnalyzeBracketsAreFinite}
+
+
 @pytest.mark.parametrize("page", [_page_param(p) for p in PAGES])
 def test_snippets_run(page: Path, tmp_path: Path):
-    run_page(page, tmp_path)
+    make = WATCHES.get(str(page.relative_to(ROOT)))
+    watch = make(tmp_path) if make else None
+    run_page(page, tmp_path, watch)
+    if isinstance(watch, HeldOutKeepsTraining):
+        assert watch.evaluated, "the held-out evaluation ran"
+    if isinstance(watch, AnalyzeBracketsAreFinite):
+        assert watch.rows, "the analyze example ran"
 
 
 def test_not_run_snippets_say_why():
