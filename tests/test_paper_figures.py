@@ -10,6 +10,7 @@ import re
 import numpy as np
 import pytest
 import torch
+from cli_helpers import evaluated
 from learning_helpers import damped_siso, siso_dataset_file, trajectories
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 
@@ -156,10 +157,14 @@ def test_train_and_evaluate_write_vector_figures(dataset_path, tmp_path, capsys)
         assert (run / name).read_bytes().startswith(MAGIC["pdf"]), name
     assert not list(run.glob("*.png"))
     assert json.loads((run / "metrics.json").read_text())["figure"] == "rollouts.pdf"
-    assert main(["evaluate", str(run), "--figure-format", "svg"]) == 0
-    assert (run / "rollouts.svg").read_bytes().startswith(MAGIC["svg"])
-    assert json.loads((run / "metrics.json").read_text())["figure"] == "rollouts.svg"
     capsys.readouterr()
+    assert main(["evaluate", str(run), "--figure-format", "svg"]) == 0
+    out = capsys.readouterr().out
+    assert evaluated(run, out)["figure"] == "rollouts.svg"
+    folder = next((run / "evaluations").iterdir())
+    assert folder.name.endswith("-svg")  # the format is one of the evaluation's options
+    assert (folder / "rollouts.svg").read_bytes().startswith(MAGIC["svg"])
+    assert json.loads((run / "metrics.json").read_text())["figure"] == "rollouts.pdf"
     with pytest.raises(SystemExit):
         main(["evaluate", str(run), "--figure-format", "jpg"])
     assert "--figure-format: invalid choice: 'jpg'" in capsys.readouterr().err
