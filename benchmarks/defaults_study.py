@@ -45,6 +45,7 @@ from _results import write_section  # noqa: E402
 
 WINDOW = 10
 ROWS = ROOT / "benchmarks" / "studies" / "defaults_study.jsonl"
+NOTES = ROOT / "benchmarks" / "studies" / "defaults_study_notes.md"
 SECTION = "Defaults study"
 GENERATED = {"tank": "tank-s0", "drone2d": "drone2d-small"}
 
@@ -149,11 +150,14 @@ def table(rows: list[dict[str, Any]]) -> str:
         )
         + ".",
     ]
-    loads = [r["load"] for r in rows]
-    lines.append(
-        f"Load average (1 min) at the end of the runs: {min(loads):.1f}–{max(loads):.1f} on "
-        f"{os.cpu_count()} cores."
-    )
+    loads = [r["load"] for r in rows if r.get("load") is not None]
+    if loads:
+        lines.append(
+            f"Load average (1 min) at the end of the runs that recorded it: "
+            f"{min(loads):.1f}–{max(loads):.1f} on {os.cpu_count()} cores."
+        )
+    if NOTES.is_file():  # how the rows were produced, for a reader who was not there
+        lines += ["", NOTES.read_text(encoding="utf-8").strip()]
     return "\n".join(lines)
 
 
@@ -222,9 +226,10 @@ def selection_section(rows: list[dict[str, Any]]) -> str:
             if c["complete"] and c["option"]
             else ("no: not an option of the code" if not c["option"] else "no: cases missing")
         )
-        name = f"**{c['label']}**" if c["label"] == kept else c["label"]
+        if c["label"] == kept:
+            why = "**kept**"
         lines.append(
-            f"| {name} | {c['cases']} | "
+            f"| {c['label']} | {c['cases']} | "
             + " | ".join(ratios)
             + f" | {math.exp(c['score']):.3f} | {why} |"
         )
