@@ -457,7 +457,9 @@ def _resume(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     recipe = RunRecipe.read(run_dir)
     name = _benchmark_of(recipe.data, run_dir)
     if request.name is not None and benchmark(request.name).name != name:
-        raise OptionError(f"--resume --out {run_dir}: a run of benchmark {name}, not {request.name}")
+        raise OptionError(
+            f"--resume --out {run_dir}: a run of benchmark {name}, not {request.name}"
+        )
     with run_folder_lock(run_dir, flag="--resume"):
         return _train_and_score(todo, run_dir, benchmark(name))
 

@@ -438,7 +438,8 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
     if diffs:
         raise CheckpointError(
             f"{run_dir} holds a run started with other options ({'; '.join(diffs)}); give the "
-            f"same options to continue it, resume it (--resume --out {run_dir}), or choose another --out"
+            f"same options to continue it, resume it (--resume --out {run_dir}), or choose "
+            "another --out"
         )
     return recorded
 

@@ -86,7 +86,9 @@ def test_bad_arguments_are_one_line_errors(argv, message, tmp_path, capsys):
     if message is None:
         assert parse_box("0.05:5", 2, "X").lo.tolist() == [0.05, 0.05]
         return
-    code = main(["analyze", "tank", *argv, "--budget", "1", "--out", str(tmp_path), "--no-progress"])
+    code = main(
+        ["analyze", "tank", *argv, "--budget", "1", "--out", str(tmp_path), "--no-progress"]
+    )
     err = capsys.readouterr().err
     assert code == 1 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1

@@ -134,7 +134,16 @@ def test_data_with_other_signal_names_are_refused_unless_the_columns_are_named(
 
 def test_analyze_data_that_do_not_exist_are_refused_not_ignored(root, tmp_path, capsys):
     out = tmp_path / "analysis"
-    argv = ["analyze", "--run", str(root / "run"), "--budget", "1", "--no-progress", "--out", str(out)]
+    argv = [
+        "analyze",
+        "--run",
+        str(root / "run"),
+        "--budget",
+        "1",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
     _refused(capsys, [*argv, "--data", str(tmp_path / "nonexistent.npz")], "nonexistent")
     assert not out.exists()
 
@@ -351,7 +360,16 @@ def _commands(run: Path) -> dict[str, list[str]]:
     return {
         "evaluate": ["evaluate", str(run)],
         "export": ["export", str(run), "--casadi", str(run / "export" / "m.casadi")],
-        "analyze": ["analyze", "--run", str(run), "--budget", "0.5", "--boxes", "4", "--no-progress"],
+        "analyze": [
+            "analyze",
+            "--run",
+            str(run),
+            "--budget",
+            "0.5",
+            "--boxes",
+            "4",
+            "--no-progress",
+        ],
         "resume": ["train", "--resume", str(run), "--epochs", "2", "--no-progress"],
     }
 

@@ -22,6 +22,7 @@ __all__ = [
     "add_no_progress",
     "add_profile",
     "add_resume",
+    "add_threads",
     "add_where",
     "comma_list",
     "request",
@@ -83,6 +84,16 @@ def add_figure_format(parser: Any) -> None:
         default=FIGURE_FORMATS[0],
         help=f"file format of the figures (default {FIGURE_FORMATS[0]}; pdf and svg are vector "
         "graphics for a paper)",
+    )
+
+
+def add_threads(parser: Any, *, per: str = "") -> None:
+    """``--threads N``: torch's CPU threads (``per``: e.g. `` per job``)."""
+    parser.add_argument(
+        "--threads",
+        type=int,
+        metavar="N",
+        help=f"torch CPU threads{per} (default: torch's, one per core)",
     )
 
 

@@ -54,7 +54,8 @@ def register(sub: Any) -> None:
             "Load benchmark NAME from its files (offline), train on the official training part "
             "as `canonid train` does (the last 20 % of every training record validates), score "
             "every official test part by the official rule (simulation from the whole test "
-            "input after the first n_init measured outputs) and show the published baselines."
+            "input after the first n_init measured outputs) and show the published baselines. The "
+            "same command run again continues an interrupted run, as --resume does."
         ),
     )
     p.add_argument("name", nargs="?", metavar="NAME", help=f"one of {', '.join(BENCHMARKS)}")
@@ -79,12 +80,7 @@ def register(sub: Any) -> None:
         "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/NAME-MODEL)"
     )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
-    p.add_argument(
-        "--threads",
-        type=int,
-        metavar="N",
-        help="torch CPU threads (default: torch's, one per core)",
-    )
+    _options.add_threads(p)
     p.add_argument(
         "--val-fraction",
         type=float,

@@ -66,12 +66,7 @@ def register(sub: Any) -> None:
         "--seed", type=int, default=0, help="seed (default 0; --sweep: the first of --seeds)"
     )
     _options.add_device(p, what="torch device")
-    p.add_argument(
-        "--threads",
-        type=int,
-        metavar="N",
-        help="torch CPU threads per job (default: torch's, one per core)",
-    )
+    _options.add_threads(p, per=" per job")
     _options.add_resume(p, what="reduction")
     g = p.add_argument_group("compression study (--sweep)")
     g.add_argument(

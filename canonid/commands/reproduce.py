@@ -35,24 +35,17 @@ def register(sub: Any) -> None:
         what="budgets and defaults of every stage (paper: the paper's sizes)",
         default=DEFAULT_PROFILE,
     )
-    p.add_argument(
-        "--systems",
-        type=_options.comma_list(str, "S"),
-        metavar="S,...",
-        help="systems, e.g. tank,drone2d,quadrotor (default: the profile's)",
-    )
-    p.add_argument(
-        "--windows",
-        type=_options.comma_list(int, "L"),
-        metavar="L,...",
-        help="windows ℓ, e.g. 5,10,15 (default: the profile's)",
-    )
-    p.add_argument(
-        "--models",
-        type=_options.comma_list(str, "M"),
-        metavar="M,...",
-        help="models, e.g. mlp,gru,classic-gru,masti (default: the profile's)",
-    )
+    for name, item, what, example in (
+        ("systems", str, "S", "systems, e.g. tank,drone2d,quadrotor"),
+        ("windows", int, "L", "windows ℓ, e.g. 5,10,15"),
+        ("models", str, "M", "models, e.g. mlp,gru,classic-gru,masti"),
+    ):
+        p.add_argument(
+            f"--{name}",
+            type=_options.comma_list(item, what),
+            metavar=f"{what},...",
+            help=f"{example} (default: the profile's)",
+        )
     p.add_argument(
         "--seeds",
         type=int,

@@ -165,12 +165,7 @@ def register(sub: Any) -> None:
         "rollout length when that is shorter, or what the scored records hold)",
     )
     _options.add_figure_format(p)
-    p.add_argument(
-        "--threads",
-        type=int,
-        metavar="N",
-        help="torch CPU threads (default: torch's, one per core)",
-    )
+    _options.add_threads(p)
     _options.add_where(
         p,
         jobs="with --window/--hidden auto: train the candidates",
