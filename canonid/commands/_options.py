@@ -1,6 +1,7 @@
 """Command-line options that several commands share, each written once: where the jobs run,
 the profile, the torch device (no import of torch: ``canonid generate`` uses it), the figures'
-file format; and the typed request built from the parsed options."""
+file format, threads, progress, ``--resume``; comma-separated lists, former option names kept
+as deprecated aliases; and the typed request built from the parsed options."""
 
 from __future__ import annotations
 
