@@ -330,7 +330,7 @@ class BenchmarkRequest:
                 )
         elif self.name is None:
             raise OptionError(
-                f"give a benchmark NAME ({', '.join(BENCHMARKS)}), --resume RUN or --list"
+                f"give a benchmark NAME ({', '.join(BENCHMARKS)}), --resume --out RUN or --list"
             )
         if self.train.data is not None:  # DATA is the benchmark's
             raise OptionError(f"--train-args: {self.train.data!r} is not an option")
@@ -444,7 +444,7 @@ def _checksum(split: Dataset) -> str:
 
 
 def _resume(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
-    """``--resume RUN``: continue the benchmark run in RUN (see :class:`BenchmarkRequest`)."""
+    """``--resume --out RUN``: continue the benchmark run in RUN (see :class:`BenchmarkRequest`)."""
     from canonid.datagen.benchmarks import benchmark
     from canonid.jobs import run_folder_lock
     from canonid.runfolder import RunRecipe
@@ -457,7 +457,9 @@ def _resume(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     recipe = RunRecipe.read(run_dir)
     name = _benchmark_of(recipe.data, run_dir)
     if request.name is not None and benchmark(request.name).name != name:
-        raise OptionError(f"--resume {run_dir}: a run of benchmark {name}, not {request.name}")
+        raise OptionError(
+            f"--resume --out {run_dir}: a run of benchmark {name}, not {request.name}"
+        )
     with run_folder_lock(run_dir, flag="--resume"):
         return _train_and_score(todo, run_dir, benchmark(name))
 

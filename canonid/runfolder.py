@@ -764,7 +764,8 @@ def train_run(
     with run_folder_lock(run_dir, new=not resume):
         if not resume and (run_dir / CHECKPOINT_FILE).exists():
             raise OutputError(
-                f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
+                f"{run_dir} already holds a training run; use --resume --out {run_dir} or "
+                "another --out"
             )
         recipe.write(run_dir)
         try:

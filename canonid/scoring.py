@@ -98,7 +98,7 @@ def score_run(request: EvaluateRequest) -> Scored:
         scoring_source,
     )
 
-    for flag, value in (("--horizon", request.horizon), ("--stride", request.stride)):
+    for flag, value in (("--eval-horizon", request.horizon), ("--stride", request.stride)):
         if value is not None and value < 1:
             raise OptionError(f"{flag} must be an integer >= 1, got {value}")
     if request.n_init is not None and request.n_init < 0:

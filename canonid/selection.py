@@ -205,22 +205,24 @@ class Selection:
         path = run_dir / CANDIDATES_FILE
         return cls.from_dict(read_json(path, what="table of candidates"), where=str(path))
 
-    def table(self) -> str:
-        """A Markdown table of the candidates, the chosen one marked."""
-        lines = [
-            "| candidate | ℓ | hidden | best validation loss (normalised) | at epoch | "
-            "rollout MSE (test) | y_clean | chosen |",
-            "|---|---|---|---|---|---|---|---|",
-        ]
+    def table(self, *, markdown: bool = True) -> str:
+        """The candidates, the chosen one marked: a Markdown table (``candidates.md``), or plain
+        text in aligned columns (the terminal). The rollout MSE is the score on the split each
+        candidate was scored on (test, or validation when the data have none)."""
+        splits = "/".join(sorted({c.split for c in self.candidates}))
+        head = ("candidate", "ℓ", "hidden", "best validation loss (normalised)", "at epoch")
+        rows = [(*head, f"rollout MSE ({splits})", "y_clean", "chosen")]
         for c in self.candidates:
             hidden = "default" if c.hidden is None else "×".join(str(w) for w in c.hidden)
             clean = "-" if c.rollout_mse_clean is None else f"{c.rollout_mse_clean:.3g}"
-            mark = "**yes**" if c.name == self.chosen else ""
-            lines.append(
-                f"| {c.name} | {c.window} | {hidden} | {c.best_val_loss:.4g} | {c.best_epoch} | "
-                f"{c.rollout_mse:.3g} | {clean} | {mark} |"
-            )
-        return "\n".join(lines)
+            mark = ("**yes**" if markdown else "yes") if c.name == self.chosen else ""
+            fit = (c.name, str(c.window), hidden, f"{c.best_val_loss:.4g}", str(c.best_epoch))
+            rows.append((*fit, f"{c.rollout_mse:.3g}", clean, mark))
+        if markdown:
+            lines = [f"| {' | '.join(r)} |" for r in rows]
+            return "\n".join([lines[0], "|---" * len(rows[0]) + "|", *lines[1:]])
+        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+        return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
 
 
 def allowed_windows(base: RunRecipe, windows: Sequence[int]) -> list[int]:

@@ -129,7 +129,7 @@ class TrainOutcome:
         if self.selection is not None:
             best = self.selection.best
             head = [
-                self.selection.table(),
+                self.selection.table(markdown=False),
                 f"chosen: {best.name} (best validation loss {best.best_val_loss:.4g}, "
                 f"normalised, at epoch {best.best_epoch}); its run is the model of {self.run_dir}",
             ]
@@ -189,7 +189,7 @@ def check_new_run(run_dir: Path, *, selection: bool = False) -> None:
     check_run_folder(run_dir)
     if (run_dir / CHECKPOINT_FILE).exists():
         raise OutputError(
-            f"{run_dir} already holds a training run; use --resume {run_dir} or another --out"
+            f"{run_dir} already holds a training run; use --resume --out {run_dir} or another --out"
         )
     if not selection and (run_dir / CANDIDATES_FILE).exists():
         raise OutputError(
@@ -207,7 +207,7 @@ def _recipe(request: TrainRequest) -> RunRecipe:
     from canonid.runfolder import DEFAULT_VAL_FRACTION, RunRecipe
 
     if request.data is None:
-        raise OptionError("give the training DATA (or --resume RUN)")
+        raise OptionError("give the training DATA (or --resume --out RUN)")
     if request.window is None:
         raise OptionError("--window is required for a new run (e.g. --window 10)")
     model = request.model or "mlp"
@@ -438,7 +438,8 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
     if diffs:
         raise CheckpointError(
             f"{run_dir} holds a run started with other options ({'; '.join(diffs)}); give the "
-            f"same options to continue it, resume it (--resume {run_dir}), or choose another --out"
+            f"same options to continue it, resume it (--resume --out {run_dir}), or choose "
+            "another --out"
         )
     return recorded
 

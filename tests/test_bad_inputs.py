@@ -255,7 +255,7 @@ def test_bad_dataset_metadata_is_refused_by_every_reader(case, good, tmp_path, c
     assert not out.exists()
     one_line_error(capsys, main(["evaluate", str(good["run"]), "--data", str(folder)]), needle)
     argv = ["analyze", "linear", "--window", "2", "--run", str(good["run"])]
-    code = main([*argv, "--data", str(folder), "--out", str(tmp_path / "a"), "--quiet"])
+    code = main([*argv, "--data", str(folder), "--out", str(tmp_path / "a"), "--no-progress"])
     one_line_error(capsys, code, needle)
     assert not (tmp_path / "a").exists()
 
@@ -268,7 +268,7 @@ def test_bad_run_folders_are_refused_by_every_reader(case, good, tmp_path, capsy
     damage(run)
     before = files_under(run)
     one_line_error(capsys, main(["evaluate", str(run)]), needle)
-    argv = ["analyze", "linear", "--window", "2", "--run", str(run), "--quiet"]
+    argv = ["analyze", "linear", "--window", "2", "--run", str(run), "--no-progress"]
     one_line_error(capsys, main([*argv, "--out", str(tmp_path / "a")]), needle)
     one_line_error(capsys, main(["reduce", str(run), "--compression", "0.5"]), needle)
     assert files_under(run) == before
@@ -282,7 +282,7 @@ def test_bad_run_folders_are_refused_by_every_reader(case, good, tmp_path, capsy
         (["train", "{data}", *TRAIN, "--eval-horizon", "0"], "--eval-horizon must be"),
         (["train", "{data}", *TRAIN, "--val-fraction", "1.5"], "--val-fraction must be in"),
         (["train", "{data}", *TRAIN, "--dt", "0.1"], "is a canonid dataset"),
-        (["evaluate", "{run}", "--horizon", "0"], "--horizon must be an integer >= 1"),
+        (["evaluate", "{run}", "--eval-horizon", "0"], "--eval-horizon must be an integer >= 1"),
         (["evaluate", "{run}", "--data", "{data}", "--dt", "2"], "--dt apply to CSV and .npz"),
         (["evaluate", "{run}", "--split", "nope"], "no split 'nope'"),
         (["analyze", "linear", "--window", "2", "--seed", "-1"], "--seed must be an integer >= 0"),
@@ -310,7 +310,7 @@ def test_bad_arguments_fail_in_one_line_before_any_work(argv, needle, good, tmp_
     [
         ["generate", "tank", "--no-progress"],
         ["train", "{data}", *TRAIN],
-        ["analyze", "linear", "--window", "1", "--quiet"],
+        ["analyze", "linear", "--window", "1", "--no-progress"],
         ["reproduce", "--profile", "tiny", "--no-progress"],
         ["reduce", "{run}", "--compression", "0.5"],
     ],

@@ -337,7 +337,10 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
     recipe = json.loads((run / "run.json").read_text())
     assert recipe["data"] == str(run / "benchmark-data.npz") and recipe["window"] == 5
     assert Dataset.load(recipe["data"]).counts() == {"train": 1, "val": 1, "test": 3}
-    assert main(["evaluate", str(run), "--split", "val", "--stride", "500", "--horizon", "20"]) == 0
+    assert (
+        main(["evaluate", str(run), "--split", "val", "--stride", "500", "--eval-horizon", "20"])
+        == 0
+    )
 
 
 def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_path, capsys):
@@ -434,10 +437,13 @@ def test_a_finished_benchmark_run_again_gives_the_same_report_and_other_options_
     code = main([*argv, "--train-args=--epochs 3"])
     err = capsys.readouterr().err.strip()
     assert code == 1 and "\n" not in err and "train_options.epochs: 2 there, 3 here" in err
-    assert f"--resume {run}" in err
+    assert f"--resume --out {run}" in err
     # --resume: canonid train's rule (more epochs may be asked for), then the scores
     assert (
-        main(["benchmark", "--resume", str(run), "--no-progress", "--train-args=--epochs 3"]) == 0
+        main(
+            ["benchmark", "--resume", "--out", str(run), "--no-progress", "--train-args=--epochs 3"]
+        )
+        == 0
     )
     assert json.loads((run / "run.json").read_text())["train_options"]["epochs"] == 3
     assert json.loads((run / "benchmark.json").read_text())["scores"]
@@ -526,7 +532,7 @@ def test_a_benchmark_killed_at_random_points_finishes_with_the_same_report(tmp_p
         assert cut.returncode == -signal.SIGKILL, (events[point - 1], cut.stderr[-2000:])
         again = [*argv, "--out", str(out)]
         if i == len(points) - 1:  # the last one by --resume
-            again = ["benchmark", "--resume", str(out), "--threads", "1", "--no-progress"]
+            again = ["benchmark", "--resume", "--out", str(out), "--threads", "1", "--no-progress"]
         finished = _benchmark_process(again, kill_at=0, record=tmp_path / "unused.json")
         assert finished.returncode == 0, (events[point - 1], finished.stderr[-2000:])
         for name in ("benchmark.json", "weights.pt", "normalisation.json"):

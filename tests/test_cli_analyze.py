@@ -39,7 +39,7 @@ def test_analyze_tank_writes_json_table_and_figure(tmp_path, capsys):
             *TANK_SETS,
             "--out",
             str(out),
-            "--quiet",
+            "--no-progress",
         ]
     )
     assert code == 0
@@ -86,7 +86,9 @@ def test_bad_arguments_are_one_line_errors(argv, message, tmp_path, capsys):
     if message is None:
         assert parse_box("0.05:5", 2, "X").lo.tolist() == [0.05, 0.05]
         return
-    code = main(["analyze", "tank", *argv, "--budget", "1", "--out", str(tmp_path), "--quiet"])
+    code = main(
+        ["analyze", "tank", *argv, "--budget", "1", "--out", str(tmp_path), "--no-progress"]
+    )
     err = capsys.readouterr().err
     assert code == 1 and message in err and "Traceback" not in err
     assert len(err.strip().splitlines()) == 1
@@ -145,7 +147,7 @@ def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, m
             str(run_dir),
             "--out",
             str(out),
-            "--quiet",
+            "--no-progress",
         ]
     )
     assert code == 0
@@ -172,7 +174,7 @@ def test_quadrotor_analysis_keeps_to_its_box_budget_and_says_what_is_out_of_reac
     Monte-Carlo check are there; the output says which certified bounds are out of reach."""
     boxes, out = 64, tmp_path / "quad"
     argv = ["analyze", "quadrotor", "--windows", "1-4", "--trials", "3", "--budget", "3600"]
-    assert main([*argv, "--boxes", str(boxes), "--out", str(out), "--quiet"]) == 0
+    assert main([*argv, "--boxes", str(boxes), "--out", str(out), "--no-progress"]) == 0
     printed = capsys.readouterr().out
     assert "Certified bounds out of reach:" in printed and "why (quadrotor)" in printed
     data = json.loads((out / "analysis.json").read_text())

@@ -173,7 +173,7 @@ def test_analyze_run_reports_the_learned_models_gamma_beside_the_true_systems(
     out = tmp_path / "analysis"
     argv = ["analyze", "linear", "--window", "3", "--trials", "5", "--budget", "30"]
     argv += ["--boxes", "40", "--run", str(run), "--learned-gamma"]
-    argv += ["--out", str(out), "--quiet"]
+    argv += ["--out", str(out), "--no-progress"]
     assert main(argv) == 0
     printed = capsys.readouterr().out
     assert "γ_f at ℓ = 3: true system [" in printed

@@ -116,7 +116,7 @@ def test_non_canonical_runs_and_bad_arguments_are_refused(runs, tmp_path, capsys
     sweep = ["reduce", str(runs / "mlp"), str(runs / "masti"), "--sweep", "--rates", "0.5"]
     assert main([*sweep, "--out", str(tmp_path / "s"), *COMMON]) == 1
     assert "only canonical models" in capsys.readouterr().err
-    assert main(["reduce", str(runs / "mlp"), "--sweep", "--rates", "0.5", "1.2", *COMMON]) == 1
+    assert main(["reduce", str(runs / "mlp"), "--sweep", "--rates", "0.5,1.2", *COMMON]) == 1
     assert "strictly between 0 and 1" in capsys.readouterr().err
     with pytest.raises(SystemExit):  # argparse: one mode is required
         main(["reduce", str(runs / "mlp")])
@@ -124,7 +124,7 @@ def test_non_canonical_runs_and_bad_arguments_are_refused(runs, tmp_path, capsys
 
 def test_sweep_writes_results_and_figures_and_reuses_finished_jobs(runs, tmp_path, capsys):
     out = tmp_path / "sweep"
-    argv = ["reduce", str(runs / "mlp"), "--sweep", "--rates", "0.3", "0.6", "--seeds", "2"]
+    argv = ["reduce", str(runs / "mlp"), "--sweep", "--rates", "0.3,0.6", "--seeds", "2"]
     argv += ["--no-linear-skip"]  # the paper's plain MLPs
     assert main([*argv, "--out", str(out), *COMMON]) == 0
     printed = capsys.readouterr().out

@@ -32,6 +32,15 @@ def selection(dataset_path, tmp_path_factory):
     return run
 
 
+def test_the_terminal_shows_a_plain_table_naming_the_scored_split(dataset_path, tmp_path, capsys):
+    argv = ["train", str(dataset_path), "--window", "auto", "--hidden", "8,8"]
+    assert main([*argv, "--out", str(tmp_path / "run"), *FAST]) == 0
+    out = capsys.readouterr().out
+    split = Selection.read(tmp_path / "run").candidates[0].split
+    assert f"rollout MSE ({split})" in out and "|" not in out and "**" not in out, out
+    assert f"rollout MSE ({split})" in (tmp_path / "run" / "candidates.md").read_text()
+
+
 def test_window_auto_keeps_the_lowest_validation_loss_and_writes_the_table(selection):
     table = Selection.read(selection)
     # T = 60: ℓ = 20 leaves 40 samples, enough for the tiny profile's rollouts of 10 and 20

@@ -68,7 +68,9 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
     assert config["model"] == "mlp" and config["net"]["residual"] is True
 
     trained = (run / "metrics.json").read_bytes()
-    assert main(["evaluate", str(run), "--horizon", "20", "--stride", "5", "--n-init", "10"]) == 0
+    assert (
+        main(["evaluate", str(run), "--eval-horizon", "20", "--stride", "5", "--n-init", "10"]) == 0
+    )
     out = capsys.readouterr().out
     again = evaluated(run, out)
     assert (run / "metrics.json").read_bytes() == trained  # training's scores stay
@@ -81,7 +83,19 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
 
     # resume with more epochs continues the same run
     assert (
-        main(["train", "--resume", str(run), "--epochs", "3", "--no-progress", "--device", "cpu"])
+        main(
+            [
+                "train",
+                "--resume",
+                "--out",
+                str(run),
+                "--epochs",
+                "3",
+                "--no-progress",
+                "--device",
+                "cpu",
+            ]
+        )
         == 0
     )
     assert len((run / "history.csv").read_text().splitlines()) == 5
@@ -89,7 +103,7 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
     # a new run into a used folder, or a resume under another model, is refused in one line
     assert main(argv) == 1
     assert "already holds a training run" in capsys.readouterr().err
-    assert main(["train", "--resume", str(run), "--model", "gru", "--no-progress"]) == 1
+    assert main(["train", "--resume", "--out", str(run), "--model", "gru", "--no-progress"]) == 1
     err = capsys.readouterr().err
     assert "model: 'mlp' there, 'gru' here" in err and "Traceback" not in err
     assert main(["train", "--resume", str(run), "--lr", "0.1", "--no-progress"]) == 1
@@ -171,7 +185,7 @@ def test_hidden_widths_are_kept_by_the_run_and_another_width_is_refused(
     layers = [tuple(v.shape) for k, v in weights.items() if k.startswith("net.") and "weight" in k]
     assert [shape[0] for shape in layers] == [12, 7, 1]  # two hidden layers, then y
     # evaluate and resume rebuild the same network from the run
-    assert main(["evaluate", str(run), "--horizon", "20"]) == 0
+    assert main(["evaluate", str(run), "--eval-horizon", "20"]) == 0
     resume = ["train", "--resume", str(run), "--no-progress", "--device", "cpu"]
     assert main([*resume, "--epochs", "2", "--hidden", "12,7"]) == 0
     capsys.readouterr()

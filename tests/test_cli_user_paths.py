@@ -153,13 +153,13 @@ def test_an_evaluation_of_other_weights_is_not_overwritten(trained, tmp_path, ca
     run = tmp_path / "run"
     shutil.copytree(trained, run)
     shutil.rmtree(run / "evaluations", ignore_errors=True)
-    assert main(["evaluate", str(run), "--horizon", "20"]) == 0
+    assert main(["evaluate", str(run), "--eval-horizon", "20"]) == 0
     first = evaluated(run, capsys.readouterr().out)
     weights = run / "weights.pt"
     weights.write_bytes(weights.read_bytes() + b"\0")  # stands for weights trained further
     folder = next((run / "evaluations").iterdir())
     saved = (folder / "metrics.json").read_bytes()
-    code = main(["evaluate", str(run), "--horizon", "20"])
+    code = main(["evaluate", str(run), "--eval-horizon", "20"])
     one_line_error(capsys, code, str(folder), "other weights", "remove that folder")
     assert (folder / "metrics.json").read_bytes() == saved
     assert json.loads(saved) == first
@@ -176,7 +176,7 @@ def test_evaluate_help_says_the_csv_options_default_to_the_runs(capsys):
 
 def test_analyze_run_checks_a_csv_trained_tank_model(trained, csv_files, tmp_path, capsys):
     out = tmp_path / "analysis"
-    quick = ["--boxes", "40", "--budget", "5", "--quiet", "--out", str(out)]
+    quick = ["--boxes", "40", "--budget", "5", "--no-progress", "--out", str(out)]
     # the shared run says dt = 2 s; the tank samples every 1 s: not the tank's data
     argv = ["analyze", "tank", "--run", str(trained), "--window", "3", "--trials", "5"]
     one_line_error(capsys, main([*argv, *quick]), "sampling time dt 2.0 (the run) vs 1.0 (tank)")
@@ -200,14 +200,14 @@ def test_analyze_run_checks_a_csv_trained_tank_model(trained, csv_files, tmp_pat
     learned = json.loads((out / "analysis.json").read_text())["learned"]
     assert learned["window"] == 3 and learned["split"] == "all"
     assert learned["data"] == str(test_npz) and learned["residual"]["rows"] == 128 - 3
-    code = main(["analyze", "drone2d", "--run", str(run), "--window", "3", "--quiet"])
+    code = main(["analyze", "drone2d", "--run", str(run), "--window", "3", "--no-progress"])
     one_line_error(capsys, code, "number of inputs 1 (the run) vs 2 (drone2d)")
 
 
 def test_analyze_run_without_a_system_bounds_the_learned_model_alone(trained, tmp_path, capsys):
     # real data have no registered system: `analyze --run RUN` bounds the model's own γ_f
     out = tmp_path / "learned"
-    quick = ["--boxes", "20", "--quiet", "--out", str(out)]
+    quick = ["--boxes", "20", "--no-progress", "--out", str(out)]
     capsys.readouterr()
     assert main(["analyze", "--run", str(trained), *quick]) == 0
     printed = capsys.readouterr().out
@@ -219,12 +219,12 @@ def test_analyze_run_without_a_system_bounds_the_learned_model_alone(trained, tm
     assert gamma["lower"]["kind"] == "lower" and gamma["branch_and_bound"]["kind"] == "upper"
     assert gamma["branch_and_bound"]["details"]["boxes"] <= 20 + 64  # the last round's children
     assert 0 < gamma["lower"]["value"] <= gamma["best_upper"]
-    one_line_error(capsys, main(["analyze", "--quiet"]), "give a registered SYSTEM")
+    one_line_error(capsys, main(["analyze", "--no-progress"]), "give a registered SYSTEM")
     code = main(["analyze", "--run", str(trained), "--window", "5", *quick])
     one_line_error(capsys, code, "the run's model has window ℓ = 3")
     code = main(["analyze", "--run", str(trained), "--X", "0:1", *quick])
     one_line_error(capsys, code, "--X applies to a registered SYSTEM")
-    code = main(["analyze", "tank", "--quiet"])
+    code = main(["analyze", "tank", "--no-progress"])
     one_line_error(capsys, code, "one of --window L or --windows A-B is required")
 
 
@@ -281,7 +281,7 @@ def test_resume_with_the_same_options_and_an_eval_horizon_runs(trained, tmp_path
 def test_analyze_tank_for_windows_3_to_10_on_the_default_sets(tmp_path, capsys):
     """Was `LinAlgError: SVD did not converge`: some sampled ∂O_ℓ/∂x are not finite."""
     argv = ["analyze", "tank", "--windows", "3-10", "--trials", "3", "--boxes", "20"]
-    assert main([*argv, "--budget", "5", "--quiet", "--out", str(tmp_path / "a")]) == 0
+    assert main([*argv, "--budget", "5", "--no-progress", "--out", str(tmp_path / "a")]) == 0
     out = capsys.readouterr().out
     assert "Sampled bounds:" in out and "samples have no finite ∂O_ℓ/∂x" in out
     data = json.loads((tmp_path / "a" / "analysis.json").read_text())

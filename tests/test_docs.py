@@ -161,7 +161,13 @@ def test_markup_errors_are_named(tmp_path: Path, markdown: str, message: str):
 
 
 def _options(parser: argparse.ArgumentParser) -> list[str]:
-    names = [o for a in parser._actions for o in a.option_strings if o not in ("-h", "--help")]
+    names = [
+        o
+        for a in parser._actions
+        if a.help is not argparse.SUPPRESS  # a former name, still read, not documented
+        for o in a.option_strings
+        if o not in ("-h", "--help")
+    ]
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             for sub in action.choices.values():

@@ -134,7 +134,16 @@ def test_data_with_other_signal_names_are_refused_unless_the_columns_are_named(
 
 def test_analyze_data_that_do_not_exist_are_refused_not_ignored(root, tmp_path, capsys):
     out = tmp_path / "analysis"
-    argv = ["analyze", "--run", str(root / "run"), "--budget", "1", "--quiet", "--out", str(out)]
+    argv = [
+        "analyze",
+        "--run",
+        str(root / "run"),
+        "--budget",
+        "1",
+        "--no-progress",
+        "--out",
+        str(out),
+    ]
     _refused(capsys, [*argv, "--data", str(tmp_path / "nonexistent.npz")], "nonexistent")
     assert not out.exists()
 
@@ -145,7 +154,7 @@ def test_analyze_refuses_a_run_of_another_system_by_its_sampling_time(root, tmp_
     out = tmp_path / "analysis"
     argv = ["analyze", "linear", "--run", str(root / "run"), "--window", "3", "--trials", "2"]
     err = _refused(
-        capsys, [*argv, "--budget", "1", "--quiet", "--out", str(out)], "not trained on data"
+        capsys, [*argv, "--budget", "1", "--no-progress", "--out", str(out)], "not trained on data"
     )
     assert "sampling time dt 0.5 (the run) vs 1.0 (linear)" in err
     assert not out.exists()
@@ -165,7 +174,7 @@ def test_analyze_refuses_a_run_of_another_system_by_its_sampling_time(root, tmp_
 )
 def test_analyze_refuses_empty_sets_and_non_finite_numbers(argv, needle, tmp_path, capsys):
     out = tmp_path / "analysis"
-    base = ["analyze", "tank", "--window", "1", "--trials", "2", "--boxes", "2", "--quiet"]
+    base = ["analyze", "tank", "--window", "1", "--trials", "2", "--boxes", "2", "--no-progress"]
     _refused(capsys, [*base, *argv, "--out", str(out)], needle)
     assert not out.exists()
 
@@ -351,7 +360,16 @@ def _commands(run: Path) -> dict[str, list[str]]:
     return {
         "evaluate": ["evaluate", str(run)],
         "export": ["export", str(run), "--casadi", str(run / "export" / "m.casadi")],
-        "analyze": ["analyze", "--run", str(run), "--budget", "0.5", "--boxes", "4", "--quiet"],
+        "analyze": [
+            "analyze",
+            "--run",
+            str(run),
+            "--budget",
+            "0.5",
+            "--boxes",
+            "4",
+            "--no-progress",
+        ],
         "resume": ["train", "--resume", str(run), "--epochs", "2", "--no-progress"],
     }
 

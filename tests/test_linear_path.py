@@ -271,7 +271,7 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
         dt=1.0,
     )
     common = [str(tmp_path / "data.npz"), "--window", "3", "--epochs", "1", "--no-progress"]
-    common += ["--device", "cpu", "--horizon", "10"]
+    common += ["--device", "cpu", "--train-horizon", "10"]
     assert main(["train", *common, "--model", "mlp", "--out", str(tmp_path / "d")]) == 0
     net = json.loads((tmp_path / "d" / "config.json").read_text())["net"]
     assert {k: net[k] for k in DEFAULT_NET_OPTIONS["mlp"]} == DEFAULT_NET_OPTIONS["mlp"]

@@ -174,7 +174,7 @@ def test_the_bound_figure_has_units_and_no_literal_underscores(tmp_path):
     out = tmp_path / "an"
     argv = ["analyze", "tank", "--windows", "1-2", "--trials", "10", "--boxes", "2000"]
     argv += ["--budget", "3600", "--X", "0.05:5,0.05:5", "--U", "1:3", "--out", str(out)]
-    assert main([*argv, "--quiet", "--figure-format", "svg"]) == 0
+    assert main([*argv, "--no-progress", "--figure-format", "svg"]) == 0
     svg = (out / "bound_vs_window.svg").read_text()
     assert svg.startswith("<?xml")
     texts = re.findall(r"<!-- (.*?) -->", svg)  # matplotlib writes each text as a comment

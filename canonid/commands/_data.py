@@ -34,10 +34,13 @@ def add_data_options(p: argparse.ArgumentParser, *, recorded: bool = False) -> N
         else "A .csv file, or a folder of them (one experiment each).",
     )
     g.add_argument(
-        "--inputs", type=_columns, metavar="COL,...", help=f"input columns{_default(given)}"
+        "--inputs", type=_columns, metavar="COL,...", help=f"input columns{_default(given) or _CSV}"
     )
     g.add_argument(
-        "--outputs", type=_columns, metavar="COL,...", help=f"output columns{_default(given)}"
+        "--outputs",
+        type=_columns,
+        metavar="COL,...",
+        help=f"output columns{_default(given) or _CSV}",
     )
     g.add_argument(
         "--experiment-column",
@@ -61,6 +64,9 @@ def add_data_options(p: argparse.ArgumentParser, *, recorded: bool = False) -> N
         help="sampling time (CSV, .npz)"
         + _default(given or "the time column's step; required without one"),
     )
+
+
+_CSV = " (required for CSV data)"
 
 
 def _default(text: str | None) -> str:

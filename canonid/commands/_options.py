@@ -1,17 +1,34 @@
 """Command-line options that several commands share, each written once: where the jobs run,
 the profile, the torch device (no import of torch: ``canonid generate`` uses it), the figures'
-file format; and the typed request built from the parsed options."""
+file format, threads, progress, ``--resume``; comma-separated lists, former option names kept
+as deprecated aliases; and the typed request built from the parsed options."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
-from collections.abc import Sequence
+import sys
+from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any, TypeVar
 
+from canonid.kernel.errors import OptionError
 from canonid.kernel.io import FIGURE_FORMATS
 
-__all__ = ["add_device", "add_figure_format", "add_profile", "add_where", "request"]
+__all__ = [
+    "Items",
+    "add_device",
+    "add_figure_format",
+    "add_former",
+    "add_no_progress",
+    "add_profile",
+    "add_resume",
+    "add_threads",
+    "add_where",
+    "comma_list",
+    "request",
+    "resumed",
+]
 
 _Request = TypeVar("_Request")
 
@@ -69,6 +86,101 @@ def add_figure_format(parser: Any) -> None:
         help=f"file format of the figures (default {FIGURE_FORMATS[0]}; pdf and svg are vector "
         "graphics for a paper)",
     )
+
+
+def add_threads(parser: Any, *, per: str = "") -> None:
+    """``--threads N``: torch's CPU threads (``per``: e.g. `` per job``)."""
+    parser.add_argument(
+        "--threads",
+        type=int,
+        metavar="N",
+        help=f"torch CPU threads{per} (default: torch's, one per core)",
+    )
+
+
+def add_no_progress(parser: Any, *, bars: str = "bar") -> None:
+    """``--no-progress``: no progress bar(s) on stderr."""
+    parser.add_argument("--no-progress", action="store_true", help=f"no progress {bars}")
+
+
+def add_resume(parser: Any, *, what: str, path: bool = False) -> None:
+    """``--resume``: continue the interrupted ``what`` in the folder of ``--out``; ``path``: the
+    former spelling ``--resume RUN`` (= ``--resume --out RUN``) is still read."""
+    text = f"continue the interrupted {what} in --out"
+    if path:
+        parser.add_argument(
+            "--resume",
+            nargs="?",
+            const=True,
+            metavar="RUN",
+            help=f"{text} (--resume RUN, the former spelling of --resume --out RUN, still works)",
+        )
+    else:
+        parser.add_argument("--resume", action="store_true", help=text)
+
+
+def resumed(args: argparse.Namespace) -> dict[str, Path | None]:
+    """The ``resume`` and ``out`` fields of a request from ``--resume [RUN]`` and ``--out``
+    (:func:`add_resume` with ``path``): the folder a run continues in, then no other ``--out``."""
+    if args.resume is None:
+        return {"resume": None, "out": args.out}
+    if args.resume is not True:  # --resume RUN
+        return {"resume": Path(args.resume), "out": args.out}
+    if args.out is None:
+        raise OptionError("--resume continues the run in --out: give --out RUN")
+    return {"resume": args.out, "out": None}
+
+
+class _Former(argparse.Action):
+    """A former option name: read into the new option's ``dest``, hidden from ``--help``, with a
+    warning on stderr naming the new one."""
+
+    def __init__(self, *args: Any, new: str, **kwargs: Any) -> None:
+        self.new = new
+        super().__init__(*args, **kwargs)
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        print(f"{parser.prog}: warning: {option} is deprecated, use {self.new}", file=sys.stderr)
+        setattr(namespace, self.dest, True if self.nargs == 0 else values)
+
+
+def add_former(parser: Any, old: str, new: str) -> None:
+    """Accept ``old``, a former name of option ``new`` already on ``parser``, as a deprecated
+    alias (not shown by ``--help``)."""
+    action = next(a for a in parser._actions if new in a.option_strings)
+    parser.add_argument(
+        old,
+        action=_Former,
+        new=new,
+        dest=action.dest,
+        nargs=action.nargs,
+        type=action.type,
+        default=argparse.SUPPRESS,
+        help=argparse.SUPPRESS,
+    )
+
+
+def comma_list(item: Callable[[str], Any], what: str) -> Callable[[str], list[Any]]:
+    """argparse type of a comma-separated list of ``item`` (``what``: how one is written)."""
+
+    def parse(text: str) -> list[Any]:
+        try:
+            values = [item(t.strip()) for t in text.split(",") if t.strip()]
+        except (ValueError, argparse.ArgumentTypeError):
+            values = []
+        if not values:
+            raise argparse.ArgumentTypeError(f"expected {what}[,{what}...], got {text!r}")
+        return values
+
+    return parse
+
+
+class Items(argparse.Action):
+    """``nargs="+"`` of :func:`comma_list` words: ``0.3,0.6`` and the former ``0.3 0.6`` give
+    one flat list."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        setattr(namespace, self.dest, [v for word in values for v in word])
 
 
 def request(kind: type[_Request], args: argparse.Namespace, **given: Any) -> _Request:

@@ -41,9 +41,17 @@ def register(sub: Any) -> None:
         "the learned model alone",
     )
     win = p.add_mutually_exclusive_group()
-    win.add_argument("--window", type=int, metavar="L", help="one window ℓ >= 1")
     win.add_argument(
-        "--windows", metavar="A-B", help="a range of windows, e.g. 1-10, or a list 2,5,10"
+        "--window",
+        type=int,
+        metavar="L",
+        help="one window ℓ >= 1 (it or --windows is required with SYSTEM; default without "
+        "SYSTEM: the run's ℓ)",
+    )
+    win.add_argument(
+        "--windows",
+        metavar="L,...",
+        help="windows ℓ, e.g. 2,5,10, or a range A-B, e.g. 1-10 (see --window)",
     )
     p.add_argument(
         "--trials", type=int, default=1000, help="Monte-Carlo trials per window (default 1000)"
@@ -61,19 +69,31 @@ def register(sub: Any) -> None:
         type=int,
         metavar="N",
         help="also stop each certified search after N boxes: with a budget in boxes (and the "
-        "same --seed) the numbers do not depend on the machine's speed",
+        "same --seed) the numbers do not depend on the machine's speed (default: no limit)",
     )
-    p.add_argument("--X", dest="X", metavar="BOX", help="state set, e.g. 0.05:5,0.05:5")
-    p.add_argument("--U", dest="U", metavar="BOX", help="input set, e.g. 1:3")
-    p.add_argument("--W", dest="W", metavar="BOX", help="noise set, e.g. -0.02:0.02")
-    p.add_argument("--tol", type=float, default=0.05, help="relative tolerance of γ searches")
-    p.add_argument("--seed", type=int, default=0, help="random seed")
+    for name, what, example in (
+        ("X", "state", "0.05:5,0.05:5"),
+        ("U", "input", "1:3"),
+        ("W", "noise", "-0.02:0.02"),
+    ):
+        p.add_argument(
+            f"--{name}",
+            dest=name,
+            metavar="BOX",
+            help=f"{what} set of SYSTEM, e.g. {example} (default: the system's {name})",
+        )
+    p.add_argument(
+        "--tol", type=float, default=0.05, help="relative tolerance of γ searches (default 0.05)"
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the sampled bounds and trials (default 0)"
+    )
     p.add_argument(
         "--run",
         type=Path,
         metavar="RUN",
         help="a trained model's run folder: adds its one-step residual and a state probe, "
-        "checked against the bound, on the test split of its data",
+        "checked against the bound, on the test split of its data (default: the system alone)",
     )
     p.add_argument(
         "--learned-gamma",
@@ -95,12 +115,13 @@ def register(sub: Any) -> None:
         help="output folder (default runs/analyze-SYSTEM, or RUN/analysis without SYSTEM)",
     )
     _options.add_figure_format(p)
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _options.add_no_progress(p)
+    _options.add_former(p, "--quiet", "--no-progress")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    request = _options.request(AnalyzeRequest, args, progress=not args.quiet)
+    request = _options.request(AnalyzeRequest, args, progress=not args.no_progress)
     outcome = run_analysis(request)
     print(outcome.text)
     warning = outcome.warning()

@@ -16,8 +16,8 @@ own parser into the :class:`~canonid.training.TrainRequest` that the benchmark c
 default of ``canonid train`` applies and any of its options can be set (spelt out in full; the
 options the benchmark sets itself are refused in any spelling).
 
-An interrupted benchmark is finished by running the same command again, or by ``--resume RUN``
-(``canonid train --resume``'s rule: only the options a resumed run may change are given, in
+An interrupted benchmark is finished by running the same command again, or by ``--resume --out
+RUN`` (``canonid train --resume``'s rule: only the options a resumed run may change are given, in
 ``--train-args``).
 """
 
@@ -54,17 +54,12 @@ def register(sub: Any) -> None:
             "Load benchmark NAME from its files (offline), train on the official training part "
             "as `canonid train` does (the last 20 % of every training record validates), score "
             "every official test part by the official rule (simulation from the whole test "
-            "input after the first n_init measured outputs) and show the published baselines."
+            "input after the first n_init measured outputs) and show the published baselines. The "
+            "same command run again continues an interrupted run, as --resume does."
         ),
     )
     p.add_argument("name", nargs="?", metavar="NAME", help=f"one of {', '.join(BENCHMARKS)}")
-    p.add_argument(
-        "--resume",
-        type=Path,
-        metavar="RUN",
-        help="finish the interrupted benchmark run in RUN (as canonid train --resume; running "
-        "the same command again continues it too)",
-    )
+    _options.add_resume(p, what="benchmark run (as canonid train --resume)", path=True)
     p.add_argument("--list", action="store_true", help="list the benchmarks and their files")
     p.add_argument(
         "--dir",
@@ -85,7 +80,7 @@ def register(sub: Any) -> None:
         "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/NAME-MODEL)"
     )
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
-    p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
+    _options.add_threads(p)
     p.add_argument(
         "--val-fraction",
         type=float,
@@ -97,9 +92,9 @@ def register(sub: Any) -> None:
         metavar="'OPTIONS'",
         default="",
         help="further options for canonid train, as one string (e.g. --train-args='--epochs 200 "
-        "--batch-size 64')",
+        "--batch-size 64'; default: none)",
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _options.add_no_progress(p)
     p.set_defaults(func=run)
 
 
@@ -132,6 +127,7 @@ def run(args: argparse.Namespace) -> int:
         files=args.dir,
         window=parse_window(args.window),
         train=train_request(extra),
+        **_options.resumed(args),
     )
     report, run_dir = run_benchmark(request)
     print(report_table(report))

@@ -45,11 +45,17 @@ def register(sub: Any) -> None:
         "records of a CSV / .npz --data file)",
     )
     p.add_argument(
-        "--horizon",
+        "--eval-horizon",
+        dest="horizon",
         type=int,
-        help="rollout length H (default 100, or what the longest record holds after ℓ)",
+        metavar="H",
+        help="rollout length of the evaluation (default 100, or what the longest record holds "
+        "after ℓ)",
     )
-    p.add_argument("--stride", type=int, default=1, help="stride of rollout starts (default 1)")
+    _options.add_former(p, "--horizon", "--eval-horizon")
+    p.add_argument(
+        "--stride", type=int, default=1, metavar="N", help="stride of rollout starts (default 1)"
+    )
     p.add_argument(
         "--n-init",
         type=int,

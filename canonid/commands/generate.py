@@ -49,7 +49,14 @@ def register(sub: Any) -> None:
         help="measurement-noise half-width, one number or one per output separated by commas "
         "(default: the system's W; a level outside W is refused)",
     )
-    p.add_argument("--horizon", type=int, metavar="N", help="MPC horizon (MPC systems only)")
+    p.add_argument(
+        "--mpc-horizon",
+        dest="horizon",
+        type=int,
+        metavar="N",
+        help="prediction horizon of the NMPC controller (MPC scenarios only; default 20)",
+    )
+    _options.add_former(p, "--horizon", "--mpc-horizon")
     p.add_argument(
         "--steps", type=int, metavar="T", help="samples per flight (default: the system's)"
     )
@@ -58,25 +65,34 @@ def register(sub: Any) -> None:
         "--excitation",
         choices=("multisine", "prbs"),
         help="add a signal to the controller's command (the applied input, clipped to U, is "
-        "recorded): a random-phase multisine or a PRBS",
+        "recorded): a random-phase multisine or a PRBS (default: none, the controller's command "
+        "alone)",
     )
     design.add_argument(
-        "--amplitude", metavar="RMS", help="its RMS per input, one number or one per input"
+        "--amplitude",
+        metavar="RMS",
+        help="its RMS per input, one number or one per input (required with --excitation)",
     )
-    design.add_argument("--band", metavar="LOW,HIGH", help="multisine band in Hz")
-    design.add_argument("--lines", type=int, metavar="N", help="multisine lines per input")
-    design.add_argument("--clock", type=int, metavar="N", help="PRBS: samples each level holds")
     design.add_argument(
-        "--references", metavar="FAMILY", help="another reference family (drone2d: steps)"
+        "--band", metavar="LOW,HIGH", help="multisine band in Hz (required with multisine)"
+    )
+    design.add_argument(
+        "--lines", type=int, metavar="N", help="multisine lines per input (required with multisine)"
+    )
+    design.add_argument(
+        "--clock", type=int, metavar="N", help="samples each PRBS level holds (required with prbs)"
+    )
+    design.add_argument(
+        "--references",
+        metavar="FAMILY",
+        help="another reference family (drone2d: steps; default: random splines)",
     )
     _options.add_where(p, jobs="simulate the flights", sees="--out")
-    p.add_argument(
-        "--resume", action="store_true", help="keep finished flights of an interrupted run"
-    )
+    _options.add_resume(p, what="generation (finished flights are kept)")
     p.add_argument(
         "--plot", action="store_true", help="plot a few flights against their references"
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _options.add_no_progress(p)
     p.set_defaults(func=run)
 
 

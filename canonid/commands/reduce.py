@@ -62,24 +62,24 @@ def register(sub: Any) -> None:
             "windows (default: the profile's; quick on, paper off = the paper's plain MLPs)"
         ),
     )
-    p.add_argument("--seed", type=int, default=0, help="seed (--sweep: the first of --seeds)")
-    _options.add_device(p, what="torch device")
-    p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads (per job)")
     p.add_argument(
-        "--resume", action="store_true", help="continue the interrupted reduction in --out"
+        "--seed", type=int, default=0, help="seed (default 0; --sweep: the first of --seeds)"
     )
+    _options.add_device(p, what="torch device")
+    _options.add_threads(p, per=" per job")
+    _options.add_resume(p, what="reduction")
     g = p.add_argument_group("compression study (--sweep)")
     g.add_argument(
         "--rates",
-        type=_rate,
+        type=_options.comma_list(_rate, "R"),
         nargs="+",
-        default=None,
-        metavar="R",
-        help="rates (default 0.15 0.30 … 0.90)",
+        action=_options.Items,
+        metavar="R,...",
+        help="rates, e.g. 0.3,0.6 (default 0.15,0.30,…,0.90)",
     )
     g.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per rate (default 3)")
     _options.add_where(g, jobs="run the reductions", sees="RUN and --out")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _options.add_no_progress(p)
     p.set_defaults(func=run)
 
 

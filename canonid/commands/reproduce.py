@@ -17,20 +17,6 @@ from canonid.profiles import DEFAULT_PROFILE, profile_names
 __all__ = ["register", "run"]
 
 
-def _names(text: str) -> list[str]:
-    names = [t.strip() for t in text.split(",") if t.strip()]
-    if not names:
-        raise argparse.ArgumentTypeError("expected NAME[,NAME...]")
-    return names
-
-
-def _ints(text: str) -> list[int]:
-    try:
-        return [int(t) for t in _names(text)]
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected integers N[,N...], got {text!r}") from None
-
-
 def register(sub: Any) -> None:
     p: argparse.ArgumentParser = sub.add_parser(
         "reproduce",
@@ -49,10 +35,23 @@ def register(sub: Any) -> None:
         what="budgets and defaults of every stage (paper: the paper's sizes)",
         default=DEFAULT_PROFILE,
     )
-    p.add_argument("--systems", type=_names, metavar="S,...", help="e.g. tank,drone2d,quadrotor")
-    p.add_argument("--windows", type=_ints, metavar="L,...", help="windows ℓ, e.g. 5,10,15")
-    p.add_argument("--models", type=_names, metavar="M,...", help="e.g. mlp,gru,classic-gru,masti")
-    p.add_argument("--seeds", type=int, metavar="N", help="training seeds per cell (0 … N−1)")
+    for name, item, what, example in (
+        ("systems", str, "S", "systems, e.g. tank,drone2d,quadrotor"),
+        ("windows", int, "L", "windows ℓ, e.g. 5,10,15"),
+        ("models", str, "M", "models, e.g. mlp,gru,classic-gru,masti"),
+    ):
+        p.add_argument(
+            f"--{name}",
+            type=_options.comma_list(item, what),
+            metavar=f"{what},...",
+            help=f"{example} (default: the profile's)",
+        )
+    p.add_argument(
+        "--seeds",
+        type=int,
+        metavar="N",
+        help="training seeds per cell, 0 … N−1 (default: the profile's)",
+    )
     p.add_argument(
         "--out",
         type=_paths.folder,
@@ -60,10 +59,10 @@ def register(sub: Any) -> None:
         help="output folder (default runs/reproduce)",
     )
     _options.add_where(p, jobs="run the jobs", sees="OUT")
-    p.add_argument("--resume", action="store_true", help="continue the reproduction in OUT")
+    _options.add_resume(p, what="reproduction")
     _options.add_device(p, what="torch device of the training jobs")
     _options.add_figure_format(p)
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    _options.add_no_progress(p, bars="bars")
     p.set_defaults(func=run)
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 from typing import Any
 
 from canonid.commands import _data, _options, _paths
@@ -72,11 +71,13 @@ def register(sub: Any) -> None:
     p.add_argument("--lr", type=float, help="override the profile's learning rate")
     p.add_argument("--batch-size", type=int, metavar="B", help="override the profile's batch")
     p.add_argument(
-        "--horizon",
+        "--train-horizon",
+        dest="horizon",
         type=int,
         metavar="H",
         help="override the profile's final training rollout length",
     )
+    _options.add_former(p, "--horizon", "--train-horizon")
     p.add_argument(
         "--windows-per-epoch",
         type=int,
@@ -93,7 +94,7 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/MODEL-lL)"
     )
-    p.add_argument("--resume", type=Path, metavar="RUN", help="continue the run in RUN")
+    _options.add_resume(p, what="training run", path=True)
     p.add_argument(
         "--val",
         metavar="FILE",
@@ -160,18 +161,18 @@ def register(sub: Any) -> None:
         "--eval-horizon",
         type=int,
         metavar="H",
-        help="rollout length of the final evaluation (default 100, or the final training "
+        help="rollout length of the evaluation after training (default 100, or the final training "
         "rollout length when that is shorter, or what the scored records hold)",
     )
     _options.add_figure_format(p)
-    p.add_argument("--threads", type=int, metavar="N", help="torch CPU threads")
+    _options.add_threads(p)
     _options.add_where(
         p,
         jobs="with --window/--hidden auto: train the candidates",
         sees="DATA and RUN",
         workers=None,
     )
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _options.add_no_progress(p)
     _data.add_data_options(p)
     p.set_defaults(func=run)
 
@@ -192,6 +193,7 @@ def request(args: argparse.Namespace) -> TrainRequest:
         TrainRequest,
         args,
         data_options=_data.data_options(args),
+        **_options.resumed(args),
         hidden=parse_widths(args.hidden),
         progress=not args.no_progress,
         command=("canonid", *sys.argv[1:]),

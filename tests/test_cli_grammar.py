@@ -1,0 +1,179 @@
+"""One command-line grammar, checked on the parsers themselves (in the manner of python-control's
+``kwargs_test.py`` / ``docstrings_test.py``): every option says its default, the names shared by
+several commands mean one thing, lists are comma-separated, former names still work (with a
+warning, hidden from ``--help``), and the docs' command-line page lists every command with a
+summary."""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import importlib.util
+import re
+from pathlib import Path
+
+import pytest
+
+from canonid.cli import build_parser
+from canonid.commands import COMMANDS, _options
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+#: option names shared by several commands → the words every one of their help texts starts with
+MEANINGS = {
+    "--no-progress": "no progress bar",
+    "--resume": "continue the interrupted ",
+    "--eval-horizon": "rollout length of the evaluation",
+    "--train-horizon": "override the profile's final training rollout length",
+    "--mpc-horizon": "prediction horizon of the NMPC",
+    "--threads": "torch CPU threads",
+    "--seed": "",
+    "--windows": "windows ℓ, e.g. ",
+}
+#: former names: still read, in no command's --help
+FORMER = ("--horizon", "--quiet")
+
+
+@functools.cache
+def _subcommands() -> dict[str, argparse.ArgumentParser]:
+    parser = build_parser(every=True)
+    action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(action.choices)
+
+
+def _shown(parser: argparse.ArgumentParser) -> list[argparse.Action]:
+    return [
+        a
+        for a in parser._actions
+        if a.help is not argparse.SUPPRESS and not isinstance(a, argparse._HelpAction)
+    ]
+
+
+def _cases() -> list[tuple[str, argparse.Action]]:
+    return [(name, a) for name, sub in _subcommands().items() for a in _shown(sub)]
+
+
+def _label(case: tuple[str, argparse.Action]) -> str:
+    name, action = case
+    return f"{name} {action.option_strings[0] if action.option_strings else action.dest}"
+
+
+@pytest.mark.parametrize("case", _cases(), ids=_label)
+def test_every_option_has_help_that_states_its_default(case):
+    name, action = case
+    assert action.help and action.help.strip(), f"canonid {name} {_label(case)}: no help"
+    text = action.help % vars(action) if "%" in action.help else action.help
+    flag = action.nargs == 0 or action.const is True  # on or off: off unless given
+    groups = [g for g in parser_groups(name) if action in g._group_actions]
+    if flag or action.required or any(g.required for g in groups) or not action.option_strings:
+        return
+    if any(_states(o.help) for g in groups for o in g._group_actions):  # --workers | --scheduler
+        return
+    assert _states(text), f"canonid {_label(case)}: the help does not state the default: {text!r}"
+
+
+def test_shared_option_names_mean_one_thing():
+    seen: dict[str, list[tuple[str, str, str]]] = {}
+    for name, action in _cases():
+        for option in action.option_strings:
+            seen.setdefault(option, []).append((name, action.dest, action.help or ""))
+    for option in FORMER:
+        assert option not in seen, f"{option} is still shown by {[c for c, *_ in seen[option]]}"
+    for option, start in MEANINGS.items():
+        uses = seen.get(option, [])
+        assert uses, f"no command has {option}"
+        for command, _, text in uses:
+            assert text.startswith(start), f"canonid {command} {option}: {text!r}"
+    assert len(seen["--no-progress"]) >= 6 and len(seen["--resume"]) == 5
+
+
+def _states(text: str | None) -> bool:
+    """The help says the default, or when the option is required."""
+    return bool(text and re.search(r"\bdefaults?\b|\boverride the profile's\b|\brequired\b", text))
+
+
+def parser_groups(name: str) -> list[argparse._MutuallyExclusiveGroup]:
+    return _subcommands()[name]._mutually_exclusive_groups
+
+
+def _parse(*argv: str) -> argparse.Namespace:
+    return build_parser(argv[0]).parse_args(list(argv))
+
+
+@pytest.mark.parametrize(
+    ("argv", "dest", "value"),
+    [
+        (["reduce", "r", "--sweep", "--rates", "0.3,0.6"], "rates", [0.3, 0.6]),
+        (["reduce", "r", "--sweep", "--rates", "0.3", "0.6"], "rates", [0.3, 0.6]),
+        (["reduce", "r", "--sweep", "--rates", "0.3,0.45", "0.6"], "rates", [0.3, 0.45, 0.6]),
+        (["reproduce", "--windows", "5,10,15"], "windows", [5, 10, 15]),
+        (["reproduce", "--systems", "tank, drone2d"], "systems", ["tank", "drone2d"]),
+        (["analyze", "tank", "--windows", "2,5,10"], "windows", "2,5,10"),
+    ],
+)
+def test_lists_are_comma_separated(argv, dest, value):
+    assert getattr(_parse(*argv), dest) == value
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [["reduce", "r", "--sweep", "--rates", "0.3,,x"], ["reproduce", "--windows", "5,ten"]],
+)
+def test_a_bad_list_is_one_line_naming_the_option(argv, capsys):
+    with pytest.raises(SystemExit) as stop:
+        _parse(*argv)
+    err = capsys.readouterr().err
+    assert stop.value.code == 2 and argv[-2] in err and "expected" in err, err
+
+
+@pytest.mark.parametrize(
+    ("argv", "old", "new", "dest", "value"),
+    [
+        (["evaluate", "RUN", "--horizon", "20"], "--horizon", "--eval-horizon", "horizon", 20),
+        (["train", "d.csv", "--horizon", "20"], "--horizon", "--train-horizon", "horizon", 20),
+        (["generate", "drone2d", "--horizon", "10"], "--horizon", "--mpc-horizon", "horizon", 10),
+        (["analyze", "tank", "--quiet"], "--quiet", "--no-progress", "no_progress", True),
+    ],
+)
+def test_former_names_still_work_with_a_warning(argv, old, new, dest, value, capsys):
+    assert getattr(_parse(*argv), dest) == value
+    assert f"{old} is deprecated, use {new}" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("argv", "resume", "out"),
+    [
+        (["train", "--resume", "--out", "runs/a"], Path("runs/a"), None),
+        (["train", "--out", "runs/a", "--resume"], Path("runs/a"), None),
+        (["train", "--resume", "runs/a"], Path("runs/a"), None),  # the former spelling
+        (["benchmark", "--resume", "--out", "runs/b"], Path("runs/b"), None),
+        (["benchmark", "--resume", "runs/b"], Path("runs/b"), None),
+        (["train", "d.csv", "--out", "runs/a"], None, Path("runs/a")),
+    ],
+)
+def test_resume_continues_the_run_in_out(argv, resume, out):
+    assert _options.resumed(_parse(*argv)) == {"resume": resume, "out": out}
+
+
+def test_resume_without_a_folder_is_one_line(capsys):
+    from canonid.cli import main
+
+    assert main(["train", "--resume", "--epochs", "3"]) == 1
+    err = capsys.readouterr().err
+    assert (
+        err.strip() == "canonid train: error: --resume continues the run in --out: give --out RUN"
+    )
+
+
+def test_the_docs_command_line_page_lists_every_command_with_a_summary():
+    spec = importlib.util.spec_from_file_location(
+        "cli_reference", DOCS / "hooks" / "cli_reference.py"
+    )
+    assert spec and spec.loader
+    hook = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(hook)
+    page = hook.render(build_parser(every=True))
+    rows = dict(re.findall(r"^\| \[`([a-z]+)`\]\(#canonid-[a-z]+\) \| (.*) \|$", page, re.M))
+    assert list(rows) == [c.name for c in COMMANDS]
+    for name, summary in rows.items():
+        assert summary.strip() and "%%" not in summary, f"{name}: {summary!r}"
