@@ -40,6 +40,7 @@ from _results import write_section  # noqa: E402
 
 WINDOW = 10
 ROWS = ROOT / "benchmarks" / "studies" / "search_study.jsonl"
+NOTES = ROOT / "benchmarks" / "studies" / "search_study_notes.md"
 GENERATED = {"tank": "tank-s0", "drone2d": "drone2d-small"}
 SEEDS, LRS, NARROW = (0, 1, 2, 3), (3e-3, 5e-3), [64, 64, 64]
 
@@ -143,6 +144,8 @@ def table(rows: list[dict[str, Any]]) -> str:
         f"Load average (1 min) at the end of the runs: {min(loads):.1f}–{max(loads):.1f} on "
         f"{os.cpu_count()} cores."
     )
+    if NOTES.is_file():  # what the rows alone do not say, for a reader who was not there
+        lines += ["", NOTES.read_text(encoding="utf-8").strip()]
     return "\n".join(lines)
 
 
