@@ -24,7 +24,11 @@ for that many steps, beside the Gauss-Newton one (the cost before the option exi
 learned tank model's γ_f bracket on its training hull (:mod:`canonid.analysis.certify`) beside the
 true tank's on its X.
 
-Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md.
+The step responses of ``Case.judged`` (drone: px and θ after a rotor difference) are also run from
+rest (hover) and judged: learned / true change in [0.7, 1.3] is the true sign within 30 %.
+
+Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md (``--section`` names
+another, so that a run on other data keeps the earlier one).
 """
 
 from __future__ import annotations
@@ -55,6 +59,7 @@ from canonid.models.learned import LearnedSystem
 from canonid.models.tank import Tank
 
 HORIZON = 20
+SECTION = "NMPC on a learned model"
 LEVEL_EQ = 2.5  # tank: the input term pulls towards the input that holds this level
 
 
@@ -71,6 +76,9 @@ class Case:
     note: str
     envelope: bool  # count the loops whose true state leaves the system's X (its flight box)
     probes: dict[str, list[float]]  # input steps of the response check, added to recorded inputs
+    # probe → outputs whose learned response is judged (sign, size)
+    judged: dict[str, list[int]] = field(default_factory=dict)
+    rest: list[float] | None = None  # an equilibrium state under u_eq the check also starts from
 
 
 def cases() -> dict[str, Case]:
@@ -86,6 +94,8 @@ def cases() -> dict[str, Case]:
             f"Q = 1 on the level, R = 1e-3 on u − u_eq(level {LEVEL_EQ}), U = [0, 6]",
             False,  # the tank's X is the analysis box, which the test flights leave
             {"pump +0.5 V": [0.5]},
+            {"pump +0.5 V": [0]},
+            None,
         ),
         "drone2d": Case(
             "drone2d",
@@ -101,6 +111,8 @@ def cases() -> dict[str, Case]:
                 "rotor difference Ω2 − Ω1 = +1 rad/s": [-0.5, 0.5],
                 "both rotors +1 rad/s": [1.0, 1.0],
             },
+            {"rotor difference Ω2 − Ω1 = +1 rad/s": [0, 2]},
+            [0.0] * drone.n_x,  # hover at the origin
         ),
     }
 
@@ -235,6 +247,41 @@ def input_response(learned: LearnedSystem, case: Case, flights, step: list[float
     return np.array(out["true"]), np.array(out["learned"])
 
 
+def rest_response(learned: LearnedSystem, case: Case, step: list[float]) -> tuple[np.ndarray, ...]:
+    """The same check from rest: the true model from ``case.rest`` under ``u_eq``, the learned
+    model from the window of ℓ samples of ``u_eq`` and the rest outputs (no noise); the change of
+    the outputs after ``HORIZON`` samples of ``u_eq + step`` against ``u_eq``, true and learned."""
+    ell, true = learned.regressor.window, case.system
+    x_rest, u_eq = np.asarray(case.rest, dtype=np.float64), np.asarray(case.u_eq)
+    y_rest = np.asarray(true.output(x_rest, u_eq)).ravel()
+    z_rest = np.concatenate([np.tile(u_eq, (ell, 1)), np.tile(y_rest, (ell, 1))], 1).ravel()
+    changes = []
+    for system, x0 in ((true, x_rest), (learned, z_rest)):
+        ends = []
+        for u in (u_eq + np.asarray(step), u_eq):
+            x = x0
+            for _ in range(HORIZON - 1):
+                x = np.asarray(system.step(x, u)).ravel()
+            ends.append(np.asarray(system.output(x, u)).ravel())
+        changes.append(ends[0] - ends[1])
+    return changes[0], changes[1]
+
+
+def judge(true_change: np.ndarray, learned_change: np.ndarray, outputs: list[int]) -> dict:
+    """Learned / true change of each judged output: the sign agrees when the ratio is positive,
+    the size is within 30 % when the ratio is in [0.7, 1.3]."""
+    ratios = [float(learned_change[j] / true_change[j]) for j in outputs]
+    return {"ratios": ratios, "ok": all(0.7 <= r <= 1.3 for r in ratios)}
+
+
+def dataset_label(run) -> str:
+    """The scenario that generated the run's data (the dataset's metadata), else ``?``."""
+    meta = run.dataset.metadata or {}
+    return (meta.get("scenario") or {}).get("name") or (meta.get("generation") or {}).get(
+        "system", "?"
+    )
+
+
 def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
     ref = flight.reference[ell : ell + len(y), case.scored]
     return float(np.sqrt(np.mean((y[:, case.scored] - ref) ** 2)))
@@ -292,7 +339,20 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     responses = {}
     for probe, step in case.probes.items():
         true_change, learned_change = input_response(learned, case, flights, step)
+        judged = case.judged.get(probe)
+        if judged is not None:
+            recorded = judge(true_change.mean(axis=0), learned_change.mean(axis=0), judged)
+            rest = None
+            if case.rest is not None:
+                rest_true, rest_learned = rest_response(learned, case, step)
+                rest = {
+                    **judge(rest_true, rest_learned, judged),
+                    "true": rest_true.tolist(),
+                    "learned": rest_learned.tolist(),
+                }
+            responses[probe] = {"judged": judged, "recorded": recorded, "rest": rest}
         responses[probe] = {
+            **responses.get(probe, {}),
             "true_mean": true_change.mean(axis=0).tolist(),
             "true_std": true_change.std(axis=0).tolist(),
             "learned_mean": learned_change.mean(axis=0).tolist(),
@@ -304,6 +364,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     recipe = json.loads((run_dir / "run.json").read_text())
     return {
         "run": str(run_dir),
+        "data": dataset_label(run),
         "window": ell,
         "hidden": [layer.n_out for layer in net.layers[:-1]],
         "activation": learned.parameters["activation"],
@@ -400,6 +461,39 @@ def model_check(key: str, res: dict[str, Any]) -> list[str]:
             f"{_vec(r['learned_mean'])} ± {_vec(r['learned_std'])}.",
             "",
         ]
+        if r.get("rest") is not None:
+            lines += [
+                f"{key}, the same step from rest (the true model from its equilibrium state under "
+                f"u_eq, the learned model from the window of ℓ samples of u_eq and the rest "
+                f"outputs, no noise), change of ({names}) after {HORIZON} samples: true model "
+                f"{_vec(r['rest']['true'])}, learned model {_vec(r['rest']['learned'])}.",
+                "",
+            ]
+    return lines
+
+
+def goals(results: dict[str, Any]) -> list[str]:
+    """The table of the issue's goals: learned / true tracking RMSE ≤ 1.5, no learned loop out of
+    X, and each judged step response of the true sign within 30 % of the true size."""
+    lines = [
+        "| system | data | learned / true tracking RMSE | learned loops that left X | step "
+        "| output | learned / true change, recorded states | learned / true change, from rest |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for system, res in results.items():
+        rows = res["rows"]
+        ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
+        learned = rows["learned model"]
+        left = (
+            f"{len(learned['left_X'])} of {len(learned['rmses'])}" if learned["envelope"] else "–"
+        )
+        for probe, r in res["responses"].items():
+            for i, j in enumerate(r.get("judged", [])):
+                rest = f"{r['rest']['ratios'][i]:.3g}" if r["rest"] is not None else "–"
+                lines.append(
+                    f"| {system} | {res['data']} | {ratio:.2f} | {left} | {probe} "
+                    f"| {res['outputs'][j]} | {r['recorded']['ratios'][i]:.3g} | {rest} |"
+                )
     return lines
 
 
@@ -425,6 +519,11 @@ def main() -> int:
     parser.add_argument("--gamma-seconds", type=float, default=30.0)
     parser.add_argument("--json", type=Path, help="also write the numbers here")
     parser.add_argument("--no-write", action="store_true", help="do not touch RESULTS.md")
+    parser.add_argument(
+        "--section",
+        default=SECTION,
+        help=f"the RESULTS.md section to write (default {SECTION!r}; another keeps that one)",
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     all_cases = cases()
@@ -440,7 +539,8 @@ def main() -> int:
     lines: list[str] = []
     for key, res in results.items():
         lines.append(
-            f"Learned {key} model: `{res['run']}` — Ours (MLP), ℓ = {res['window']}, hidden "
+            f"Learned {key} model: `{res['run']}`, trained on `{res['data']}` data — Ours "
+            f"(MLP), ℓ = {res['window']}, hidden "
             f"{res['hidden']}, activation {res['activation']}, residual {res['residual']}, "
             f"affine path {res['affine']}, profile `{res['profile']}`, {res['epochs']} epochs: "
             f"`{res['command']}`. NMPC: {all_cases[key].note}. Test references: the first "
@@ -459,7 +559,7 @@ def main() -> int:
     for key, res in results.items():
         rows = res["rows"]
         ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
-        goal = " (goal ≤ 1.5)" if key == "tank" else ""
+        goal = " (goal ≤ 1.5)"
         lines += [
             f"{key}: ratio learned / true tracking RMSE **{ratio:.2f}**{goal}. Per reference "
             "(true, learned): "
@@ -469,6 +569,14 @@ def main() -> int:
             ),
             "",
         ]
+    lines += [
+        "Goals: learned / true tracking RMSE ≤ 1.5, no learned loop leaving X, and the judged "
+        "step responses of the true sign within 30 % of the true size (learned / true in "
+        "[0.7, 1.3]; recorded states: the mean over the starts below).",
+        "",
+        *goals(results),
+        "",
+    ]
     for key, res in results.items():
         lines += model_check(key, res)
     if exact is not None:
@@ -500,7 +608,7 @@ def main() -> int:
         ]
     lines.append(f"Wall time {time.perf_counter() - started:.0f} s.")
     if not args.no_write:
-        write_section("NMPC on a learned model", "\n".join(lines))
+        write_section(args.section, "\n".join(lines))
     print("\n".join(lines))
     return 0
 

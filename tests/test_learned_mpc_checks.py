@@ -86,3 +86,18 @@ def test_an_exact_model_answers_an_input_step_as_the_true_system(bench, rng):
     expected = B * sum(A**i for i in range(bench.HORIZON - 1))  # y after N samples, no feedthrough
     np.testing.assert_allclose(true_change, expected, rtol=1e-12)
     np.testing.assert_allclose(learned_change, expected, rtol=1e-12)
+
+
+def test_an_exact_model_answers_a_step_from_rest_as_the_true_system(bench):
+    true = LinearSystem([[A]], [[B]], [[1.0]])
+    case = bench.Case(
+        "linear", true, [0.0], [1.0], [1.0], [0], "", False, {"+1": [1.0]}, {"+1": [0]}, [0.0]
+    )
+    true_change, learned_change = bench.rest_response(_model(), case, [1.0])
+    expected = B * sum(A**i for i in range(bench.HORIZON - 1))
+    np.testing.assert_allclose(true_change, [expected], rtol=1e-12)
+    np.testing.assert_allclose(learned_change, [expected], rtol=1e-12)
+    assert bench.judge(true_change, learned_change, [0]) == {"ratios": [1.0], "ok": True}
+    _, slower = bench.rest_response(_model(0.8), case, [1.0])
+    assert not bench.judge(true_change, slower, [0])["ok"]  # a = 0.8 instead of 0.9: 0.57 of the true change
+    assert bench.judge(true_change, -learned_change, [0])["ratios"] == [-1.0]  # the wrong sign
