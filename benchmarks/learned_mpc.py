@@ -1,7 +1,8 @@
 """NMPC on a learned model against NMPC on the true model: tank levels and planar-drone positions.
 
 The learned models are trained Ours (MLP) runs (``--run`` on tank data, ``--drone-run`` on
-planar-drone data), built as CasADi systems from their weights
+planar-drone data, repeated for runs on several drone datasets: their rows are labelled by the
+scenario that generated each run's data), built as CasADi systems from their weights
 (:func:`canonid.learned.learned_system`). Per system both controllers are the same
 :class:`canonid.datagen.controllers.nmpc.NMPC` with an output reference (``track="output"``), the
 same horizon, weights, input bounds (the true system's U) and solver; they differ in the prediction
@@ -275,11 +276,15 @@ def judge(true_change: np.ndarray, learned_change: np.ndarray, outputs: list[int
 
 
 def dataset_label(run) -> str:
-    """The scenario that generated the run's data (the dataset's metadata), else ``?``."""
+    """The scenario that generated the run's data (the dataset's metadata), else ``?``, with the
+    input design when the generation replaced the scenario's (``canonid generate --excitation``)."""
     meta = run.dataset.metadata or {}
-    return (meta.get("scenario") or {}).get("name") or (meta.get("generation") or {}).get(
-        "system", "?"
-    )
+    scenario, generation = meta.get("scenario") or {}, meta.get("generation") or {}
+    label = scenario.get("name") or generation.get("system", "?")
+    design = generation.get("design")
+    if design and design != scenario.get("design"):
+        label += f", {design.get('kind')} RMS {design.get('rms', design.get('amplitude'))}"
+    return label
 
 
 def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
@@ -364,6 +369,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     recipe = json.loads((run_dir / "run.json").read_text())
     return {
         "run": str(run_dir),
+        "system": case.name,
         "data": dataset_label(run),
         "window": ell,
         "hidden": [layer.n_out for layer in net.layers[:-1]],
@@ -480,7 +486,7 @@ def goals(results: dict[str, Any]) -> list[str]:
         "| output | learned / true change, recorded states | learned / true change, from rest |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for system, res in results.items():
+    for res in results.values():
         rows = res["rows"]
         ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
         learned = rows["learned model"]
@@ -491,7 +497,7 @@ def goals(results: dict[str, Any]) -> list[str]:
             for i, j in enumerate(r.get("judged", [])):
                 rest = f"{r['rest']['ratios'][i]:.3g}" if r["rest"] is not None else "–"
                 lines.append(
-                    f"| {system} | {res['data']} | {ratio:.2f} | {left} | {probe} "
+                    f"| {res['system']} | {res['data']} | {ratio:.2f} | {left} | {probe} "
                     f"| {res['outputs'][j]} | {r['recorded']['ratios'][i]:.3g} | {rest} |"
                 )
     return lines
@@ -500,7 +506,12 @@ def goals(results: dict[str, Any]) -> list[str]:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--run", type=Path, help="an Ours (MLP) run on tank data")
-    parser.add_argument("--drone-run", type=Path, help="an Ours (MLP) run on drone2d data")
+    parser.add_argument(
+        "--drone-run",
+        type=Path,
+        action="append",
+        help="an Ours (MLP) run on drone2d data (repeat it to compare runs on several datasets)",
+    )
     parser.add_argument("--references", type=int, default=10)
     parser.add_argument(
         "--drone-steps", type=int, help="at most this many drone samples per reference"
@@ -528,11 +539,14 @@ def main() -> int:
     started = time.perf_counter()
     all_cases = cases()
     results: dict[str, Any] = {}
-    for key, run_dir in (("tank", args.run), ("drone2d", args.drone_run)):
-        if run_dir is not None:
-            results[key] = compare(all_cases[key], run_dir, args)
-            if args.json:
-                args.json.write_text(json.dumps(results, indent=1))
+    runs = [("tank", args.run)] if args.run is not None else []
+    runs += [("drone2d", run_dir) for run_dir in args.drone_run or []]
+    for name, run_dir in runs:
+        res = compare(all_cases[name], run_dir, args)
+        key = name if len(args.drone_run or []) < 2 else f"{name} on {res['data']}"
+        results[key if key not in results else f"{key} ({run_dir})"] = res
+        if args.json:
+            args.json.write_text(json.dumps(results, indent=1))
     exact = None
     if args.run is not None and args.exact_steps > 0:
         exact = exact_against_gauss_newton(all_cases["tank"], args.run, args)
@@ -543,8 +557,8 @@ def main() -> int:
             f"(MLP), ℓ = {res['window']}, hidden "
             f"{res['hidden']}, activation {res['activation']}, residual {res['residual']}, "
             f"affine path {res['affine']}, profile `{res['profile']}`, {res['epochs']} epochs: "
-            f"`{res['command']}`. NMPC: {all_cases[key].note}. Test references: the first "
-            f"{res['references']} of the test split, samples {res['samples']}."
+            f"`{res['command']}`. NMPC: {all_cases[res['system']].note}. Test references: the "
+            f"first {res['references']} of the test split, samples {res['samples']}."
         )
         lines.append("")
     lines += [

@@ -82,6 +82,7 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
 DEMO_RUN = "quick profile with gradient clipping (Table 1 pinned without it)"
 _NOW = "3e-3, clip 1, skip from zero (now)"
 _NO_SKIP = "3e-3, clip 1"
+LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 
 FIGURES: dict[str, Cell | Code] = {
     # canonid's defaults (the last column of the defaults study) on the three systems
@@ -138,6 +139,22 @@ FIGURES: dict[str, Cell | Code] = {
     "quick/train/batch_size": Code(_quick("train", "batch_size")),
     "quick/train/windows_per_epoch": Code(_quick("train", "windows_per_epoch")),
     "quick/train/lr": Code(_quick("train", "lr")),
+    # NMPC on the Ours (MLP) model learned from the informative drone data (learned_mpc.py)
+    "learned-mpc/drone2d-id/ratio": Cell(
+        LEARNED_MPC_ID, _row(data="drone2d-id", output="px"), "learned / true tracking RMSE"
+    ),
+    "learned-mpc/drone2d-id/left": Cell(
+        LEARNED_MPC_ID, _row(data="drone2d-id", output="px"), "learned loops that left X", True
+    ),
+    **{
+        f"learned-mpc/drone2d-id/{output}/{start}": Cell(
+            LEARNED_MPC_ID,
+            _row(data="drone2d-id", output=output),
+            f"learned / true change, {column}",
+        )
+        for output in ("px", "theta")
+        for start, column in (("recorded", "recorded states"), ("rest", "from rest"))
+    },
 }
 
 
