@@ -99,5 +99,5 @@ def test_an_exact_model_answers_a_step_from_rest_as_the_true_system(bench):
     np.testing.assert_allclose(learned_change, [expected], rtol=1e-12)
     assert bench.judge(true_change, learned_change, [0]) == {"ratios": [1.0], "ok": True}
     _, slower = bench.rest_response(_model(0.8), case, [1.0])
-    assert not bench.judge(true_change, slower, [0])["ok"]  # a = 0.8 instead of 0.9: 0.57 of the true change
+    assert not bench.judge(true_change, slower, [0])["ok"]  # a = 0.8: 0.57 of the change
     assert bench.judge(true_change, -learned_change, [0])["ratios"] == [-1.0]  # the wrong sign
