@@ -1,12 +1,13 @@
 """NMPC on a learned model against NMPC on the true model: tank levels and planar-drone positions.
 
-The learned models are trained Ours (MLP) runs (``--run`` on tank data, ``--drone-run`` on
-planar-drone data, repeated for runs on several drone datasets: their rows are labelled by the
-scenario that generated each run's data), built as CasADi systems from their weights
-(:func:`canonid.learned.learned_system`). Per system both controllers are the same
-:class:`canonid.datagen.controllers.nmpc.NMPC` with an output reference (``track="output"``), the
-same horizon, weights, input bounds (the true system's U) and solver; they differ in the prediction
-model, in what they are fed and (``--hessian``) in how the learned model's NLP is solved:
+The learned models are trained Ours (MLP) runs, or ARX runs (the affine path alone): ``--run``
+on tank data, ``--drone-run`` on planar-drone data, repeated for runs on several drone datasets
+(their rows are labelled by the model and the scenario that generated each run's data); built
+as CasADi systems from their weights (:func:`canonid.learned.learned_system`). Per system both
+controllers are the same :class:`canonid.datagen.controllers.nmpc.NMPC` with an output reference
+(``track="output"``), the same horizon, weights, input bounds (the true system's U) and solver;
+they differ in the prediction model, in what they are fed and (``--hessian``) in how the learned
+model's NLP is solved:
 
 * NMPC on the true model: the true state ``x[t]`` (state feedback, no noise), exact Hessian;
 * NMPC on the learned model: its state ``z_t``, the window of the last ℓ applied inputs and
@@ -61,6 +62,7 @@ from canonid.models.tank import Tank
 
 HORIZON = 20
 SECTION = "NMPC on a learned model"
+MODELS = {"mlp": "Ours (MLP)", "arx": "ARX (the affine path alone, least squares)"}
 LEVEL_EQ = 2.5  # tank: the input term pulls towards the input that holds this level
 
 
@@ -370,6 +372,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     return {
         "run": str(run_dir),
         "system": case.name,
+        "model": recipe["model"],
         "data": dataset_label(run),
         "window": ell,
         "hidden": [layer.n_out for layer in net.layers[:-1]],
@@ -482,9 +485,9 @@ def goals(results: dict[str, Any]) -> list[str]:
     """The table of the issue's goals: learned / true tracking RMSE ≤ 1.5, no learned loop out of
     X, and each judged step response of the true sign within 30 % of the true size."""
     lines = [
-        "| system | data | learned / true tracking RMSE | learned loops that left X | step "
+        "| system | model | data | learned / true tracking RMSE | learned loops that left X | step "
         "| output | learned / true change, recorded states | learned / true change, from rest |",
-        "|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for res in results.values():
         rows = res["rows"]
@@ -497,7 +500,8 @@ def goals(results: dict[str, Any]) -> list[str]:
             for i, j in enumerate(r.get("judged", [])):
                 rest = f"{r['rest']['ratios'][i]:.3g}" if r["rest"] is not None else "–"
                 lines.append(
-                    f"| {res['system']} | {res['data']} | {ratio:.2f} | {left} | {probe} "
+                    f"| {res['system']} | {res['model']} | {res['data']} | {ratio:.2f} | {left} "
+                    f"| {probe} "
                     f"| {res['outputs'][j]} | {r['recorded']['ratios'][i]:.3g} | {rest} |"
                 )
     return lines
@@ -543,7 +547,7 @@ def main() -> int:
     runs += [("drone2d", run_dir) for run_dir in args.drone_run or []]
     for name, run_dir in runs:
         res = compare(all_cases[name], run_dir, args)
-        key = name if len(args.drone_run or []) < 2 else f"{name} on {res['data']}"
+        key = name if len(args.drone_run or []) < 2 else f"{name}, {res['model']}, {res['data']}"
         results[key if key not in results else f"{key} ({run_dir})"] = res
         if args.json:
             args.json.write_text(json.dumps(results, indent=1))
@@ -553,8 +557,8 @@ def main() -> int:
     lines: list[str] = []
     for key, res in results.items():
         lines.append(
-            f"Learned {key} model: `{res['run']}`, trained on `{res['data']}` data — Ours "
-            f"(MLP), ℓ = {res['window']}, hidden "
+            f"Learned {key} model: `{res['run']}`, trained on `{res['data']}` data — "
+            f"{MODELS.get(res['model'], res['model'])}, ℓ = {res['window']}, hidden "
             f"{res['hidden']}, activation {res['activation']}, residual {res['residual']}, "
             f"affine path {res['affine']}, profile `{res['profile']}`, {res['epochs']} epochs: "
             f"`{res['command']}`. NMPC: {all_cases[res['system']].note}. Test references: the "

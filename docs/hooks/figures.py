@@ -141,15 +141,20 @@ FIGURES: dict[str, Cell | Code] = {
     "quick/train/lr": Code(_quick("train", "lr")),
     # NMPC on the Ours (MLP) model learned from the informative drone data (learned_mpc.py)
     "learned-mpc/drone2d-id/ratio": Cell(
-        LEARNED_MPC_ID, _row(data="drone2d-id", output="px"), "learned / true tracking RMSE"
+        LEARNED_MPC_ID,
+        _row(model="mlp", data="drone2d-id", output="px"),
+        "learned / true tracking RMSE",
     ),
     "learned-mpc/drone2d-id/left": Cell(
-        LEARNED_MPC_ID, _row(data="drone2d-id", output="px"), "learned loops that left X", True
+        LEARNED_MPC_ID,
+        _row(model="mlp", data="drone2d-id", output="px"),
+        "learned loops that left X",
+        True,
     ),
     **{
         f"learned-mpc/drone2d-id/{output}/{start}": Cell(
             LEARNED_MPC_ID,
-            _row(data="drone2d-id", output=output),
+            _row(model="mlp", data="drone2d-id", output=output),
             f"learned / true change, {column}",
         )
         for output in ("px", "theta")
