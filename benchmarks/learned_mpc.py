@@ -59,6 +59,7 @@ from canonid.models.base import System
 from canonid.models.drone2d import Drone2D
 from canonid.models.learned import LearnedSystem
 from canonid.models.tank import Tank
+from canonid.profiles import PROFILES
 
 HORIZON = 20
 SECTION = "NMPC on a learned model"
@@ -289,6 +290,14 @@ def dataset_label(run) -> str:
     return label
 
 
+def model_label(recipe: dict[str, Any]) -> str:
+    """The run's model, with its training rollout length where it is not its profile's."""
+    horizon = recipe["train_options"].get("horizon")
+    if recipe["model"] == "arx" or horizon == PROFILES[recipe["profile"]]["train"]["horizon"]:
+        return recipe["model"]
+    return f"{recipe['model']}, horizon {horizon}"
+
+
 def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
     ref = flight.reference[ell : ell + len(y), case.scored]
     return float(np.sqrt(np.mean((y[:, case.scored] - ref) ** 2)))
@@ -372,7 +381,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     return {
         "run": str(run_dir),
         "system": case.name,
-        "model": recipe["model"],
+        "model": model_label(recipe),
         "data": dataset_label(run),
         "window": ell,
         "hidden": [layer.n_out for layer in net.layers[:-1]],
@@ -558,7 +567,7 @@ def main() -> int:
     for key, res in results.items():
         lines.append(
             f"Learned {key} model: `{res['run']}`, trained on `{res['data']}` data — "
-            f"{MODELS.get(res['model'], res['model'])}, ℓ = {res['window']}, hidden "
+            f"{MODELS.get(res['model'].split(',')[0], res['model'])}, ℓ = {res['window']}, hidden "
             f"{res['hidden']}, activation {res['activation']}, residual {res['residual']}, "
             f"affine path {res['affine']}, profile `{res['profile']}`, {res['epochs']} epochs: "
             f"`{res['command']}`. NMPC: {all_cases[res['system']].note}. Test references: the "
