@@ -355,7 +355,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     responses = {}
     for probe, step in case.probes.items():
         true_change, learned_change = input_response(learned, case, flights, step)
-        judged = case.judged.get(probe)
+        judged, verdict = case.judged.get(probe), {}
         if judged is not None:
             recorded = judge(true_change.mean(axis=0), learned_change.mean(axis=0), judged)
             rest = None
@@ -366,9 +366,9 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
                     "true": rest_true.tolist(),
                     "learned": rest_learned.tolist(),
                 }
-            responses[probe] = {"judged": judged, "recorded": recorded, "rest": rest}
+            verdict = {"judged": judged, "recorded": recorded, "rest": rest}
         responses[probe] = {
-            **responses.get(probe, {}),
+            **verdict,
             "true_mean": true_change.mean(axis=0).tolist(),
             "true_std": true_change.std(axis=0).tolist(),
             "learned_mean": learned_change.mean(axis=0).tolist(),
@@ -518,12 +518,12 @@ def goals(results: dict[str, Any]) -> list[str]:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--run", type=Path, help="an Ours (MLP) run on tank data")
+    parser.add_argument("--run", type=Path, help="an Ours (MLP) or ARX run on tank data")
     parser.add_argument(
         "--drone-run",
         type=Path,
         action="append",
-        help="an Ours (MLP) run on drone2d data (repeat it to compare runs on several datasets)",
+        help="an Ours (MLP) or ARX run on drone2d data (repeat it to compare several runs)",
     )
     parser.add_argument("--references", type=int, default=10)
     parser.add_argument(
