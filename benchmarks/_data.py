@@ -13,6 +13,8 @@ DATA = ROOT / "runs" / "data"
 DATASETS = {
     "tank-s0": ["tank"],
     "drone2d-small": ["drone2d", "--n-train", "40", "--n-val", "10", "--n-test", "10"],
+    # the informative design at the same size (the same references, seed 0)
+    "drone2d-id-small": ["drone2d-id", "--n-train", "40", "--n-val", "10", "--n-test", "10"],
 }
 
 __all__ = ["DATA", "DATASETS", "ensure_dataset"]

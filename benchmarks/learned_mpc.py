@@ -1,11 +1,13 @@
 """NMPC on a learned model against NMPC on the true model: tank levels and planar-drone positions.
 
-The learned models are trained Ours (MLP) runs (``--run`` on tank data, ``--drone-run`` on
-planar-drone data), built as CasADi systems from their weights
-(:func:`canonid.learned.learned_system`). Per system both controllers are the same
-:class:`canonid.datagen.controllers.nmpc.NMPC` with an output reference (``track="output"``), the
-same horizon, weights, input bounds (the true system's U) and solver; they differ in the prediction
-model, in what they are fed and (``--hessian``) in how the learned model's NLP is solved:
+The learned models are trained Ours (MLP) runs, or ARX runs (the affine path alone): ``--run``
+on tank data, ``--drone-run`` on planar-drone data, repeated for runs on several drone datasets
+(their rows are labelled by the model and the scenario that generated each run's data); built
+as CasADi systems from their weights (:func:`canonid.learned.learned_system`). Per system both
+controllers are the same :class:`canonid.datagen.controllers.nmpc.NMPC` with an output reference
+(``track="output"``), the same horizon, weights, input bounds (the true system's U) and solver;
+they differ in the prediction model, in what they are fed and (``--hessian``) in how the learned
+model's NLP is solved:
 
 * NMPC on the true model: the true state ``x[t]`` (state feedback, no noise), exact Hessian;
 * NMPC on the learned model: its state ``z_t``, the window of the last ℓ applied inputs and
@@ -24,7 +26,11 @@ for that many steps, beside the Gauss-Newton one (the cost before the option exi
 learned tank model's γ_f bracket on its training hull (:mod:`canonid.analysis.certify`) beside the
 true tank's on its X.
 
-Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md.
+The step responses of ``Case.judged`` (drone: px and θ after a rotor difference) are also run from
+rest (hover) and judged: learned / true change in [0.7, 1.3] is the true sign within 30 %.
+
+Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md (``--section`` names
+another, so that a run on other data keeps the earlier one).
 """
 
 from __future__ import annotations
@@ -53,8 +59,11 @@ from canonid.models.base import System
 from canonid.models.drone2d import Drone2D
 from canonid.models.learned import LearnedSystem
 from canonid.models.tank import Tank
+from canonid.profiles import PROFILES
 
 HORIZON = 20
+SECTION = "NMPC on a learned model"
+MODELS = {"mlp": "Ours (MLP)", "arx": "ARX (the affine path alone, least squares)"}
 LEVEL_EQ = 2.5  # tank: the input term pulls towards the input that holds this level
 
 
@@ -71,6 +80,9 @@ class Case:
     note: str
     envelope: bool  # count the loops whose true state leaves the system's X (its flight box)
     probes: dict[str, list[float]]  # input steps of the response check, added to recorded inputs
+    # probe → outputs whose learned response is judged (sign, size)
+    judged: dict[str, list[int]] = field(default_factory=dict)
+    rest: list[float] | None = None  # an equilibrium state under u_eq the check also starts from
 
 
 def cases() -> dict[str, Case]:
@@ -86,6 +98,8 @@ def cases() -> dict[str, Case]:
             f"Q = 1 on the level, R = 1e-3 on u − u_eq(level {LEVEL_EQ}), U = [0, 6]",
             False,  # the tank's X is the analysis box, which the test flights leave
             {"pump +0.5 V": [0.5]},
+            {"pump +0.5 V": [0]},
+            None,
         ),
         "drone2d": Case(
             "drone2d",
@@ -101,6 +115,8 @@ def cases() -> dict[str, Case]:
                 "rotor difference Ω2 − Ω1 = +1 rad/s": [-0.5, 0.5],
                 "both rotors +1 rad/s": [1.0, 1.0],
             },
+            {"rotor difference Ω2 − Ω1 = +1 rad/s": [0, 2]},
+            [0.0] * drone.n_x,  # hover at the origin
         ),
     }
 
@@ -235,6 +251,53 @@ def input_response(learned: LearnedSystem, case: Case, flights, step: list[float
     return np.array(out["true"]), np.array(out["learned"])
 
 
+def rest_response(learned: LearnedSystem, case: Case, step: list[float]) -> tuple[np.ndarray, ...]:
+    """The same check from rest: the true model from ``case.rest`` under ``u_eq``, the learned
+    model from the window of ℓ samples of ``u_eq`` and the rest outputs (no noise); the change of
+    the outputs after ``HORIZON`` samples of ``u_eq + step`` against ``u_eq``, true and learned."""
+    ell, true = learned.regressor.window, case.system
+    x_rest, u_eq = np.asarray(case.rest, dtype=np.float64), np.asarray(case.u_eq)
+    y_rest = np.asarray(true.output(x_rest, u_eq)).ravel()
+    z_rest = np.concatenate([np.tile(u_eq, (ell, 1)), np.tile(y_rest, (ell, 1))], 1).ravel()
+    changes = []
+    for system, x0 in ((true, x_rest), (learned, z_rest)):
+        ends = []
+        for u in (u_eq + np.asarray(step), u_eq):
+            x = x0
+            for _ in range(HORIZON - 1):
+                x = np.asarray(system.step(x, u)).ravel()
+            ends.append(np.asarray(system.output(x, u)).ravel())
+        changes.append(ends[0] - ends[1])
+    return changes[0], changes[1]
+
+
+def judge(true_change: np.ndarray, learned_change: np.ndarray, outputs: list[int]) -> dict:
+    """Learned / true change of each judged output: the sign agrees when the ratio is positive,
+    the size is within 30 % when the ratio is in [0.7, 1.3]."""
+    ratios = [float(learned_change[j] / true_change[j]) for j in outputs]
+    return {"ratios": ratios, "ok": all(0.7 <= r <= 1.3 for r in ratios)}
+
+
+def dataset_label(run) -> str:
+    """The scenario that generated the run's data (the dataset's metadata), else ``?``, with the
+    input design when the generation replaced the scenario's (``canonid generate --excitation``)."""
+    meta = run.dataset.metadata or {}
+    scenario, generation = meta.get("scenario") or {}, meta.get("generation") or {}
+    label = scenario.get("name") or generation.get("system", "?")
+    design = generation.get("design")
+    if design and design != scenario.get("design"):
+        label += f", {design.get('kind')} RMS {design.get('rms', design.get('amplitude'))}"
+    return label
+
+
+def model_label(recipe: dict[str, Any]) -> str:
+    """The run's model, with its training rollout length where it is not its profile's."""
+    horizon = recipe["train_options"].get("horizon")
+    if recipe["model"] == "arx" or horizon == PROFILES[recipe["profile"]]["train"]["horizon"]:
+        return recipe["model"]
+    return f"{recipe['model']}, horizon {horizon}"
+
+
 def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
     ref = flight.reference[ell : ell + len(y), case.scored]
     return float(np.sqrt(np.mean((y[:, case.scored] - ref) ** 2)))
@@ -292,7 +355,20 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     responses = {}
     for probe, step in case.probes.items():
         true_change, learned_change = input_response(learned, case, flights, step)
+        judged, verdict = case.judged.get(probe), {}
+        if judged is not None:
+            recorded = judge(true_change.mean(axis=0), learned_change.mean(axis=0), judged)
+            rest = None
+            if case.rest is not None:
+                rest_true, rest_learned = rest_response(learned, case, step)
+                rest = {
+                    **judge(rest_true, rest_learned, judged),
+                    "true": rest_true.tolist(),
+                    "learned": rest_learned.tolist(),
+                }
+            verdict = {"judged": judged, "recorded": recorded, "rest": rest}
         responses[probe] = {
+            **verdict,
             "true_mean": true_change.mean(axis=0).tolist(),
             "true_std": true_change.std(axis=0).tolist(),
             "learned_mean": learned_change.mean(axis=0).tolist(),
@@ -304,6 +380,9 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     recipe = json.loads((run_dir / "run.json").read_text())
     return {
         "run": str(run_dir),
+        "system": case.name,
+        "model": model_label(recipe),
+        "data": dataset_label(run),
         "window": ell,
         "hidden": [layer.n_out for layer in net.layers[:-1]],
         "activation": learned.parameters["activation"],
@@ -400,13 +479,52 @@ def model_check(key: str, res: dict[str, Any]) -> list[str]:
             f"{_vec(r['learned_mean'])} ± {_vec(r['learned_std'])}.",
             "",
         ]
+        if r.get("rest") is not None:
+            lines += [
+                f"{key}, the same step from rest (the true model from its equilibrium state under "
+                f"u_eq, the learned model from the window of ℓ samples of u_eq and the rest "
+                f"outputs, no noise), change of ({names}) after {HORIZON} samples: true model "
+                f"{_vec(r['rest']['true'])}, learned model {_vec(r['rest']['learned'])}.",
+                "",
+            ]
+    return lines
+
+
+def goals(results: dict[str, Any]) -> list[str]:
+    """The table of the issue's goals: learned / true tracking RMSE ≤ 1.5, no learned loop out of
+    X, and each judged step response of the true sign within 30 % of the true size."""
+    lines = [
+        "| system | model | data | learned / true tracking RMSE | learned loops that left X | step "
+        "| output | learned / true change, recorded states | learned / true change, from rest |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for res in results.values():
+        rows = res["rows"]
+        ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
+        learned = rows["learned model"]
+        left = (
+            f"{len(learned['left_X'])} of {len(learned['rmses'])}" if learned["envelope"] else "–"
+        )
+        for probe, r in res["responses"].items():
+            for i, j in enumerate(r.get("judged", [])):
+                rest = f"{r['rest']['ratios'][i]:.3g}" if r["rest"] is not None else "–"
+                lines.append(
+                    f"| {res['system']} | {res['model']} | {res['data']} | {ratio:.2f} | {left} "
+                    f"| {probe} "
+                    f"| {res['outputs'][j]} | {r['recorded']['ratios'][i]:.3g} | {rest} |"
+                )
     return lines
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--run", type=Path, help="an Ours (MLP) run on tank data")
-    parser.add_argument("--drone-run", type=Path, help="an Ours (MLP) run on drone2d data")
+    parser.add_argument("--run", type=Path, help="an Ours (MLP) or ARX run on tank data")
+    parser.add_argument(
+        "--drone-run",
+        type=Path,
+        action="append",
+        help="an Ours (MLP) or ARX run on drone2d data (repeat it to compare several runs)",
+    )
     parser.add_argument("--references", type=int, default=10)
     parser.add_argument(
         "--drone-steps", type=int, help="at most this many drone samples per reference"
@@ -425,26 +543,35 @@ def main() -> int:
     parser.add_argument("--gamma-seconds", type=float, default=30.0)
     parser.add_argument("--json", type=Path, help="also write the numbers here")
     parser.add_argument("--no-write", action="store_true", help="do not touch RESULTS.md")
+    parser.add_argument(
+        "--section",
+        default=SECTION,
+        help=f"the RESULTS.md section to write (default {SECTION!r}; another keeps that one)",
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     all_cases = cases()
     results: dict[str, Any] = {}
-    for key, run_dir in (("tank", args.run), ("drone2d", args.drone_run)):
-        if run_dir is not None:
-            results[key] = compare(all_cases[key], run_dir, args)
-            if args.json:
-                args.json.write_text(json.dumps(results, indent=1))
+    runs = [("tank", args.run)] if args.run is not None else []
+    runs += [("drone2d", run_dir) for run_dir in args.drone_run or []]
+    for name, run_dir in runs:
+        res = compare(all_cases[name], run_dir, args)
+        key = name if len(args.drone_run or []) < 2 else f"{name}, {res['model']}, {res['data']}"
+        results[key if key not in results else f"{key} ({run_dir})"] = res
+        if args.json:
+            args.json.write_text(json.dumps(results, indent=1))
     exact = None
     if args.run is not None and args.exact_steps > 0:
         exact = exact_against_gauss_newton(all_cases["tank"], args.run, args)
     lines: list[str] = []
     for key, res in results.items():
         lines.append(
-            f"Learned {key} model: `{res['run']}` — Ours (MLP), ℓ = {res['window']}, hidden "
+            f"Learned {key} model: `{res['run']}`, trained on `{res['data']}` data — "
+            f"{MODELS.get(res['model'].split(',')[0], res['model'])}, ℓ = {res['window']}, hidden "
             f"{res['hidden']}, activation {res['activation']}, residual {res['residual']}, "
             f"affine path {res['affine']}, profile `{res['profile']}`, {res['epochs']} epochs: "
-            f"`{res['command']}`. NMPC: {all_cases[key].note}. Test references: the first "
-            f"{res['references']} of the test split, samples {res['samples']}."
+            f"`{res['command']}`. NMPC: {all_cases[res['system']].note}. Test references: the "
+            f"first {res['references']} of the test split, samples {res['samples']}."
         )
         lines.append("")
     lines += [
@@ -459,7 +586,7 @@ def main() -> int:
     for key, res in results.items():
         rows = res["rows"]
         ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
-        goal = " (goal ≤ 1.5)" if key == "tank" else ""
+        goal = " (goal ≤ 1.5)"
         lines += [
             f"{key}: ratio learned / true tracking RMSE **{ratio:.2f}**{goal}. Per reference "
             "(true, learned): "
@@ -469,6 +596,14 @@ def main() -> int:
             ),
             "",
         ]
+    lines += [
+        "Goals: learned / true tracking RMSE ≤ 1.5, no learned loop leaving X, and the judged "
+        "step responses of the true sign within 30 % of the true size (learned / true in "
+        "[0.7, 1.3]; recorded states: the mean over the starts below).",
+        "",
+        *goals(results),
+        "",
+    ]
     for key, res in results.items():
         lines += model_check(key, res)
     if exact is not None:
@@ -500,7 +635,7 @@ def main() -> int:
         ]
     lines.append(f"Wall time {time.perf_counter() - started:.0f} s.")
     if not args.no_write:
-        write_section("NMPC on a learned model", "\n".join(lines))
+        write_section(args.section, "\n".join(lines))
     print("\n".join(lines))
     return 0
 

@@ -86,3 +86,37 @@ def test_an_exact_model_answers_an_input_step_as_the_true_system(bench, rng):
     expected = B * sum(A**i for i in range(bench.HORIZON - 1))  # y after N samples, no feedthrough
     np.testing.assert_allclose(true_change, expected, rtol=1e-12)
     np.testing.assert_allclose(learned_change, expected, rtol=1e-12)
+
+
+def test_an_exact_model_answers_a_step_from_rest_as_the_true_system(bench):
+    true = LinearSystem([[A]], [[B]], [[1.0]])
+    case = bench.Case(
+        "linear", true, [0.0], [1.0], [1.0], [0], "", False, {"+1": [1.0]}, {"+1": [0]}, [0.0]
+    )
+    true_change, learned_change = bench.rest_response(_model(), case, [1.0])
+    expected = B * sum(A**i for i in range(bench.HORIZON - 1))
+    np.testing.assert_allclose(true_change, [expected], rtol=1e-12)
+    np.testing.assert_allclose(learned_change, [expected], rtol=1e-12)
+    assert bench.judge(true_change, learned_change, [0]) == {"ratios": [1.0], "ok": True}
+    _, slower = bench.rest_response(_model(0.8), case, [1.0])
+    assert not bench.judge(true_change, slower, [0])["ok"]  # a = 0.8: 0.57 of the change
+    assert bench.judge(true_change, -learned_change, [0])["ratios"] == [-1.0]  # the wrong sign
+
+
+def test_rows_name_the_design_and_the_rollout_length_that_differ_from_the_defaults(bench):
+    design = {"kind": "multisine", "rms": 5.0}
+    meta = {"scenario": {"name": "drone2d-id", "design": design}, "generation": {"design": design}}
+    run = SimpleNamespace(dataset=SimpleNamespace(metadata=meta))
+    assert bench.dataset_label(run) == "drone2d-id"
+    meta["generation"]["design"] = {"kind": "multisine", "rms": 15.0}
+    assert bench.dataset_label(run) == "drone2d-id, multisine RMS 15.0"
+    paper = {"scenario": {"name": "drone2d"}, "generation": {"system": "drone2d"}}
+    assert (
+        bench.dataset_label(SimpleNamespace(dataset=SimpleNamespace(metadata=paper))) == "drone2d"
+    )
+    quick = bench.PROFILES["quick"]["train"]["horizon"]
+    recipe = {"model": "mlp", "profile": "quick", "train_options": {"horizon": quick}}
+    assert bench.model_label(recipe) == "mlp"
+    recipe["train_options"]["horizon"] = 10
+    assert bench.model_label(recipe) == "mlp, horizon 10"
+    assert bench.model_label({**recipe, "model": "arx"}) == "arx"

@@ -82,6 +82,14 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
 DEMO_RUN = "quick profile with gradient clipping (Table 1 pinned without it)"
 _NOW = "3e-3, clip 1, skip from zero (now)"
 _NO_SKIP = "3e-3, clip 1"
+LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
+_LEARNED_MPC_RUNS = (  # key slug, the model and data cells of the section's goals table
+    ("drone2d-id/mlp", "mlp", "drone2d-id"),
+    ("drone2d-id/mlp-h10", "mlp, horizon 10", "drone2d-id"),
+    ("drone2d/mlp-h10", "mlp, horizon 10", "drone2d"),
+    ("drone2d-id/arx", "arx", "drone2d-id"),
+    ("drone2d/arx", "arx", "drone2d"),
+)
 
 FIGURES: dict[str, Cell | Code] = {
     # canonid's defaults (the last column of the defaults study) on the three systems
@@ -138,6 +146,26 @@ FIGURES: dict[str, Cell | Code] = {
     "quick/train/batch_size": Code(_quick("train", "batch_size")),
     "quick/train/windows_per_epoch": Code(_quick("train", "windows_per_epoch")),
     "quick/train/lr": Code(_quick("train", "lr")),
+    # NMPC on drone models learned from the paper's and the informative drone data
+    # (learned_mpc.py): learned / true tracking RMSE, loops out of X, step-response ratios
+    **{
+        f"learned-mpc/{slug}/{what}": Cell(LEARNED_MPC_ID, _row(model=model, data=data), *column)
+        for slug, model, data in _LEARNED_MPC_RUNS
+        for what, column in (
+            ("ratio", ("learned / true tracking RMSE",)),
+            ("left", ("learned loops that left X", True)),
+        )
+    },
+    **{
+        f"learned-mpc/{slug}/{output}/{start}": Cell(
+            LEARNED_MPC_ID,
+            _row(model=model, data=data, output=output),
+            f"learned / true change, {column}",
+        )
+        for slug, model, data in _LEARNED_MPC_RUNS
+        for output in ("px", "theta")
+        for start, column in (("recorded", "recorded states"), ("rest", "from rest"))
+    },
 }
 
 
