@@ -29,14 +29,19 @@ def _load() -> str:
     return f"{os.getloadavg()[0]:.2f}"
 
 
-def _body(run: Path, cpu: float, wall: float, load: str) -> str:
+def _body(run: Path, cpu: float, wall: float, load: str, earlier: str | None = None) -> str:
     report = json.loads((run / "benchmark.json").read_text())
     recipe = json.loads((run / "run.json").read_text())
     methods: list[str] = []
     for b in report["baselines"]:
         if b["method"] not in methods:
             methods.append(b["method"])
-    published = {(b["test"], b["method"]): b["rmse"] for b in report["baselines"]}
+    # each published figure as its source prints it; * marks the lowest on the test part
+    published = {
+        (b["test"], b["method"]): b.get("figure", f"{b['rmse']:.3f}")
+        + ("*" if b.get("best") else "")
+        for b in report["baselines"]
+    }
     units = report["scores"][0]["units"]
     head = ["test part", "n_init", f"canonid [{units}]", *methods]
     rows = [
@@ -44,10 +49,7 @@ def _body(run: Path, cpu: float, wall: float, load: str) -> str:
             s["test"],
             str(s["n_init"]),
             f"{s['rmse']:.3f}",
-            *(
-                f"{published[(s['test'], m)]:.3f}" if (s["test"], m) in published else ""
-                for m in methods
-            ),
+            *(published.get((s["test"], m), "") for m in methods),
         ]
         for s in report["scores"]
     ]
@@ -62,7 +64,8 @@ def _body(run: Path, cpu: float, wall: float, load: str) -> str:
         f"({report['definition']}). Wall {wall / 60:.1f} min, CPU {cpu / 60:.1f} min (training, "
         f"canonid train's evaluation and the benchmark's scoring); load average before / after: "
         f"{load} on a machine shared with other jobs.\n\n{table}\n\nPublished baselines: "
-        f"{sources}. Figures: `{run}/benchmark-<part>.png`."
+        f"{sources}. * the lowest published figure on the test part. Figures: "
+        f"`RUN/benchmark-<part>.png`." + (f"\n\n{earlier}" if earlier else "")
     )
 
 
@@ -74,11 +77,12 @@ def main() -> int:
     parser.add_argument("--wall-seconds", type=float)
     parser.add_argument("--load", help="load average before / after, for --record")
     parser.add_argument("--command", help="the command that made the --record run")
+    parser.add_argument("--earlier", help="a sentence on earlier runs, kept under the table")
     args, rest = parser.parse_known_args()
     if args.record is not None:
         if None in (args.cpu_seconds, args.wall_seconds, args.load, args.command):
             parser.error("--record needs --cpu-seconds, --wall-seconds, --load and --command")
-        body = _body(args.record, args.cpu_seconds, args.wall_seconds, args.load)
+        body = _body(args.record, args.cpu_seconds, args.wall_seconds, args.load, args.earlier)
         write_section("Standard benchmarks", body, command=args.command)
         return 0
     if args.name is None:

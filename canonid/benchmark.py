@@ -29,6 +29,7 @@ import numpy as np
 
 from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
 from canonid.datagen.loaders import data_checksum
+from canonid.kernel.catalog import model_label
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, OptionError
 from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable, read_json
@@ -510,7 +511,7 @@ def _train_and_score(
             bench=bench,
             dt=split.dt,
             score=score,
-            model_label=f"{model.name} ℓ = {model.window}",
+            model_label=f"{model_label(model.name)}, ℓ = {model.window}",
         )
     atomic_write_json(run_dir / REPORT_FILE, report.to_json())
     return report, run_dir

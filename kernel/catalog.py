@@ -55,7 +55,7 @@ ACTIVATION_NAMES = ("relu", "silu", "tanh")
 LINEAR_PATHS = ("off", "skip", "arx")
 
 DEFAULT_NET_OPTIONS: dict[str, dict[str, Any]] = {
-    "mlp": {"residual": True, "feedthrough": False, "activation": "silu", "linear": "skip"},
+    "mlp": {"residual": True, "feedthrough": "auto", "activation": "silu", "linear": "skip"},
     "arx": {"residual": False, "feedthrough": False},
 }
 

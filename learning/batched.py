@@ -50,7 +50,7 @@ from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
 from canonid.learning.canonical import pairs_to_state
 from canonid.learning.data import Normalisation, WindowBank
-from canonid.learning.linear import initialise_linear
+from canonid.learning.linear import feedthrough_test, initialise_linear
 from canonid.learning.model import Model, load_state
 from canonid.learning.nets import OursMLP, build_net
 from canonid.learning.presets import net_options as preset_net_options
@@ -683,8 +683,13 @@ def fit_batched(
     resolve_device(base.device)  # "cuda" without a GPU fails before any work
     norm = Normalisation.fit(train)
     fingerprint = data_fingerprint(train, val)
+    configs = {ell: dict(config) for ell in shared}  # feedthrough "auto": decided per window
+    tests = {}
+    for ell in configs if config.get("feedthrough") == "auto" else ():
+        tests[ell] = feedthrough_test(train, val, norm, window=ell)
+        configs[ell]["feedthrough"] = tests[ell].feedthrough
     nets = [
-        _build(c, o, config, ell, train, norm)
+        _build(c, o, configs[ell], ell, train, norm)
         for c, o, ell in zip(candidates, opts, windows, strict=True)
     ]
     groups: dict[tuple[int, tuple[int, ...]], list[int]] = {}
@@ -777,6 +782,11 @@ def fit_batched(
                         "data_sha256": fingerprint,
                     },
                     "candidate": candidates[i].label,
+                    **(
+                        {"feedthrough_test": tests[windows[i]].to_dict()}
+                        if windows[i] in tests
+                        else {}
+                    ),
                 },
             )
             runs[i] = FitResult(

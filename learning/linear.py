@@ -13,7 +13,9 @@ collinear, e.g. a constant input). This is the equation-error ARX model of order
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -23,7 +25,14 @@ from canonid.kernel.errors import ShapeError
 from canonid.learning.data import Normalisation
 from canonid.learning.nets.base import CanonicalModel
 
-__all__ = ["initialise_linear", "least_squares", "regressors"]
+__all__ = [
+    "FEEDTHROUGH_GAIN",
+    "FeedthroughTest",
+    "feedthrough_test",
+    "initialise_linear",
+    "least_squares",
+    "regressors",
+]
 
 
 def regressors(
@@ -84,3 +93,43 @@ def initialise_linear(
         if last is not None:
             last.weight.zero_()
             last.bias.zero_()
+
+
+#: ``feedthrough="auto"`` gives the output map ``u_t`` when, in the least-squares (ARX) fit of
+#: order ℓ, ``u_t`` brings the one-step error on validation below this fraction of the error
+#: without it (benchmarks/RESULTS.md, section "Feedthrough on validation")
+FEEDTHROUGH_GAIN = 0.8
+
+
+@dataclass(frozen=True)
+class FeedthroughTest:
+    """What ``feedthrough="auto"`` measured: the one-step validation MSE (normalised units) of
+    the least-squares fits of order ℓ without and with ``u_t``, and the decision (an
+    estimate from data: the nonlinear model may gain or lose differently)."""
+
+    window: int
+    without_u: float
+    with_u: float
+    feedthrough: bool
+
+    def to_dict(self) -> dict[str, float | int | bool]:
+        return dataclasses.asdict(self)
+
+
+def feedthrough_test(
+    train: Sequence[Trajectory], val: Sequence[Trajectory], norm: Normalisation, *, window: int
+) -> FeedthroughTest:
+    """Whether ``u_t`` should reach the output map (:data:`FEEDTHROUGH_GAIN`); the fits read
+    ``train``, the errors ``val``."""
+    errors = []
+    for feedthrough in (False, True):
+        L, c = least_squares(train, norm, window=window, feedthrough=feedthrough)
+        try:
+            x, y, _ = regressors(val, norm, window=window, feedthrough=feedthrough)
+        except ShapeError:
+            raise ShapeError(
+                f"no validation trajectory is longer than the window ℓ = {window}"
+            ) from None
+        errors.append(float(np.mean((x @ L.T + c - y) ** 2)))
+    without_u, with_u = errors
+    return FeedthroughTest(window, without_u, with_u, with_u < FEEDTHROUGH_GAIN * without_u)

@@ -72,7 +72,7 @@ from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
 from canonid.learning.data import Normalisation, WindowBank
-from canonid.learning.linear import initialise_linear
+from canonid.learning.linear import feedthrough_test, initialise_linear
 from canonid.learning.model import Model, check_same, load_state
 from canonid.learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
 from canonid.learning.nets.base import linear_path
@@ -679,7 +679,9 @@ def fit(
         options: :class:`TrainOptions` (defaults if ``None``).
         net_options: constructor arguments of the network (sizes, ``feedthrough``,
             ``residual``, ``activation``, ``linear``) over the model's defaults
-            (:data:`canonid.learning.presets.DEFAULT_NET_OPTIONS`).
+            (:data:`canonid.learning.presets.DEFAULT_NET_OPTIONS`); ``feedthrough="auto"``
+            decides on validation (:func:`canonid.learning.linear.feedthrough_test`, recorded
+            in the model's info).
         run_dir: where the model and ``checkpoint.pt`` are written (nothing is written if
             ``None``).
         resume: continue from ``run_dir/checkpoint.pt``; the model, its configuration, the
@@ -695,6 +697,11 @@ def fit(
         raise UnknownModelError(f"unknown model {model!r}; expected one of {list(NETS)}")
     train = as_trajectories(train, what="training data")
     options_all = preset_net_options(model, net_options)
+    if options_all.get("feedthrough") == "auto":  # decided on validation by the linear path
+        train, val = _training_pair(train, val)
+        test = feedthrough_test(train, val, Normalisation.fit(train), window=window)
+        options_all = {**options_all, "feedthrough": test.feedthrough}
+        info = {**dict(info or {}), "feedthrough_test": test.to_dict()}
 
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)

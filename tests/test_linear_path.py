@@ -14,10 +14,10 @@ from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
 from canonid.kernel.canonical import cut_windows
-from canonid.kernel.dataset import as_trajectories
+from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.learning import NETS, TrainOptions, evaluate, fit
 from canonid.learning.data import Normalisation
-from canonid.learning.linear import least_squares, regressors
+from canonid.learning.linear import feedthrough_test, least_squares, regressors
 from canonid.learning.nets.base import LINEAR_PATHS, linear_path
 from canonid.learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS, net_options
 from canonid.learning.training import _draw_windows
@@ -273,8 +273,12 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
     common = [str(tmp_path / "data.npz"), "--window", "3", "--epochs", "1", "--no-progress"]
     common += ["--device", "cpu", "--train-horizon", "10"]
     assert main(["train", *common, "--model", "mlp", "--out", str(tmp_path / "d")]) == 0
-    net = json.loads((tmp_path / "d" / "config.json").read_text())["net"]
-    assert {k: net[k] for k in DEFAULT_NET_OPTIONS["mlp"]} == DEFAULT_NET_OPTIONS["mlp"]
+    config = json.loads((tmp_path / "d" / "config.json").read_text())
+    net, decided = config["net"], config["info"]["feedthrough_test"]
+    # feedthrough "auto" is recorded as what the validation test decided, with the test
+    expected = {**DEFAULT_NET_OPTIONS["mlp"], "feedthrough": decided["feedthrough"]}
+    assert {k: net[k] for k in DEFAULT_NET_OPTIONS["mlp"]} == expected
+    assert decided["feedthrough"] is False  # the damped system has no direct term
     assert (
         main(["train", *common, "--model", "mlp", "--paper-options", "--out", str(tmp_path / "p")])
         == 0
@@ -309,3 +313,42 @@ def test_reproduce_trains_the_papers_model(tmp_path):
     jobs = plan_jobs(settings_, {s: info for s in settings_.systems})
     mlp = [j for j in jobs if getattr(j, "model", None) == "mlp"]
     assert mlp and all(j.net_options == PAPER_NET_OPTIONS["mlp"] for j in mlp)
+
+
+def _first_order(direct: float, delayed: float, *, seed: int, n: int = 3, T: int = 300):
+    """``y_t = 0.8 y_{t−1} + direct·u_t + delayed·u_{t−1} + noise`` records, white input."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        u = rng.uniform(-1, 1, T)
+        y = np.zeros(T)
+        for t in range(1, T):
+            y[t] = 0.8 * y[t - 1] + direct * u[t] + delayed * u[t - 1]
+        y += 0.01 * rng.standard_normal(T)
+        out.append(Trajectory(u=u[:, None], y=y[:, None]))
+    return out
+
+
+@pytest.mark.parametrize(("direct", "delayed", "expected"), [(0.5, 0.0, True), (0.0, 0.5, False)])
+def test_feedthrough_auto_finds_a_direct_term_and_only_then(direct, delayed, expected):
+    train, val = _first_order(direct, delayed, seed=1), _first_order(direct, delayed, seed=2)
+    test = feedthrough_test(train, val, Normalisation.fit(train), window=3)
+    assert test.feedthrough is expected
+    # with a direct term u_t explains nearly all of the one-step error; without, nothing
+    assert (
+        (test.with_u / test.without_u < 0.1) if expected else (test.with_u / test.without_u > 0.9)
+    )
+
+
+def test_fit_with_feedthrough_auto_records_its_decision():
+    train, val = _first_order(0.5, 0.0, seed=1), _first_order(0.5, 0.0, seed=2)
+    opts = TrainOptions(epochs=1, batch_size=8, horizon=4, windows_per_epoch=8, device="cpu")
+    result = fit(
+        train,
+        val,
+        window=3,
+        options=opts,
+        net_options={"feedthrough": "auto", "hidden": [8]},
+    )
+    assert result.model.net.feedthrough is True
+    assert result.model.info["feedthrough_test"]["feedthrough"] is True

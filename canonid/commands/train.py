@@ -36,9 +36,10 @@ __all__ = ["register", "request", "run"]
 
 
 def _on_off(model: str, option: str) -> str:
-    """``on`` / ``off``: the default of a boolean network option, read from the presets so
-    that the help cannot drift from what a run gets."""
-    return "on" if DEFAULT_NET_OPTIONS[model][option] else "off"
+    """``on`` / ``off`` / ``auto``: the default of a boolean network option, read from the
+    presets so that the help cannot drift from what a run gets."""
+    value = DEFAULT_NET_OPTIONS[model][option]
+    return value if isinstance(value, str) else ("on" if value else "off")
 
 
 def register(sub: Any) -> None:
@@ -130,7 +131,8 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--feedthrough",
         action=argparse.BooleanOptionalAction,
-        help=f"the output map sees u_t (default: {_on_off('mlp', 'feedthrough')} for Ours (MLP), "
+        help=f"the output map sees u_t (default: {_on_off('mlp', 'feedthrough')} for Ours (MLP): "
+        "on when u_t lowers the linear fit's one-step validation error clearly; "
         f"{_on_off('arx', 'feedthrough')} for ARX, on for the others)",
     )
     p.add_argument(

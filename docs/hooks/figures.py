@@ -47,7 +47,8 @@ class Cell(NamedTuple):
             for cells in rows:
                 record = dict(zip(header, cells))
                 if all(record.get(k) == v for k, v in self.row):
-                    text = record[self.column].replace("**", "").strip()
+                    # bold and the mark of the lowest published figure are not part of it
+                    text = record[self.column].replace("**", "").strip().rstrip("*")
                     return text if self.whole else text.split()[0]
         raise KeyError(
             f"{RESULTS.name}, section {self.section!r}: no row {dict(self.row)} "
@@ -80,7 +81,9 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
 #: the row of RESULTS.md's "make demo" section that the pages quote: the latest timing on an
 #: idle machine (later rows measured under load say so)
 DEMO_RUN = "quick profile with gradient clipping (Table 1 pinned without it)"
-_NOW = "3e-3, clip 1, skip from zero (now)"
+_NOW = "feedthrough auto (now)"
+_FEEDTHROUGH = "3e-3, clip 1, skip from zero, feedthrough"
+_NO_FEEDTHROUGH = "3e-3, clip 1, skip from zero, no feedthrough"
 _NO_SKIP = "3e-3, clip 1"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 _LEARNED_MPC_RUNS = (  # key slug, the model and data cells of the section's goals table
@@ -92,21 +95,36 @@ _LEARNED_MPC_RUNS = (  # key slug, the model and data cells of the section's goa
 )
 
 FIGURES: dict[str, Cell | Code] = {
-    # canonid's defaults (the last column of the defaults study) on the three systems
+    # per system and seed, a column of the defaults study: canonid's defaults; without the
+    # linear skip (the defaults before it); the skip without, then with feedthrough
     **{
-        f"defaults/{system}/{seed}": Cell(
-            "Defaults study", _row(system=system, seed=str(seed)), _NOW
+        f"{key}/{system}/{seed}": Cell(
+            "Defaults study", _row(system=system, seed=str(seed)), column
+        )
+        for key, column in (
+            ("defaults", _NOW),
+            ("no-skip", _NO_SKIP),
+            ("skip", _NO_FEEDTHROUGH),
+            ("feedthrough", _FEEDTHROUGH),
         )
         for system, seeds in (("tank", (0, 1, 2)), ("silverbox", (0, 1, 2)), ("drone2d", (0, 1)))
         for seed in seeds
     },
-    # the same without the linear skip (the defaults before it), and with the ARX start
+    # the choice on validation: each column's validation loss over the defaults', per system
     **{
-        f"no-skip/{system}/{seed}": Cell(
-            "Defaults study", _row(system=system, seed=str(seed)), _NO_SKIP
+        f"validation-ratio/{name}/{system}": Cell(
+            "Defaults study: the choice on validation",
+            _row(column=label),
+            f"{system}: validation ratio",
         )
-        for system, seeds in (("tank", (0, 1, 2)), ("silverbox", (0, 1, 2)), ("drone2d", (0, 1)))
-        for seed in seeds
+        for name, label in (("feedthrough", _FEEDTHROUGH), ("no-feedthrough", _NO_FEEDTHROUGH))
+        for system in ("tank", "silverbox", "drone2d")
+    },
+    **{
+        f"feedthrough-test/{system}": Cell(
+            "Defaults study: the choice on validation", _row(system=system), "with / without u_t"
+        )
+        for system in ("tank", "silverbox", "drone2d")
     },
     "arx-start/drone2d/0": Cell(
         "Defaults study", _row(system="drone2d", seed="0"), "3e-3, clip 1, ARX start"
@@ -131,7 +149,14 @@ FIGURES: dict[str, Cell | Code] = {
             "Standard benchmarks", _row(**{"test part": part}), column
         )
         for part in ("multisine", "arrow-full", "arrow-no-extrapolation")
-        for who, column in (("canonid", "canonid [mV]"), ("gru", "GRU"), ("lstm", "LSTM"))
+        for who, column in (
+            ("canonid", "canonid [mV]"),
+            ("gru", "GRU"),
+            ("lstm", "LSTM"),
+            ("gp-narx", "GP NARX"),
+            ("dt-subnet", "DT SUBNET"),
+            ("pnlss", "PNLSS"),
+        )
     },
     # how long `make demo` takes, and what it runs
     "demo/wall": Cell("make demo", _row(run=DEMO_RUN), "wall time", whole=True),
@@ -140,6 +165,7 @@ FIGURES: dict[str, Cell | Code] = {
     "device/gpu/256/512": Cell(
         "Device", _row(widths="256 × 256 × 256", K="512"), "GPU candidate-epochs per s"
     ),
+    "code/feedthrough-gain": Code(lambda: _feedthrough_gain()),
     "quick/train/epochs": Code(_quick("train", "epochs")),
     "quick/train/horizon": Code(_quick("train", "horizon")),
     "quick/train/val_horizon": Code(_quick("train", "val_horizon")),
@@ -167,6 +193,12 @@ FIGURES: dict[str, Cell | Code] = {
         for start, column in (("recorded", "recorded states"), ("rest", "from rest"))
     },
 }
+
+
+def _feedthrough_gain() -> float:
+    from canonid.learning.linear import FEEDTHROUGH_GAIN
+
+    return FEEDTHROUGH_GAIN
 
 
 def _auto_cuda_work() -> int:
