@@ -126,6 +126,10 @@ FIGURES: dict[str, Cell | Code] = {
         )
         for system in ("tank", "silverbox", "drone2d")
     },
+    **{
+        f"masses/lowest-fit/{ell}": Cell("Chain of masses", _row(**{"ℓ": str(ell)}), "lowest")
+        for ell in (10, 30)
+    },
     "arx-start/drone2d/0": Cell(
         "Defaults study", _row(system="drone2d", seed="0"), "3e-3, clip 1, ARX start"
     ),
