@@ -68,6 +68,15 @@ class _Paragraph:
     text: str
 
 
+def _numeric(cell: str) -> bool:
+    """Whether a table cell is a number (right-aligned in HTML, text left-aligned)."""
+    try:
+        float(cell.replace(",", "").strip())
+    except ValueError:
+        return False
+    return True
+
+
 @dataclass(frozen=True)
 class _Table:
     header: tuple[str, ...]
@@ -158,7 +167,7 @@ class Report:
             f"<title>{_plain(self.title)}</title>",
             "<style>body{font-family:sans-serif;max-width:64em;margin:2em auto;padding:0 1em;"
             "line-height:1.45}.wide{overflow-x:auto}table{border-collapse:collapse;margin:1em 0}"
-            "td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}"
+            "td,th{border:1px solid #ccc;padding:2px 8px;text-align:left}td.n{text-align:right}"
             "th{background:#f3f3f3}caption{caption-side:bottom;text-align:left;font-size:90%;"
             "color:#444;padding-top:4px}code{background:#f3f3f3;padding:0 3px}"
             "img{max-width:100%}figcaption{font-size:90%;color:#444}</style>",
@@ -179,7 +188,13 @@ class Report:
                 )
                 parts.append("<tbody>")
                 parts += [
-                    "<tr>" + "".join(f"<td>{md(c)}</td>" for c in r) + "</tr>" for r in b.rows
+                    "<tr>"
+                    + "".join(
+                        f'<td class="n">{md(c)}</td>' if _numeric(c) else f"<td>{md(c)}</td>"
+                        for c in r
+                    )
+                    + "</tr>"
+                    for r in b.rows
                 ]
                 parts.append("</tbody></table></div>")
             elif isinstance(b, _Figure):

@@ -265,11 +265,11 @@ def write_report(
                 f"{evaluation['stride']}-th start of every test trajectory",
             ],
             *(
-                [f"analysis, {s}", ", ".join(f"{k}={v}" for k, v in a.items())]
+                [f"analysis, {s}", _settings_text(a)]
                 for s, a in stage.get("analysis", {}).items()
                 if s in settings.systems
             ),
-            ["compression", ", ".join(f"{k}={v}" for k, v in stage.get("compression", {}).items())],
+            ["compression", _settings_text(stage.get("compression", {}))],
         ],
     )
 
@@ -383,7 +383,7 @@ def _training_budget(train_runs: Sequence[Any]) -> list[list[str]]:
     budgets: dict[str, list[str]] = {}
     for o in train_runs:
         options = {k: v for k, v in o.recipe["train_options"].items() if k != "seed"}
-        text = ", ".join(f"{k}={v}" for k, v in options.items())
+        text = _settings_text(options)
         label = model_label(o.recipe["model"])
         if label not in budgets.setdefault(text, []):
             budgets[text].append(label)
@@ -495,6 +495,30 @@ def _analysis_blocks(
                     "α_ℓ^{-1}‖w̄‖ (canonid.analysis.learned.state_probe)"
                 ),
             )
+
+
+def _settings_text(settings: Mapping[str, Any]) -> str:
+    """``key = value`` pairs in words: ``none`` for nothing, a box ``[[lows], [highs]]`` as
+    ``[lo, hi] × …``, lists comma-separated, numbers in their shortest form."""
+
+    def value(v: Any) -> str:
+        if v is None:
+            return "none"
+        if isinstance(v, bool):
+            return "yes" if v else "no"
+        if isinstance(v, float):
+            return f"{v:g}"
+        if isinstance(v, (list, tuple)):
+            if (
+                len(v) == 2
+                and all(isinstance(x, (list, tuple)) for x in v)
+                and len(v[0]) == len(v[1])
+            ):
+                return " × ".join(f"[{lo:g}, {hi:g}]" for lo, hi in zip(v[0], v[1], strict=True))
+            return ", ".join(value(x) for x in v)
+        return str(v)
+
+    return "; ".join(f"{k.replace('_', ' ')} = {value(v)}" for k, v in settings.items())
 
 
 def _boxes_text(sets: Mapping[str, Any]) -> str:

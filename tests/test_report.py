@@ -31,3 +31,17 @@ def test_bad_table_row():
     r = Report("t")
     with pytest.raises(ValueError, match="row 0 has 1 cells"):
         r.table(["a", "b"], [[1]])
+
+
+def test_report_settings_are_written_in_words_and_numbers_align_right(tmp_path):
+    from canonid.report import Report
+    from canonid.reproduce_report import _settings_text
+
+    text = _settings_text(
+        {"lr_final": None, "grad_clip": 1.0, "X": [[0.05, 0.05], [5.0, 5.0]], "windows": [5, 10]}
+    )
+    assert text == "lr final = none; grad clip = 1; X = [0.05, 5] × [0.05, 5]; windows = 5, 10"
+    report = Report("t")
+    report.table(["stage", "MSE"], [["training", "1.5e-4"]])
+    html = report.to_html(tmp_path)
+    assert "<td>training</td>" in html and '<td class="n">1.5e-4</td>' in html
