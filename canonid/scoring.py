@@ -307,7 +307,7 @@ def metrics_table(metrics: Mapping[str, Any]) -> str:
     """A short text table of the main scores (measured and, if any, noise-free targets) of a
     ``metrics.json`` body (:meth:`canonid.runfolder.RunEvaluation.to_json`); with several
     outputs, each target's row (scores over all outputs) is followed by one row per output."""
-    rows = [("target", "rollout_mse", "rmse", "nrmse", "fit %")]
+    rows: list[tuple[str, ...]] = [("target", "rollout_mse", "rmse", "nrmse", "fit %")]
     names = metrics.get("output_names") or []
     for label, scores in (("y (measured)", metrics), ("y_clean", metrics.get("clean"))):
         if scores:

@@ -60,7 +60,8 @@ def signal_units(
     a name or a description with a ``"name"``) when its signals are these ``names``."""
     units = metadata.get("units")
     if isinstance(units, Mapping):
-        table = units.get(kind) if isinstance(units.get(kind), Mapping) else units
+        by_kind = units.get(kind)
+        table: Mapping[str, Any] = by_kind if isinstance(by_kind, Mapping) else units
         found = [table.get(n) for n in names]
         if any(isinstance(u, str) for u in found):
             return [u if isinstance(u, str) else None for u in found]
