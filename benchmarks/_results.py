@@ -7,6 +7,7 @@ section starts with the command, the date and a description of the machine.
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import os
 import platform
 import re
@@ -17,7 +18,14 @@ from canonid.kernel.io import atomic_write_text
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 
-__all__ = ["load_line", "machine_description", "publish", "write_section"]
+__all__ = [
+    "append_row",
+    "load_line",
+    "machine_description",
+    "publish",
+    "read_rows",
+    "write_section",
+]
 
 
 def machine_description() -> str:
@@ -62,6 +70,19 @@ def write_section(name: str, body: str, *, command: str | None = None) -> None:
         else text.rstrip() + "\n\n" + block + "\n"
     )
     atomic_write_text(RESULTS, text)
+
+
+def read_rows(path: Path) -> list[dict]:
+    """The rows of a study's JSON-lines file."""
+    return [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines() if line]
+
+
+def append_row(path: Path, row: dict) -> None:
+    """Append one row to a study's JSON-lines file (a row is one write of one line)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("a", encoding="utf-8") as f:
+        f.write(json.dumps(row) + "\n")
+    print(json.dumps(row))
 
 
 def publish(name: str, lines: list[str], minutes: float) -> int:

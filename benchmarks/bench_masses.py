@@ -58,7 +58,7 @@ def row(run: Path, cpu: float) -> tuple[int, float, str]:
     )
 
 
-def section(data: Path, runs: list[Path], cpus: list[float], load: str) -> str:
+def section(runs: list[Path], cpus: list[float], load: str) -> str:
     rows = sorted(row(r, c) for r, c in zip(runs, cpus, strict=True))
     chosen = min(rows, key=lambda r: r[1])[0]
     names = json.loads((runs[0] / "metrics.json").read_text())["output_names"]
@@ -93,10 +93,10 @@ def main() -> int:
     args = parser.parse_args()
     load = [os.getloadavg()[0]]
     if args.record:
-        data, runs = args.record[0], args.record[1:]
+        runs = args.record[1:]  # the first path is the data the runs trained on
         if len(args.cpu_seconds) != len(runs):
             parser.error("--record DATA RUN ...: give one --cpu-seconds per run")
-        body = section(data, runs, args.cpu_seconds, args.load)
+        body = section(runs, args.cpu_seconds, args.load)
         write_section("Chain of masses", body, command="python bench_masses.py --record ...")
         print(body)
         return 0
@@ -123,7 +123,7 @@ def main() -> int:
         runs.append(out)
         load.append(os.getloadavg()[0])
     sentence, _ = load_line(load, "CPU times of one thread are less affected than wall times")
-    body = section(data, runs, cpus, sentence)
+    body = section(runs, cpus, sentence)
     body += f"\n\nThis benchmark took {(time.perf_counter() - start) / 60:.1f} min."
     write_section("Chain of masses", body)
     print(body)

@@ -80,13 +80,17 @@ def record(u: np.ndarray, y: np.ndarray) -> SimpleNamespace:
     return SimpleNamespace(u=u[:, None], y=y[:, None])
 
 
+def train_val(data: np.ndarray) -> tuple[SimpleNamespace, SimpleNamespace]:
+    """The multisine part's training and validation records (its last 20 % validate)."""
+    part = data[MULTISINE][:N_TRAIN_VAL]
+    n_val = int(np.ceil(0.2 * len(part)))
+    return record(part[:-n_val, 0], part[:-n_val, 1]), record(part[-n_val:, 0], part[-n_val:, 1])
+
+
 def run(data: np.ndarray, variant: str, seed: int, window: int) -> Row:
     model, net_options, overrides = VARIANTS[variant]
-    multisine = data[MULTISINE]
-    train_val, test = multisine[:N_TRAIN_VAL], multisine[N_TRAIN_VAL:]
-    n_val = int(np.ceil(0.2 * len(train_val)))
-    train = record(train_val[:-n_val, 0], train_val[:-n_val, 1])
-    val = record(train_val[-n_val:, 0], train_val[-n_val:, 1])
+    train, val = train_val(data)
+    test = data[MULTISINE][N_TRAIN_VAL:]
     opts = stage_train_options(  # None in overrides switches an option off
         "quick", {"seed": seed, "device": "cpu", "checkpoint_every": 10**6, **overrides}
     )

@@ -34,7 +34,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -42,7 +41,9 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _data import ensure_dataset  # noqa: E402
-from _results import write_section  # noqa: E402
+from _results import append_row, read_rows, write_section  # noqa: E402
+
+from canonid.kernel.io import atomic_write_text  # noqa: E402
 
 WINDOW = 10
 ROWS = ROOT / "benchmarks" / "studies" / "defaults_study.jsonl"
@@ -179,10 +180,7 @@ def decide(system: str) -> Any:
     if system == "silverbox":
         import bench_silverbox as sb
 
-        data = sb.load(sb.DEFAULT_CSV)[sb.MULTISINE][: sb.N_TRAIN_VAL]
-        n_val = int(np.ceil(0.2 * len(data)))
-        train = [Trajectory(u=data[:-n_val, :1], y=data[:-n_val, 1:2])]
-        val = [Trajectory(u=data[-n_val:, :1], y=data[-n_val:, 1:2])]
+        train, val = ([Trajectory.of(r)] for r in sb.train_val(sb.load(sb.DEFAULT_CSV)))
     else:
         ds = Dataset.load(ensure_dataset(GENERATED[system]) / "dataset.npz")
         train, val = ds.split("train"), ds.split("val")
@@ -321,19 +319,19 @@ def main() -> int:
     both.add_argument("--rows", type=Path, default=ROWS)
     args = parser.parse_args()
     if args.command == "compose":
-        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
+        rows = read_rows(args.rows)
         rows = [r for r in rows if r["label"] != REFERENCE] + compose(rows)
-        args.rows.write_text("".join(json.dumps(r) + "\n" for r in rows))
+        atomic_write_text(args.rows, "".join(json.dumps(r) + "\n" for r in rows))
         print(f"{sum(r['label'] == REFERENCE for r in rows)} rows of {REFERENCE!r}")
         return 0
     if args.command == "select":
-        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
+        rows = read_rows(args.rows)
         body = selection_section(rows)
         write_section(SELECTION, body)
         print(body)
         return 0
     if args.command == "table":
-        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
+        rows = read_rows(args.rows)
         body = table(rows)
         write_section(SECTION, body)
         print(body)
@@ -353,10 +351,7 @@ def main() -> int:
         **measured,
         "load": os.getloadavg()[0],
     }
-    args.rows.parent.mkdir(parents=True, exist_ok=True)
-    with args.rows.open("a") as f:
-        f.write(json.dumps(row) + "\n")
-    print(json.dumps(row))
+    append_row(args.rows, row)
     return 0
 
 

@@ -20,7 +20,6 @@ Usage: python benchmarks/search_study.py run SYSTEM [--procedure single|search] 
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import statistics
@@ -29,14 +28,13 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _data import ensure_dataset  # noqa: E402
-from _results import write_section  # noqa: E402
+from _results import append_row, read_rows, write_section  # noqa: E402
 
 WINDOW = 10
 ROWS = ROOT / "benchmarks" / "studies" / "search_study.jsonl"
@@ -52,15 +50,13 @@ def splits(system: str) -> tuple[list, list, list]:
     if system == "silverbox":
         import bench_silverbox as sb
 
-        data = sb.load(sb.DEFAULT_CSV)[sb.MULTISINE][: sb.N_TRAIN_VAL]
-        n_val = int(np.ceil(0.2 * len(data)))
-        train, val = data[:-n_val], data[-n_val:]
-        half = n_val // 2
-
-        def rec(a: np.ndarray) -> Trajectory:
-            return Trajectory(u=a[:, :1], y=a[:, 1:2])
-
-        return [rec(train)], [rec(val[:half])], [rec(val[half:])]
+        train, val = (Trajectory.of(r) for r in sb.train_val(sb.load(sb.DEFAULT_CSV)))
+        half = val.T // 2
+        return (
+            [train],
+            [Trajectory(u=val.u[:half], y=val.y[:half])],
+            [Trajectory(u=val.u[half:], y=val.y[half:])],
+        )
     ds = Dataset.load(ensure_dataset(GENERATED[system]) / "dataset.npz")
     val = ds.split("val")
     half = len(val) // 2
@@ -161,17 +157,14 @@ def main() -> int:
     tab.add_argument("--rows", type=Path, default=ROWS)
     args = parser.parse_args()
     if args.command == "table":
-        rows = [json.loads(line) for line in args.rows.read_text().splitlines() if line]
+        rows = read_rows(args.rows)
         body = table(rows)
         write_section("Search study", body)
         print(body)
         return 0
     torch.set_num_threads(1)
     row = run(args.system, args.procedure, args.seed)
-    args.rows.parent.mkdir(parents=True, exist_ok=True)
-    with args.rows.open("a") as f:
-        f.write(json.dumps(row) + "\n")
-    print(json.dumps(row))
+    append_row(args.rows, row)
     return 0
 
 

@@ -141,6 +141,14 @@ class TrainOutcome:
                 f"best validation loss {fitted.best_val_loss:.4g} (normalised) at epoch "
                 f"{fitted.best_epoch}"
             ]
+            test = fitted.model.info.get("feedthrough_test")
+            if test:  # feedthrough "auto": say what the data decided
+                head.append(
+                    f"feedthrough {'on' if test['feedthrough'] else 'off'} (decided on validation: "
+                    f"with u_t the linear fit's one-step error is "
+                    f"{test['with_u'] / test['without_u']:.3g} of that without; "
+                    "--feedthrough / --no-feedthrough decide instead)"
+                )
         return "\n".join([*head, metrics_table(self.metrics), f"run written to {self.run_dir}"])
 
 

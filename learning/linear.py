@@ -27,6 +27,7 @@ from canonid.learning.nets.base import CanonicalModel
 
 __all__ = [
     "FEEDTHROUGH_GAIN",
+    "FEEDTHROUGH_ROWS",
     "FeedthroughTest",
     "feedthrough_test",
     "initialise_linear",
@@ -36,10 +37,16 @@ __all__ = [
 
 
 def regressors(
-    trajectories: Sequence[Trajectory], norm: Normalisation, *, window: int, feedthrough: bool
+    trajectories: Sequence[Trajectory],
+    norm: Normalisation,
+    *,
+    window: int,
+    feedthrough: bool,
+    stride: int = 1,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(X, y, y_prev)``: the rows ``x_t`` of the module docstring for every trajectory and
-    ``t = ℓ … T−1`` in order, with the normalised ``y_t`` and ``y_{t−1}`` beside them."""
+    ``t = ℓ, ℓ + stride, … < T`` in order, with the normalised ``y_t`` and ``y_{t−1}`` beside
+    them (only the rows kept are copied)."""
     xs, ys, prev = [], [], []
     for tr in trajectories:
         if tr.T <= window:
@@ -48,11 +55,13 @@ def regressors(
         pairs = np.concatenate([un, yn], axis=1)  # (T, p), one [u_i; y_i] per row
         p = pairs.shape[1]
         # row k of the view holds samples k … k+ℓ−1, i.e. z_{k+ℓ}
-        z = np.lib.stride_tricks.sliding_window_view(pairs, (window, p))[:, 0]
-        z = z.reshape(-1, window * p)[: tr.T - window]
-        xs.append(np.concatenate([z, un[window:]], axis=1) if feedthrough else z)
-        ys.append(yn[window:])
-        prev.append(yn[window - 1 : -1])
+        z = np.lib.stride_tricks.sliding_window_view(pairs, (window, p))[
+            : tr.T - window : stride, 0
+        ]
+        z = z.reshape(-1, window * p)
+        xs.append(np.concatenate([z, un[window::stride]], axis=1) if feedthrough else z)
+        ys.append(yn[window::stride])
+        prev.append(yn[window - 1 : -1 : stride])
     if not xs:
         raise ShapeError(f"no training trajectory is longer than the window ℓ = {window}")
     return np.concatenate(xs), np.concatenate(ys), np.concatenate(prev)
@@ -65,10 +74,13 @@ def least_squares(
     window: int,
     feedthrough: bool,
     residual_scale: np.ndarray | None = None,
+    stride: int = 1,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``(L, c)``, ``L`` ``(n_y, dim x)`` and ``c`` ``(n_y,)``: the least-squares fit of the module
-    docstring (``residual_scale`` given: the residual model's target)."""
-    x, y, y_prev = regressors(trajectories, norm, window=window, feedthrough=feedthrough)
+    docstring (``residual_scale`` given: the residual model's target) on every ``stride``-th row."""
+    x, y, y_prev = regressors(
+        trajectories, norm, window=window, feedthrough=feedthrough, stride=stride
+    )
     target = y if residual_scale is None else (y - y_prev) / residual_scale
     design = np.concatenate([x, np.ones((x.shape[0], 1))], axis=1)
     theta, *_ = np.linalg.lstsq(design, target, rcond=None)
@@ -99,6 +111,9 @@ def initialise_linear(
 #: order ℓ, ``u_t`` brings the one-step error on validation below this fraction of the error
 #: without it (benchmarks/RESULTS.md, section "Feedthrough on validation")
 FEEDTHROUGH_GAIN = 0.8
+#: the test fits and scores at most about this many rows of each split (every k-th sample), so
+#: that a long record with a long window stays within a few hundred MB and seconds
+FEEDTHROUGH_ROWS = 60_000
 
 
 @dataclass(frozen=True)
@@ -120,12 +135,20 @@ def feedthrough_test(
     train: Sequence[Trajectory], val: Sequence[Trajectory], norm: Normalisation, *, window: int
 ) -> FeedthroughTest:
     """Whether ``u_t`` should reach the output map (:data:`FEEDTHROUGH_GAIN`); the fits read
-    ``train``, the errors ``val``."""
+    ``train``, the errors ``val`` (each at most about :data:`FEEDTHROUGH_ROWS` rows)."""
+
+    def stride(group: Sequence[Trajectory]) -> int:
+        return max(1, -(-sum(max(tr.T - window, 0) for tr in group) // FEEDTHROUGH_ROWS))
+
     errors = []
     for feedthrough in (False, True):
-        L, c = least_squares(train, norm, window=window, feedthrough=feedthrough)
+        L, c = least_squares(
+            train, norm, window=window, feedthrough=feedthrough, stride=stride(train)
+        )
         try:
-            x, y, _ = regressors(val, norm, window=window, feedthrough=feedthrough)
+            x, y, _ = regressors(
+                val, norm, window=window, feedthrough=feedthrough, stride=stride(val)
+            )
         except ShapeError:
             raise ShapeError(
                 f"no validation trajectory is longer than the window ℓ = {window}"

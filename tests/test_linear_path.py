@@ -273,6 +273,7 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
     common = [str(tmp_path / "data.npz"), "--window", "3", "--epochs", "1", "--no-progress"]
     common += ["--device", "cpu", "--train-horizon", "10"]
     assert main(["train", *common, "--model", "mlp", "--out", str(tmp_path / "d")]) == 0
+    assert "feedthrough off (decided on validation" in capsys.readouterr().out
     config = json.loads((tmp_path / "d" / "config.json").read_text())
     net, decided = config["net"], config["info"]["feedthrough_test"]
     # feedthrough "auto" is recorded as what the validation test decided, with the test
@@ -352,3 +353,12 @@ def test_fit_with_feedthrough_auto_records_its_decision():
     )
     assert result.model.net.feedthrough is True
     assert result.model.info["feedthrough_test"]["feedthrough"] is True
+
+
+def test_regressors_with_a_stride_are_every_kth_row_of_each_trajectory():
+    data = _first_order(0.5, 0.2, seed=3, n=2, T=50)
+    norm = Normalisation.fit(data)
+    full = [regressors([tr], norm, window=4, feedthrough=True) for tr in data]
+    strided = regressors(data, norm, window=4, feedthrough=True, stride=3)
+    for a, b in zip(strided, (np.concatenate([f[i][::3] for f in full]) for i in range(3))):
+        np.testing.assert_array_equal(a, b)
