@@ -59,7 +59,7 @@ def cases(csv: Path) -> dict[str, list[str]]:
 HEAVY = ("torch", "casadi", "scipy", "matplotlib")
 
 
-def _export(ref: str, into: Path) -> Path:
+def export_tree(ref: str, into: Path) -> Path:
     """The files of git revision ``ref`` under ``into``."""
     archive = subprocess.run(["git", "archive", ref], cwd=ROOT, capture_output=True, check=True)
     with tarfile.open(fileobj=io.BytesIO(archive.stdout)) as tar:
@@ -71,7 +71,7 @@ def _export(ref: str, into: Path) -> Path:
 _PATHS: dict[Path, Path] = {}
 
 
-def _importable(tree: Path, scratch: Path) -> Path:
+def importable_tree(tree: Path, scratch: Path) -> Path:
     """The folder to put first on ``sys.path`` for ``tree``."""
     if not (tree / "kernel").is_dir():
         return tree  # the old layout: the folders were top-level packages
@@ -137,10 +137,10 @@ def main() -> int:
         commands = cases(csv)
         trees = {"this tree": ROOT}
         if args.baseline:
-            old = _export(args.baseline, scratch / "baseline")
+            old = export_tree(args.baseline, scratch / "baseline")
             trees = {f"`{args.baseline}`": old, **trees}
         for tree in trees.values():
-            _PATHS[tree] = _importable(tree, scratch)
+            _PATHS[tree] = importable_tree(tree, scratch)
             _compile(tree)
         load_before = _load()
         for tree in trees.values():  # warm the file cache once

@@ -13,6 +13,16 @@ How the indices are cut, for a canonical model of window ℓ on a test part of `
 * score: ``RMSE = sqrt(mean over t = n_init … T−1 and the outputs of (ŷ[t] − y[t])²)``, times
   the scoring factor (1000 for V → mV, m → mm). Samples ``0 … n_init−1`` are never scored, so
   the score does not depend on ℓ's burn-in position, only on the model.
+
+:func:`run_benchmark` (``canonid benchmark``) writes a ``canonid train`` run folder (``evaluate``,
+``analyze --run`` and ``reduce`` take it) plus ``benchmark-data.npz`` / ``.json``, the benchmark
+as a canonid dataset and the data the run trained on (split ``train``: the first 80 %, or
+``1 − val_fraction``, of every official training record; ``val``: the rest of each record;
+``test``: the official test parts in order); ``benchmark.json``, the scores
+(:class:`BenchmarkReport`) and the published baselines shown; and ``benchmark-PART.png`` (or
+``.pdf``, ``.svg``), the simulation of each test part. Training is ``canonid train``'s, every
+default included; an interrupted benchmark is finished by the same call again, or by ``resume``
+(``canonid train --resume``'s rule: only what a resumed run may change is given).
 """
 
 from __future__ import annotations
@@ -32,7 +42,13 @@ from canonid.datagen.loaders import data_checksum
 from canonid.kernel.catalog import model_label
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, OptionError
-from canonid.kernel.io import atomic_write_figure, atomic_write_json, jsonable, read_json
+from canonid.kernel.io import (
+    atomic_write_figure,
+    atomic_write_json,
+    figure_name,
+    jsonable,
+    read_json,
+)
 from canonid.profiles import DEFAULT_PROFILE
 from canonid.training import TrainRequest
 
@@ -235,6 +251,7 @@ RESERVED_TRAIN_OPTIONS = (
     "--out",
     "--seed",
     "--threads",
+    "--figure-format",
     "--resume",
     "--val",
     "-h",
@@ -307,7 +324,8 @@ class BenchmarkRequest:
     ``resume``: continue the benchmark run in that folder as ``canonid train --resume`` does
     (``train`` may then hold only what a resumed run may change, and the options the run
     recorded are not given), then score it; ``name``, if given, must be the run's benchmark.
-    Checked when built."""
+    ``figure_format``: the file format of every figure of the run (training's and one per test
+    part, ``benchmark-PART.png``). Checked when built."""
 
     name: str | None = None
     files: Path | None = None
@@ -320,6 +338,7 @@ class BenchmarkRequest:
     val_fraction: float | None = None
     train: TrainRequest = field(default_factory=TrainRequest)
     resume: Path | None = None
+    figure_format: str = "png"
 
     def __post_init__(self) -> None:
         if self.resume is not None:
@@ -335,6 +354,7 @@ class BenchmarkRequest:
             )
         if self.train.data is not None:  # DATA is the benchmark's
             raise OptionError(f"--train-args: {self.train.data!r} is not an option")
+        figure_name("benchmark", self.figure_format)  # an unknown format, before any work
 
 
 def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
@@ -374,6 +394,7 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
         out=run_dir,
         seed=request.seed,
         threads=request.threads,
+        figure_format=request.figure_format,
     )
     check_run_folder(run_dir)
     if not (run_dir / CHECKPOINT_FILE).exists():  # a run to continue is checked under the lock
@@ -433,6 +454,7 @@ def _continue_or_start(wanted: TrainRequest, run_dir: Path, checksum: str) -> Tr
         threads=wanted.threads,
         progress=wanted.progress,
         command=wanted.command,
+        figure_format=wanted.figure_format,
     )
 
 
@@ -453,7 +475,13 @@ def _resume(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
 
     run_dir = request.resume
     assert run_dir is not None
-    todo = dataclasses.replace(request.train, resume=run_dir, threads=request.threads, out=None)
+    todo = dataclasses.replace(
+        request.train,
+        resume=run_dir,
+        threads=request.threads,
+        out=None,
+        figure_format=request.figure_format,
+    )
     check_request(todo)
     recipe = RunRecipe.read(run_dir)
     name = _benchmark_of(recipe.data, run_dir)
@@ -505,7 +533,7 @@ def _train_and_score(
     )
     for part, sim, score in zip(split.split("test"), sims, scores, strict=True):
         plot_part(
-            run_dir / f"benchmark-{score.test}.png",
+            run_dir / figure_name(f"benchmark-{score.test}", todo.figure_format),
             part,
             sim,
             bench=bench,

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from canonid.kernel.errors import OptionError
-from canonid.kernel.io import atomic_write_figure
+from canonid.kernel.io import atomic_write_figure, figure_name
 
 if TYPE_CHECKING:
     from canonid.datagen.excitation import InputDesign
@@ -43,7 +43,9 @@ class GenerateRequest:
         noise: the measurement noise's half-width, as given (``"0.01"`` or ``"0.01,0.02"``).
         horizon, steps: the MPC horizon; samples per flight. out: the dataset's folder.
         workers, scheduler, resume, plot, progress: where the flights run; keep finished
-            flights; draw a few; a progress bar.
+            flights; draw a few (``flights.png``); a progress bar.
+        figure_format: the file format of that figure (one of
+            :data:`canonid.kernel.io.FIGURE_FORMATS`).
         excitation, amplitude, band, lines, clock: an input design added to the controller's
             command (``multisine`` or ``prbs``, :mod:`canonid.datagen.excitation`), as given.
         references: a reference family of the scenario (e.g. ``steps``).
@@ -67,6 +69,7 @@ class GenerateRequest:
     lines: int | None = None
     clock: int | None = None
     references: str | None = None
+    figure_format: str = "png"
 
 
 def _numbers(text: str, option: str) -> tuple[float, ...]:
@@ -138,6 +141,7 @@ def generate(request: GenerateRequest) -> str:
     )
     if request.workers < 0:
         raise OptionError(f"--workers must be >= 0, got {request.workers}")
+    figure = figure_name("flights", request.figure_format)  # an unknown format, before any work
     out = check_folder(request.out or Path("runs") / "data" / f"{system}-s{request.seed}")
     runner = functools.partial(
         run_jobs,
@@ -171,8 +175,8 @@ def generate(request: GenerateRequest) -> str:
         f"{result.solver_failures}; flights regenerated with a new seed {result.replaced}"
     )
     if request.plot:
-        figure = plot_flights(Dataset.load(result.path), out / "flights.png")
-        lines.append(f"  figure: {figure.resolve()}")
+        drawn = plot_flights(Dataset.load(result.path), out / figure)
+        lines.append(f"  figure: {drawn.resolve()}")
     return "\n".join(lines)
 
 

@@ -38,7 +38,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
-from canonid.kernel.errors import CheckpointError, OutputError
+from canonid.kernel.errors import CheckpointError, OptionError, OutputError
 from canonid.kernel.io import atomic_write_json, jsonable, read_json, remove_stale_temporaries
 
 __all__ = [
@@ -51,6 +51,7 @@ __all__ = [
     "check_run_folder",
     "finished",
     "is_canonid_folder",
+    "resume_target",
     "run_folder_lock",
     "run_job",
     "store",
@@ -215,6 +216,19 @@ def check_folder(path: Path, *, flag: str = "--out") -> Path:
                 raise OutputError(f"{flag} {path} {what}; expected a folder")
             break
     return path
+
+
+def resume_target(resume: str | bool | None, out: Path | None) -> tuple[Path | None, Path | None]:
+    """The run to continue and the new run's folder, from ``--resume [RUN]`` and ``--out``:
+    ``--resume`` continues the run in ``--out`` (then there is no new folder); the former
+    spelling ``--resume RUN`` the run in RUN; without ``--resume``, ``--out`` is the new run's."""
+    if resume is None or resume is False:
+        return None, out
+    if resume is not True:  # --resume RUN
+        return Path(resume), out
+    if out is None:
+        raise OptionError("--resume continues the run in --out: give --out RUN")
+    return out, None
 
 
 #: the lock file of a run folder (:func:`run_folder_lock`): it stays, empty but while held

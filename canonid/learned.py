@@ -144,10 +144,13 @@ def _check_output(*paths: Path) -> None:
 def export_casadi(
     run_dir: Path, target: Path, *, data: Path | None = None
 ) -> tuple[str, list[Path]]:
-    """Write the canonical model of ``run_dir`` as the ``casadi.Function`` ``target`` (and the
-    encoder of a reduced model beside it) and its description ``target.json``; the sets come
-    from ``data`` (default: the run's training data). Returns a one-line description of the
-    model and the files written."""
+    """Write the canonical model of ``run_dir`` as the ``casadi.Function`` ``target``,
+    ``learned_model(x, u) -> (x_next, y)`` (load it with ``casadi.Function.load``), and its
+    description ``target.json`` (dimensions, names, units, ``dt``, the sets X, U, W, how the
+    state is filled from measured data); a reduced model also gets its encoder
+    ``encode(z) -> x`` beside it (suffix ``.encoder.casadi``). The sets come from ``data``
+    (default: the run's training data). Only canonical models export (Ours (MLP), Ours (GRU) and
+    their reduced models). Returns a one-line description of the model and the files written."""
     from canonid.models.learned import model_function, save_function
 
     if target.suffix != ".casadi":

@@ -6,7 +6,8 @@ training and validation trajectories), trains the reduced model of :mod:`canonid
 and writes a run folder of the same format as ``canonid train`` (so ``canonid evaluate`` works
 on it unchanged): ``run.json``, the model (``config.json``, ``weights.pt``,
 ``normalisation.json``), ``checkpoint.pt``, ``history.csv``, ``training_curve.png``,
-``metrics.json`` and ``rollouts.png`` (the reduced model on the test split), plus
+``metrics.json`` and ``rollouts.png`` (the reduced model on the test split; each figure ``.pdf``
+or ``.svg`` instead with ``figure_format``), plus
 
 * ``reduction.json`` — :class:`ReductionResult`: ``n̄``, ``dim z``, the auto-encoder's
   reconstruction MSE on the test split (normalised units, :func:`canonid.learning.reduction.
@@ -63,6 +64,7 @@ from canonid.runfolder import (
     ReductionRecipe,
     eval_defaults,
     evaluate_run,
+    figure_file,
     load_splits,
     pick_split,
     read_recipe,
@@ -91,6 +93,8 @@ __all__ = [
 DEFAULT_RATES = (0.15, 0.30, 0.45, 0.60, 0.75, 0.90)
 REDUCTION_FILE = "reduction.json"
 SWEEP_FILE = "sweep.json"
+#: the compression study's figures (:func:`plot_heatmap`, :func:`plot_reduced_mse`)
+FIGURES = ("heatmap", "reduced_mse")
 EVAL_HORIZON = 100
 
 
@@ -105,7 +109,9 @@ class ReductionJob(Job["ReductionResult"]):
     to write the reduced run. ``epochs`` and ``linear_skip`` override the profile's (``None``:
     keep it); ``threads`` sets torch's CPU
     threads for the job (then restores them); ``resume`` continues from ``out/checkpoint.pt``;
-    ``command`` is recorded in the run's ``run.json`` (the command line that asked for it)."""
+    ``command`` is recorded in the run's ``run.json`` (the command line that asked for it);
+    ``figure_format`` is the figures' file format (not part of the recipe: a finished reduction
+    is reused with the figures it wrote)."""
 
     source: str
     compression: float
@@ -118,6 +124,7 @@ class ReductionJob(Job["ReductionResult"]):
     threads: int | None = 1
     resume: bool = False
     command: tuple[str, ...] = ()
+    figure_format: str = "png"
 
     @property
     def name(self) -> str:
@@ -295,6 +302,7 @@ def _reduce_locked(
     source, out = Path(job.source), Path(job.out)
     model, recipe = _load_source(source)
     latent = latent_size(model.net.state_dim, job.compression)  # refuses a bad rate early
+    figure = out / figure_file("reduced_vs_full", job.figure_format)  # and a bad format
     train_opts, red_opts = job.options()
     key = {k: v for k, v in job.recipe_key().items() if k != "options"}  # in the checkpoint
     if job.resume:
@@ -352,7 +360,7 @@ def _reduce_locked(
         },
     )
     seconds = time.perf_counter() - t0
-    write_history(out, fit.history)
+    write_history(out, fit.history, figure_format=job.figure_format)
     reduced = fit.model
     evaluation = evaluate_run(
         out,
@@ -363,6 +371,7 @@ def _reduce_locked(
         horizon=horizon,
         stride=1,
         n_init=None,
+        figure_format=job.figure_format,
     )
     _, trajs = pick_split(dataset, test_name, where=data_path)
     n_init = evaluation.scores.n_init
@@ -371,7 +380,7 @@ def _reduce_locked(
         model,
         reduced,
         trajs,
-        out / "reduced_vs_full.png",
+        figure,
         n_init=n_init,
         dt=dataset.dt,
         output_names=dataset.output_names,
@@ -479,8 +488,8 @@ class SweepPlan:
         out: folder of the study (one sub-folder per job, ``sweep.json`` and the figures).
         rates: compression rates in (0, 1) (default 15 %, 30 %, …, 90 %).
         seeds: auto-encoder seeds.
-        profile, epochs, linear_skip, device, threads, command: of every job (see
-            :class:`ReductionJob`).
+        profile, epochs, linear_skip, device, threads, command, figure_format: of every job
+            (see :class:`ReductionJob`); the study's figures take ``figure_format`` too.
     """
 
     runs: tuple[str, ...]
@@ -493,6 +502,7 @@ class SweepPlan:
     device: str = "cpu"
     threads: int | None = 1
     command: tuple[str, ...] = ()
+    figure_format: str = "png"
 
     def jobs(self) -> list[ReductionJob]:
         """The jobs, in (run, rate, seed) order; bad rates, repeated values and runs that are
@@ -523,6 +533,7 @@ class SweepPlan:
                 device=self.device,
                 threads=self.threads,
                 command=self.command,
+                figure_format=self.figure_format,
             )
             for source in sources
             for rate in rates
@@ -542,6 +553,7 @@ def compression_sweep(
     into ``plan.out`` (see the module docstring)."""
     jobs = plan.jobs()
     folder = check_folder(Path(plan.out))
+    heatmap, reduced_mse = (folder / figure_file(n, plan.figure_format) for n in FIGURES)
     folder.mkdir(parents=True, exist_ok=True)
     results = run_jobs(
         run_reduction_job,
@@ -554,8 +566,8 @@ def compression_sweep(
     sweep = SweepResult(
         results=results,
         folder=folder,
-        heatmap=plot_heatmap(results, folder / "heatmap.png"),
-        reduced_mse=plot_reduced_mse(results, folder / "reduced_mse.png"),
+        heatmap=plot_heatmap(results, heatmap),
+        reduced_mse=plot_reduced_mse(results, reduced_mse),
     )
     atomic_write_json(
         folder / SWEEP_FILE,
@@ -577,7 +589,8 @@ class ReduceRequest:
     ``runs`` over ``rates`` (default :data:`DEFAULT_RATES`) and ``seeds`` seeds from ``seed``
     into ``out`` (default ``runs/compression-sweep``), on ``workers`` / ``scheduler`` (each job
     on ``threads`` torch threads, default 1). ``profile``, ``epochs``, ``linear_skip``,
-    ``device``, ``resume`` (one reduction only) and ``command``: see :class:`ReductionJob`."""
+    ``device``, ``resume`` (one reduction only), ``command`` and ``figure_format``: see
+    :class:`ReductionJob`."""
 
     runs: Sequence[Path]
     compression: float | None = None
@@ -596,6 +609,7 @@ class ReduceRequest:
     scheduler: str | None = None
     progress: bool = True
     command: tuple[str, ...] = ()
+    figure_format: str = "png"
 
 
 def reduce_runs(request: ReduceRequest) -> ReductionResult | SweepResult:
@@ -617,6 +631,7 @@ def reduce_runs(request: ReduceRequest) -> ReductionResult | SweepResult:
             device=request.device,
             threads=request.threads if request.threads is not None else 1,
             command=request.command,
+            figure_format=request.figure_format,
         )
         return compression_sweep(
             plan, workers=request.workers, scheduler=request.scheduler, progress=request.progress
@@ -638,6 +653,7 @@ def reduce_runs(request: ReduceRequest) -> ReductionResult | SweepResult:
         threads=request.threads,
         resume=request.resume,
         command=request.command,
+        figure_format=request.figure_format,
     )
     return reduce_one(job, progress=request.progress)
 

@@ -63,7 +63,7 @@ from canonid.datagen.scenarios import scenario_names
 from canonid.jobs import check_folder
 from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import CheckpointError, DataError, OptionError
-from canonid.kernel.io import atomic_write_json, jsonable, read_json
+from canonid.kernel.io import atomic_write_json, figure_name, jsonable, read_json
 from canonid.learning import Model, model_names
 from canonid.learning.presets import net_options
 from canonid.paper import table1_value
@@ -87,6 +87,7 @@ __all__ = [
     "AnalysisJob",
     "DatasetInfo",
     "JobOutcome",
+    "ReproduceRequest",
     "ReproduceSettings",
     "Reproduction",
     "TrainJob",
@@ -125,8 +126,10 @@ class ReproduceSettings:
         progress: progress bars on stderr.
         device: torch device of the training jobs.
         command: the command line that asked for it (shown in the report).
-        figure_format: the file format of the report's figures (``figures/``): ``png``, or
-            ``pdf`` (with a PNG twin that the HTML page shows) or ``svg``.
+        figure_format: the file format of every figure: the report's (``figures/``): ``png``,
+            or ``pdf`` (with a PNG twin that the HTML page shows) or ``svg``; and the jobs'
+            (runs, analyses, compression study), which the page shows (SVG) or links (PDF); a
+            job finished before keeps the figures it wrote.
     """
 
     profile: str
@@ -167,6 +170,7 @@ class ReproduceSettings:
                 raise OptionError(f"{name} must be a non-empty list without repeats: {values}")
         if self.workers < 0:
             raise OptionError(f"workers must be an integer >= 0, got {self.workers}")
+        figure_name("figure", self.figure_format)  # an unknown format, before any job
 
 
 def settings_from_profile(
@@ -205,6 +209,30 @@ def settings_from_profile(
         command=command,
         figure_format=figure_format,
     )
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReproduceRequest:
+    """``canonid reproduce`` as asked: the arguments of :func:`settings_from_profile` (``None``
+    keeps the profile's value), ``command`` the command line as its words."""
+
+    profile: str
+    out: Path
+    systems: Sequence[str] | None = None
+    windows: Sequence[int] | None = None
+    models: Sequence[str] | None = None
+    seeds: int | None = None
+    workers: int = 0
+    scheduler: str | None = None
+    resume: bool = False
+    progress: bool = True
+    device: str = "auto"
+    command: tuple[str, ...] = ()
+    figure_format: str = "png"
+
+    def settings(self) -> ReproduceSettings:
+        fields = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        return settings_from_profile(**{**fields, "command": " ".join(self.command) or None})
 
 
 # ------------------------------------------------------------------------------ datasets
@@ -307,7 +335,14 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
         unknown = sorted(set(analysis) - ANALYSIS_KEYS)
         if unknown:
             raise OptionError(f"reproduce stage, analysis.{system}: unknown key(s) {unknown}")
-        jobs.append(AnalysisJob(system, str(out / "analysis" / system), dict(analysis)))
+        jobs.append(
+            AnalysisJob(
+                system,
+                str(out / "analysis" / system),
+                dict(analysis),
+                figure_format=settings.figure_format,
+            )
+        )
     for system in settings.systems:
         info = datasets[system]
         for model in settings.models:
@@ -337,6 +372,7 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
                             net_options=net_options(
                                 model, networks.get(system, {}).get(model, {}), paper=True
                             ),
+                            figure_format=settings.figure_format,
                         )
                     )
     return jobs
@@ -645,6 +681,7 @@ def compression_study(
             profile=settings.profile,
             epochs=spec.get("epochs"),
             device=settings.device,
+            figure_format=settings.figure_format,
         )
         sweep = compression_sweep(
             plan,

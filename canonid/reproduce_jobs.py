@@ -19,6 +19,7 @@ from canonid.analysis.estimate import Budget
 from canonid.analysis.report import analyze
 from canonid.jobs import RESULT_FILE, JobOutcome, StoredJob, finished, run_job, store
 from canonid.kernel.errors import OptionError
+from canonid.kernel.io import figure_name
 from canonid.learning.training import CHECKPOINT_FILE
 from canonid.models.registry import get_system
 from canonid.models.sets import Box
@@ -44,8 +45,10 @@ class TrainJob(StoredJob):
     and ``data``: a shared file system on a cluster).
 
     The folder is a ``canonid train`` run folder (``run.json``, the model, ``checkpoint.pt``,
-    ``history.csv``, ``training_curve.png``, ``metrics.json``, ``rollouts.png``), so ``canonid
-    evaluate``, ``canonid analyze --run`` and ``canonid reduce`` read it unchanged.
+    ``history.csv``, ``training_curve.png``, ``metrics.json``, ``rollouts.png``; the figures in
+    ``figure_format``, which is not part of the recipe: a finished job keeps the figures it
+    wrote), so ``canonid evaluate``, ``canonid analyze --run`` and ``canonid reduce`` read it
+    unchanged.
     """
 
     system: str
@@ -60,6 +63,7 @@ class TrainJob(StoredJob):
     evaluation: Mapping[str, Any]
     net_options: Mapping[str, Any] = field(default_factory=dict)
     threads: int | None = 1
+    figure_format: str = "png"
     kind: ClassVar[str] = "train"
 
     @property
@@ -103,6 +107,7 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
         resume=resume,
         eval_horizon=int(job.evaluation["horizon"]),
         eval_stride=int(job.evaluation["stride"]),
+        figure_format=job.figure_format,
     )
     scores, fitted = run.evaluation.scores, run.fit
     return {
@@ -127,13 +132,15 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
 class AnalysisJob(StoredJob):
     """The analysis of one system (:func:`canonid.analysis.report.analyze`): γ_f, γ_h, α_ℓ brackets
     and the Monte-Carlo check of Proposition 2 for each window, with the profile's budget; writes
-    ``analysis.json`` and ``bound_vs_window.png`` into ``folder``."""
+    ``analysis.json`` and ``bound_vs_window.png`` (``figure_format``, not part of the recipe)
+    into ``folder``."""
 
     system: str
     folder: str
     settings: Mapping[str, Any]
     seed: int = 0
     threads: int | None = None
+    figure_format: str = "png"
     kind: ClassVar[str] = "analysis"
 
     @property
@@ -176,7 +183,8 @@ def _analyse(job: AnalysisJob, folder: Path) -> dict[str, Any]:
     )
     folder.mkdir(parents=True, exist_ok=True)
     report.write_json(folder / "analysis.json")
-    figure = report.figure(folder / "bound_vs_window.png") if report.checks else None
+    name = figure_name("bound_vs_window", job.figure_format)
+    figure = report.figure(folder / name) if report.checks else None
     rows = []
     for r in report.results:
         c = r.check

@@ -42,8 +42,13 @@ from typing import Any, ClassVar, TypeAlias, TypeVar
 from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
 from canonid.jobs import run_folder_lock
 from canonid.kernel.dataset import Dataset, Trajectory
-from canonid.kernel.errors import CheckpointError, DataError, OptionError, OutputError
-from canonid.kernel.io import FIGURE_FORMATS, atomic_write_json, atomic_write_text, read_json
+from canonid.kernel.errors import CheckpointError, DataError, OutputError
+from canonid.kernel.io import (
+    atomic_write_json,
+    atomic_write_text,
+    figure_name,
+    read_json,
+)
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, fit
 from canonid.learning.evaluate import default_n_init, evaluate
 from canonid.learning.plots import plot_rollouts, plot_training_curve
@@ -626,12 +631,9 @@ FIGURES = ("training_curve", "rollouts")
 
 
 def figure_file(name: str, figure_format: str) -> str:
-    """The file name of figure ``name`` (one of :data:`FIGURES`) in ``figure_format``."""
-    if figure_format not in FIGURE_FORMATS:
-        raise OptionError(
-            f"--figure-format {figure_format!r}: expected one of {', '.join(FIGURE_FORMATS)}"
-        )
-    return f"{name}.{figure_format}"
+    """The file name of figure ``name`` (one of :data:`FIGURES`, or another figure a command
+    writes) in ``figure_format`` (:func:`canonid.kernel.io.figure_name`)."""
+    return figure_name(name, figure_format)
 
 
 def write_history(

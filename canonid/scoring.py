@@ -80,6 +80,17 @@ class Scored:
     metrics: Mapping[str, Any]
     reused: bool
 
+    def summary(self) -> str:
+        """What ``canonid evaluate`` prints: the scores and where they are."""
+        from canonid.runfolder import METRICS_FILE
+
+        where = (
+            f"already evaluated: {self.folder} (remove it to score again)"
+            if self.reused
+            else f"metrics written to {self.folder / METRICS_FILE}"
+        )
+        return f"{metrics_table(self.metrics)}\n{where}"
+
 
 def score_run(request: EvaluateRequest) -> Scored:
     """Score the model of ``request.run`` into ``RUN/evaluations/NAME`` (see the module

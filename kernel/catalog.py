@@ -26,6 +26,7 @@ __all__ = [
     "PAPER_NET_OPTIONS",
     "model_label",
     "net_options",
+    "preset_word",
 ]
 
 #: the registered identification models, in table order (:func:`canonid.learning.model_names`)
@@ -77,3 +78,10 @@ def net_options(
     updated with ``overrides``."""
     base = (PAPER_NET_OPTIONS if paper else DEFAULT_NET_OPTIONS).get(model, {})
     return {**copy.deepcopy(base), **dict(overrides or {})}
+
+
+def preset_word(model: str, option: str) -> str:
+    """The default of ``model``'s option ``option`` as ``--help`` says it: ``on`` / ``off`` for
+    a boolean, else the value (``auto``, ``silu``), read from :data:`DEFAULT_NET_OPTIONS`."""
+    value = DEFAULT_NET_OPTIONS[model][option]
+    return ("on" if value else "off") if isinstance(value, bool) else str(value)

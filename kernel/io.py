@@ -33,7 +33,7 @@ from typing import IO, Any, Protocol
 
 import numpy as np
 
-from canonid.kernel.errors import DataError, OutputError
+from canonid.kernel.errors import DataError, OptionError, OutputError
 
 __all__ = [
     "FIGURE_FORMATS",
@@ -42,6 +42,7 @@ __all__ = [
     "atomic_write_figure",
     "atomic_write_json",
     "atomic_write_text",
+    "figure_name",
     "jsonable",
     "npz_bytes",
     "read_json",
@@ -94,6 +95,17 @@ def atomic_copy(
 
 #: the file formats figures are written in (``--figure-format``); the first is the default
 FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def figure_name(name: str, figure_format: str) -> str:
+    """``name.FORMAT``, the file name of a figure in ``figure_format``; an unknown format is
+    refused in one line naming ``--figure-format``."""
+    if figure_format not in FIGURE_FORMATS:
+        raise OptionError(
+            f"--figure-format {figure_format!r}: expected one of {', '.join(FIGURE_FORMATS)}"
+        )
+    return f"{name}.{figure_format}"
+
 
 #: per format, the metadata that leaves out the writer's software and date stamps
 _UNSTAMPED: dict[str, dict[str, None]] = {

@@ -254,16 +254,16 @@ def test_only_the_command_line_imports_the_commands():
     assert not offenders, offenders
 
 
-#: what the commands may import: the standard library's argument and text helpers, the
-#: commands' own helpers, the kernel, and the application modules they call (never a library
-#: layer — canonid.learning, datagen, analysis, models — directly)
+#: what the commands may import, by name: the standard library's argument and text helpers, the
+#: commands' own helpers, the kernel's plain names (errors, the catalog, the figure formats), and
+#: the application modules they call (never a library layer — canonid.learning, datagen,
+#: analysis, models — nor another kernel module directly)
 COMMAND_IMPORTS = {
     "__future__",
     "argparse",
     "importlib",
     "logging",
     "os",
-    "shlex",
     "sys",
     "collections.abc",
     "dataclasses",
@@ -271,10 +271,12 @@ COMMAND_IMPORTS = {
     "types",
     "typing",
 }
+COMMAND_KERNEL = {"canonid.kernel.catalog", "canonid.kernel.errors", "canonid.kernel.io"}
 COMMAND_APPLICATION = {
     "canonid",
     "canonid.benchmark",
     "canonid.generation",
+    "canonid.jobs",
     "canonid.learned",
     "canonid.profiles",
     "canonid.reduction",
@@ -284,19 +286,48 @@ COMMAND_APPLICATION = {
     "canonid.theory",
     "canonid.training",
 }
+#: the most lines ``commands/`` may hold: a command parses, calls the application and prints
+COMMAND_LINES = 1_150
+
+
+def _command_modules() -> dict[str, Path]:
+    return {
+        m: p for m, p in MODULES.items() if m.startswith("canonid.commands") or m == "canonid.cli"
+    }
 
 
 def test_the_commands_import_only_the_application_and_the_kernel():
     offenders = [
         f"{module} imports {target}"
-        for module, path in MODULES.items()
-        if module.startswith("canonid.commands") or module == "canonid.cli"
+        for module, path in _command_modules().items()
         for target, _ in _imports(path)
-        if target not in COMMAND_IMPORTS
-        and target not in COMMAND_APPLICATION
-        and not target.startswith(("canonid.commands", "canonid.kernel"))
+        if target not in COMMAND_IMPORTS | COMMAND_KERNEL | COMMAND_APPLICATION
+        and not target.startswith("canonid.commands")
     ]
     assert not offenders, offenders
+
+
+def test_a_command_module_registers_and_runs_only():
+    """A subcommand's module defines ``register`` and ``run`` (``train`` also ``request``, which
+    ``benchmark`` reads ``--train-args`` with) and private argparse helpers; the rules and the
+    printing live in the application."""
+    allowed = {"register", "run", "request", "train_request"}
+    offenders = [
+        f"{module}.{node.name}"
+        for module, path in _command_modules().items()
+        if module.split(".")[-1] in command_names()
+        for node in ast.parse(path.read_text(encoding="utf-8")).body
+        if isinstance(node, ast.FunctionDef | ast.ClassDef)
+        and not node.name.startswith("_")
+        and node.name not in allowed
+    ]
+    assert not offenders, offenders
+
+
+def test_the_commands_stay_thin():
+    files = sorted((ROOT / "canonid" / "commands").glob("*.py"))
+    lines = sum(len(p.read_text(encoding="utf-8").splitlines()) for p in files)
+    assert lines <= COMMAND_LINES, f"canonid/commands/ holds {lines} lines"
 
 
 @pytest.mark.parametrize("command", [None, *command_names()])

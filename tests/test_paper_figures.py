@@ -210,3 +210,62 @@ def test_the_html_report_has_no_raw_markdown(tmp_path):
     assert "**" not in visible and "`" not in visible
     assert "<table>" in page and "<caption>against <em>measured</em> y</caption>" in page
     assert "data:image/svg+xml;base64," in page and '<a href="f.pdf">f.pdf</a>' in page
+
+
+def _starts(path, fmt: str) -> bool:
+    """``path`` holds a figure in ``fmt``: a PDF's magic, an SVG's ``<svg`` element."""
+    data = path.read_bytes()
+    return data.startswith(MAGIC[fmt]) and (fmt != "svg" or b"<svg" in data)
+
+
+def test_reduce_writes_every_figure_in_the_format_asked(dataset_path, tmp_path):
+    run = tmp_path / "run"
+    argv = ["train", str(dataset_path), "--window", "3", "--epochs", "2", "--out", str(run)]
+    assert main([*argv, "--no-progress", "--device", "cpu"]) == 0
+    one = tmp_path / "one"
+    argv = ["reduce", str(run), "--profile", "tiny", "--epochs", "2", "--device", "cpu"]
+    argv += ["--no-progress"]
+    assert main([*argv, "--compression", "0.5", "--out", str(one), "--figure-format", "pdf"]) == 0
+    for name in ("training_curve", "rollouts", "reduced_vs_full"):
+        assert _starts(one / f"{name}.pdf", "pdf"), name
+    assert not list(one.glob("*.png"))
+    study = tmp_path / "study"
+    sweep = ["--sweep", "--rates", "0.5", "--seeds", "1", "--out", str(study)]
+    assert main([*argv, *sweep, "--figure-format", "svg"]) == 0
+    assert _starts(study / "heatmap.svg", "svg") and _starts(study / "reduced_mse.svg", "svg")
+    assert not list(study.rglob("*.png"))
+
+
+def test_generate_plots_in_the_format_asked(tmp_path):
+    out = tmp_path / "tank"
+    argv = ["generate", "tank", "--out", str(out), "--n-train", "1", "--n-val", "1", "--n-test"]
+    assert main([*argv, "1", "--no-progress", "--plot", "--figure-format", "svg"]) == 0
+    assert _starts(out / "flights.svg", "svg") and not (out / "flights.png").exists()
+
+
+def test_benchmark_writes_its_figures_in_the_format_asked_and_keeps_the_option(tmp_path, capsys):
+    from test_benchmarks import write_benchmark
+
+    write_benchmark("cascaded-tanks", tmp_path / "files")
+    run = tmp_path / "run"
+    argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path / "files"), "--out", str(run)]
+    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
+    assert main([*argv, "--figure-format", "pdf"]) == 0
+    parts = json.loads((run / "benchmark.json").read_text())["scores"]
+    names = ["training_curve", "rollouts", *(f"benchmark-{p['test']}" for p in parts)]
+    assert all(_starts(run / f"{name}.pdf", "pdf") for name in names)
+    assert not list(run.glob("*.png"))
+    capsys.readouterr()
+    assert main([*argv, "--train-args=--figure-format svg"]) == 1  # the benchmark's own option
+    assert "--figure-format set by canonid benchmark itself" in capsys.readouterr().err
+
+
+def test_reproduce_jobs_follow_its_figure_format(tmp_path):
+    import canonid.reproduce as rp
+
+    info = rp.DatasetInfo("tank", tmp_path / "d.npz", {}, "abc", {}, reused=False, seconds=0.0)
+    settings = rp.settings_from_profile("tiny", out=tmp_path, figure_format="svg")
+    jobs = rp.plan_jobs(settings, {"tank": info})
+    assert jobs and all(job.figure_format == "svg" for job in jobs)
+    png = rp.plan_jobs(rp.settings_from_profile("tiny", out=tmp_path), {"tank": info})
+    assert [job.recipe() for job in jobs] == [job.recipe() for job in png]  # a finished job stays

@@ -1,7 +1,8 @@
 """Command-line options that several commands share, each written once: where the jobs run,
 the profile, the torch device (no import of torch: ``canonid generate`` uses it), the figures'
-file format, threads, progress, ``--resume``; comma-separated lists, former option names kept
-as deprecated aliases; and the typed request built from the parsed options."""
+file format, threads, progress, ``--resume``, ``--out``, the CSV loader options; comma-separated
+lists, former option names kept as deprecated aliases; and the typed request built from the
+parsed options."""
 
 from __future__ import annotations
 
@@ -12,17 +13,20 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
 
-from canonid.kernel.errors import OptionError
+from canonid.jobs import resume_target
 from canonid.kernel.io import FIGURE_FORMATS
 
 __all__ = [
     "Items",
+    "add_data_options",
     "add_device",
     "add_figure_format",
     "add_former",
     "add_no_progress",
+    "add_out",
     "add_profile",
     "add_resume",
+    "add_run_data",
     "add_threads",
     "add_where",
     "comma_list",
@@ -121,14 +125,38 @@ def add_resume(parser: Any, *, what: str, path: bool = False) -> None:
 
 def resumed(args: argparse.Namespace) -> dict[str, Path | None]:
     """The ``resume`` and ``out`` fields of a request from ``--resume [RUN]`` and ``--out``
-    (:func:`add_resume` with ``path``): the folder a run continues in, then no other ``--out``."""
-    if args.resume is None:
-        return {"resume": None, "out": args.out}
-    if args.resume is not True:  # --resume RUN
-        return {"resume": Path(args.resume), "out": args.out}
-    if args.out is None:
-        raise OptionError("--resume continues the run in --out: give --out RUN")
-    return {"resume": args.out, "out": None}
+    (:func:`add_resume` with ``path``; the rule: :func:`canonid.jobs.resume_target`)."""
+    resume, out = resume_target(args.resume, args.out)
+    return {"resume": resume, "out": out}
+
+
+def folder(text: str) -> Path:
+    """argparse type of ``--out``: a path, not an empty string (which would mean the current
+    folder without saying so); the application checks it before any work is done
+    (:func:`canonid.jobs.check_folder`)."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("expected a folder, got an empty string")
+    return Path(text)
+
+
+def add_run_data(parser: Any, help: str) -> None:
+    """``--data FILE``: data other than those the run of ``RUN`` recorded (``help``: for what)."""
+    parser.add_argument("--data", type=Path, metavar="FILE", help=help)
+
+
+def add_out(
+    parser: Any,
+    default: str,
+    *,
+    what: str = "output folder",
+    metavar: str | None = None,
+    value: Path | None = None,
+) -> None:
+    """``--out``: ``what`` (a folder) with the ``default`` the help states; ``value`` is the
+    default where the command has a fixed one, else ``None`` lets the application choose."""
+    parser.add_argument(
+        "--out", type=folder, metavar=metavar, default=value, help=f"{what} (default {default})"
+    )
 
 
 class _Former(argparse.Action):
@@ -185,6 +213,77 @@ class Items(argparse.Action):
 
 def request(kind: type[_Request], args: argparse.Namespace, **given: Any) -> _Request:
     """The application's request ``kind`` (a dataclass): every field that an option of the same
-    name (its argparse ``dest``) holds in ``args``, but those that ``given`` sets."""
+    name (its argparse ``dest``) holds in ``args``, and those the shared options imply where
+    ``kind`` has them (``progress``: not ``--no-progress``; ``command``: this command line;
+    ``data_options``: :func:`add_data_options`), but those that ``given`` sets."""
     names = {f.name for f in dataclasses.fields(kind) if f.init} - given.keys()  # type: ignore[arg-type]
-    return kind(**{n: getattr(args, n) for n in names if hasattr(args, n)}, **given)
+    values = {n: getattr(args, n) for n in names if hasattr(args, n)}
+    if hasattr(args, "no_progress"):
+        values["progress"] = not args.no_progress
+    if hasattr(args, "inputs"):
+        values["data_options"] = data_options(args)
+    values["command"] = ("canonid", *sys.argv[1:])
+    return kind(**{n: v for n, v in values.items() if n in names}, **given)
+
+
+def _columns(text: str) -> list[str]:
+    cols = [c.strip() for c in text.split(",") if c.strip()]
+    if not cols:
+        raise argparse.ArgumentTypeError("expected COL[,COL...]")
+    return cols
+
+
+def _column(text: str) -> str:
+    """A column name; ``none`` (or nothing) switches the column off: ``""``."""
+    return "" if text.strip().lower() in ("", "none") else text.strip()
+
+
+#: the CSV loader options (:data:`canonid.runfolder.DATA_FLAGS`): flag, type, metavar, what it
+#: sets and its default for a new run (``None``: required for CSV data)
+DATA_OPTIONS: tuple[tuple[str, Callable[[str], Any], str, str, str | None], ...] = (
+    ("--inputs", _columns, "COL,...", "input columns", None),
+    ("--outputs", _columns, "COL,...", "output columns", None),
+    (
+        "--experiment-column",
+        _column,
+        "COL|none",
+        "column whose value names the experiment of each row; its rows must be contiguous",
+        "none: one experiment per file",
+    ),
+    (
+        "--time-column",
+        _column,
+        "COL|none",
+        "column of sample times in seconds: gives dt, its steps checked uniform, and warns where "
+        "it goes back (records joined)",
+        "a column named t or time, if any",
+    ),
+    (
+        "--dt",
+        float,
+        "SECONDS",
+        "sampling time (CSV, .npz)",
+        "the time column's step; required without one",
+    ),
+)
+
+
+def add_data_options(parser: argparse.ArgumentParser, *, recorded: bool = False) -> None:
+    """The loader options; ``recorded``: they default to those the run recorded (evaluate)."""
+    g = parser.add_argument_group(
+        "CSV data of --data FILE" if recorded else "CSV data",
+        "Each option defaults to the one the run recorded in RUN/run.json; give one to override "
+        "it, 'none' to switch a column off."
+        if recorded
+        else "A .csv file, or a folder of them (one experiment each).",
+    )
+    for flag, kind, metavar, what, default in DATA_OPTIONS:
+        given = "the run's" if recorded else default
+        tail = f" (default: {given})" if given else " (required for CSV data)"
+        g.add_argument(flag, type=kind, metavar=metavar, help=what + tail)
+
+
+def data_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The loader options given on the command line (``None`` where not given)."""
+    names = [flag[2:].replace("-", "_") for flag, *_ in DATA_OPTIONS]
+    return {name: getattr(args, name) for name in names}

@@ -1,13 +1,5 @@
-"""``canonid analyze`` — the theory, numerically: γ_f, γ_h, α_ℓ brackets and Proposition 2.
-
-Through :func:`canonid.theory.run_analysis`. Writes ``analysis.json`` (schema:
-:data:`canonid.analysis.report.SCHEMA`, copied into the file), the
-figure ``bound_vs_window.png`` ("bound and observed error versus ℓ", log scale) and prints a
-table. Without a system, ``--run RUN`` analyses the learned model alone (data with no registered
-true system, e.g. measurements): γ_f of its ``f`` in z on its training hull, written to
-``learned_analysis.json``. Sets are given as ``lo:hi`` per component separated by commas
-(``--X 0.05:5,0.05:5``); one ``lo:hi`` applies to every component.
-"""
+"""``canonid analyze`` — the theory, numerically: γ_f, γ_h, α_ℓ brackets and Proposition 2
+(:func:`canonid.theory.run_analysis`, whose module says what is written)."""
 
 from __future__ import annotations
 
@@ -16,10 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _options, _paths
+from canonid.commands import _options
 from canonid.theory import AnalyzeRequest, run_analysis
-
-__all__ = ["register", "run"]
 
 
 def register(sub: Any) -> None:
@@ -102,18 +92,12 @@ def register(sub: Any) -> None:
         "interval branch-and-bound within --budget, product of layer norms; about a minute "
         "for a 3 × 256 network); always on without SYSTEM",
     )
-    p.add_argument(
-        "--data",
-        type=Path,
-        metavar="FILE",
-        help="data for --run: a canonid dataset, or CSV / .npz read with the run's data options "
+    _options.add_run_data(
+        p,
+        "data for --run: a canonid dataset, or CSV / .npz read with the run's data options "
         "(default: the run's own data, split as training split them)",
     )
-    p.add_argument(
-        "--out",
-        type=_paths.folder,
-        help="output folder (default runs/analyze-SYSTEM, or RUN/analysis without SYSTEM)",
-    )
+    _options.add_out(p, "runs/analyze-SYSTEM, or RUN/analysis without SYSTEM")
     _options.add_figure_format(p)
     _options.add_no_progress(p)
     _options.add_former(p, "--quiet", "--no-progress")
@@ -121,8 +105,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    request = _options.request(AnalyzeRequest, args, progress=not args.no_progress)
-    outcome = run_analysis(request)
+    outcome = run_analysis(_options.request(AnalyzeRequest, args))
     print(outcome.text)
     warning = outcome.warning()
     if warning:

@@ -1,25 +1,7 @@
-"""``canonid benchmark NAME`` — train on a standard benchmark's official training part and score
-every official test part by the official rule; ``canonid benchmark --list`` shows the benchmarks.
-
-The run folder is a normal ``canonid train`` run (``evaluate``, ``analyze --run`` and ``reduce``
-take it) plus:
-
-* ``benchmark-data.npz`` / ``.json``: the benchmark as a canonid dataset, the data the run was
-  trained on: split ``train`` = the first 80 % (``--val-fraction``) of every official training
-  record, ``val`` = the rest of each record, ``test`` = the official test parts in order;
-* ``benchmark.json``: the scores (:class:`canonid.benchmark.BenchmarkReport`), each
-  ``{"test", "rmse", "units", "n_init", "n_scored"}``, and the published baselines shown;
-* ``benchmark-<part>.png``: the simulation of each test part.
-
-Training is ``canonid train``'s (:func:`canonid.training.train`): ``--train-args`` is read by its
-own parser into the :class:`~canonid.training.TrainRequest` that the benchmark completes, so every
-default of ``canonid train`` applies and any of its options can be set (spelt out in full; the
-options the benchmark sets itself are refused in any spelling).
-
-An interrupted benchmark is finished by running the same command again, or by ``--resume --out
-RUN`` (``canonid train --resume``'s rule: only the options a resumed run may change are given, in
-``--train-args``).
-"""
+"""``canonid benchmark NAME`` — train on a standard benchmark's official training part as
+``canonid train`` does and score every official test part by the official rule
+(:func:`canonid.benchmark.run_benchmark`, which says what is written); ``--train-args`` is read by
+``canonid train``'s own parser, so all its defaults apply."""
 
 from __future__ import annotations
 
@@ -38,13 +20,11 @@ from canonid.benchmark import (
     run_benchmark,
     train_args,
 )
-from canonid.commands import _options, _paths, train
+from canonid.commands import _options, train
 from canonid.kernel.catalog import MODEL_NAMES
 from canonid.kernel.errors import OptionError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import TrainRequest
-
-__all__ = ["register", "run"]
 
 
 def register(sub: Any) -> None:
@@ -76,11 +56,10 @@ def register(sub: Any) -> None:
     _options.add_profile(
         p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
     )
-    p.add_argument(
-        "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/NAME-MODEL)"
-    )
+    _options.add_out(p, "runs/NAME-MODEL", what="run folder", metavar="RUN")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     _options.add_threads(p)
+    _options.add_figure_format(p)
     p.add_argument(
         "--val-fraction",
         type=float,

@@ -1,11 +1,5 @@
-"""``canonid evaluate`` — score a trained run on test data, beside what training wrote.
-
-Reads the model of ``RUN`` and either the data it was trained on, split again exactly as
-training split them (``RUN/run.json``), or ``--data FILE`` read with the run's data options,
-each overridable (a CSV or ``.npz`` file's records form the split ``all``); scores the ``test``
-split (else ``val``, or ``--split``) with :func:`canonid.scoring.score_run` into
-``RUN/evaluations/NAME/`` (``metrics.json``, ``rollouts.png``) and prints a short table.
-"""
+"""``canonid evaluate`` — score a trained run on test data, beside what training wrote
+(:func:`canonid.scoring.score_run`)."""
 
 from __future__ import annotations
 
@@ -13,10 +7,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _data, _options
-from canonid.scoring import EvaluateRequest, metrics_table, score_run
-
-__all__ = ["register", "run"]
+from canonid.commands import _options
+from canonid.scoring import EvaluateRequest, score_run
 
 
 def register(sub: Any) -> None:
@@ -32,12 +24,10 @@ def register(sub: Any) -> None:
         ),
     )
     p.add_argument("run", type=Path, metavar="RUN", help="run folder written by canonid train")
-    p.add_argument(
-        "--data",
-        type=Path,
-        metavar="FILE",
-        help="data (default: the run's data, split as training split them); the CSV options "
-        "below default to those the run recorded",
+    _options.add_run_data(
+        p,
+        "data (default: the run's data, split as training split them); the CSV options below "
+        "default to those the run recorded",
     )
     p.add_argument(
         "--split",
@@ -63,16 +53,10 @@ def register(sub: Any) -> None:
         "minus one, or what the data name; the rule of canonid.evaluate too)",
     )
     _options.add_figure_format(p)
-    _data.add_data_options(p, recorded=True)
+    _options.add_data_options(p, recorded=True)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    request = _options.request(EvaluateRequest, args, data_options=_data.data_options(args))
-    scored = score_run(request)
-    print(metrics_table(scored.metrics))
-    if scored.reused:
-        print(f"already evaluated: {scored.folder} (remove it to score again)")
-    else:
-        print(f"metrics written to {scored.folder / 'metrics.json'}")
+    print(score_run(_options.request(EvaluateRequest, args)).summary())
     return 0

@@ -1,13 +1,5 @@
-"""``canonid export RUN --casadi FILE`` — a trained canonical model as a CasADi Function.
-
-Writes ``FILE``, the serialised ``casadi.Function`` ``learned_model(x, u) -> (x_next, y)`` of
-:class:`canonid.models.learned.LearnedSystem` (load it with ``casadi.Function.load(FILE)``), and
-``FILE.json`` beside it: dimensions, names, units, ``dt``, the sets X, U, W and how the state is
-filled from measured data. For a reduced model it also writes ``FILE`` with the suffix
-``.encoder.casadi``: ``encode(z) -> x``, the reduced state of a measured window (physical units).
-Only canonical models export (Ours (MLP), Ours (GRU) and their reduced models); the others
-are refused.
-"""
+"""``canonid export RUN --casadi FILE`` — a trained canonical model as a CasADi Function
+(:func:`canonid.learned.export_casadi`, which says what is written)."""
 
 from __future__ import annotations
 
@@ -15,7 +7,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-__all__ = ["register", "run"]
+from canonid.commands import _options
 
 
 def register(sub: Any) -> None:
@@ -37,11 +29,8 @@ def register(sub: Any) -> None:
         required=True,
         help="the .casadi file to write (FILE.json is written beside it)",
     )
-    p.add_argument(
-        "--data",
-        type=Path,
-        metavar="FILE",
-        help="data for the sets X, U, W (default: the training data named in RUN/run.json)",
+    _options.add_run_data(
+        p, "data for the sets X, U, W (default: the training data named in RUN/run.json)"
     )
     p.set_defaults(func=run)
 

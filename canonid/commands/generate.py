@@ -1,18 +1,13 @@
-"""``canonid generate`` — closed-loop datasets (tank PID, planar-drone NMPC).
-
-Flights run serially, on a local Dask cluster (``--workers N``) or on an existing one
-(``--scheduler ADDRESS``): :func:`canonid.generation.generate`.
-"""
+"""``canonid generate`` — closed-loop datasets (tank PID, planar-drone NMPC):
+:func:`canonid.generation.generate`."""
 
 from __future__ import annotations
 
 import argparse
 from typing import Any
 
-from canonid.commands import _options, _paths
+from canonid.commands import _options
 from canonid.generation import GenerateRequest, generate, scenario_names
-
-__all__ = ["register", "run"]
 
 SPLITS = ("train", "val", "test")
 
@@ -28,12 +23,7 @@ def register(sub: Any) -> None:
         "system",
         help=f"the scenario: a system or a named design ({', '.join(scenario_names())})",
     )
-    p.add_argument(
-        "--out",
-        type=_paths.folder,
-        metavar="DIR",
-        help="output folder (default runs/data/SYSTEM-sSEED)",
-    )
+    _options.add_out(p, "runs/data/SYSTEM-sSEED", metavar="DIR")
     p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
     for split in SPLITS:
         p.add_argument(
@@ -92,16 +82,12 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--plot", action="store_true", help="plot a few flights against their references"
     )
+    _options.add_figure_format(p)
     _options.add_no_progress(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    request = _options.request(
-        GenerateRequest,
-        args,
-        counts={k: n for k in SPLITS if (n := getattr(args, f"n_{k}")) is not None},
-        progress=not args.no_progress,
-    )
-    print(generate(request))
+    counts = {k: n for k in SPLITS if (n := getattr(args, f"n_{k}")) is not None}
+    print(generate(_options.request(GenerateRequest, args, counts=counts)))
     return 0

@@ -1,21 +1,14 @@
-"""``canonid reduce`` — compress the state of a trained canonical model with an auto-encoder.
-
-``canonid reduce RUN --compression R`` trains one reduced model and writes its run folder (see
-:mod:`canonid.reduction`); ``canonid reduce RUN [RUN ...] --sweep`` runs the compression study
-over rates and seeds and writes its figures.
-"""
+"""``canonid reduce`` — compress the state of a trained canonical model with an auto-encoder:
+one reduction or the compression study (:func:`canonid.reduction.reduce_runs`)."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _options, _paths
+from canonid.commands import _options
 from canonid.profiles import DEFAULT_PROFILE, profile_names
-
-__all__ = ["register", "run"]
 
 
 def _rate(text: str) -> float:
@@ -46,12 +39,7 @@ def register(sub: Any) -> None:
     )
     mode.add_argument("--sweep", action="store_true", help="the compression study")
     _options.add_profile(p, profile_names(), what="budget", default=DEFAULT_PROFILE)
-    p.add_argument(
-        "--out",
-        type=_paths.folder,
-        metavar="DIR",
-        help="output folder (default: RUN-r<rate> beside RUN; runs/compression-sweep)",
-    )
+    _options.add_out(p, "RUN-r<rate> beside RUN; runs/compression-sweep", metavar="DIR")
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
     p.add_argument(
         "--linear-skip",
@@ -68,6 +56,7 @@ def register(sub: Any) -> None:
     _options.add_device(p, what="torch device")
     _options.add_threads(p, per=" per job")
     _options.add_resume(p, what="reduction")
+    _options.add_figure_format(p)
     g = p.add_argument_group("compression study (--sweep)")
     g.add_argument(
         "--rates",
@@ -86,11 +75,5 @@ def register(sub: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     from canonid.reduction import ReduceRequest, reduce_runs  # torch, matplotlib
 
-    request = _options.request(
-        ReduceRequest,
-        args,
-        progress=not args.no_progress,
-        command=("canonid", *sys.argv[1:]),
-    )
-    print(reduce_runs(request).summary())
+    print(reduce_runs(_options.request(ReduceRequest, args)).summary())
     return 0

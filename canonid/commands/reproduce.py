@@ -1,20 +1,14 @@
-"""``canonid reproduce`` — the paper's Table 1, figures and report in one command.
-
-A thin shell over :func:`canonid.reproduce.reproduce`: the options override the profile's
-``reproduce`` stage (:mod:`canonid.profiles`); the command prints where the report went.
-"""
+"""``canonid reproduce`` — the paper's Table 1, figures and report in one command
+(:func:`canonid.reproduce.reproduce`; the options override the profile's ``reproduce`` stage)."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
-from canonid.commands import _options, _paths
+from canonid.commands import _options
 from canonid.profiles import DEFAULT_PROFILE, profile_names
-
-__all__ = ["register", "run"]
 
 
 def register(sub: Any) -> None:
@@ -52,12 +46,7 @@ def register(sub: Any) -> None:
         metavar="N",
         help="training seeds per cell, 0 … N−1 (default: the profile's)",
     )
-    p.add_argument(
-        "--out",
-        type=_paths.folder,
-        default=Path("runs/reproduce"),
-        help="output folder (default runs/reproduce)",
-    )
+    _options.add_out(p, "runs/reproduce", value=Path("runs/reproduce"))
     _options.add_where(p, jobs="run the jobs", sees="OUT")
     _options.add_resume(p, what="reproduction")
     _options.add_device(p, what="torch device of the training jobs")
@@ -67,22 +56,7 @@ def register(sub: Any) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from canonid.reproduce import reproduce, settings_from_profile  # torch, CasADi
+    from canonid.reproduce import ReproduceRequest, reproduce  # torch, CasADi
 
-    settings = settings_from_profile(
-        args.profile,
-        out=args.out,
-        systems=args.systems,
-        windows=args.windows,
-        models=args.models,
-        seeds=args.seeds,
-        workers=args.workers,
-        scheduler=args.scheduler,
-        resume=args.resume,
-        progress=not args.no_progress,
-        device=args.device,
-        command=" ".join(["canonid", *sys.argv[1:]]),
-        figure_format=args.figure_format,
-    )
-    print(reproduce(settings).overview())
+    print(reproduce(_options.request(ReproduceRequest, args).settings()).overview())
     return 0

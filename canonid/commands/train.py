@@ -1,26 +1,18 @@
-"""``canonid train`` — identify a model by output error; write a run folder.
-
-The run folder holds ``run.json`` (the recipe: data, options, profile; what ``--resume`` reads),
-the model (``config.json``, ``weights.pt``, ``normalisation.json``), ``checkpoint.pt``,
-``history.csv`` and ``training_curve.png``, then ``metrics.json`` and ``rollouts.png`` from the
-evaluation on the test split (the validation split when there is none); ``--figure-format pdf``
-or ``svg`` writes the figures as vector graphics. ``--window auto`` and ``--hidden auto`` train
-candidates and keep the best on validation (:mod:`canonid.selection`).
-"""
+"""``canonid train`` — identify a model by output error into a run folder
+(:func:`canonid.training.train`; the folder's files: :mod:`canonid.runfolder`)."""
 
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Any
 
-from canonid.commands import _data, _options, _paths
+from canonid.commands import _options
 from canonid.kernel.catalog import (
     ACTIVATION_NAMES,
-    DEFAULT_NET_OPTIONS,
     LINEAR_PATHS,
     MODEL_NAMES,
     PAPER_NET_OPTIONS,
+    preset_word,
 )
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
@@ -31,15 +23,6 @@ from canonid.training import (
     parse_widths,
     train,
 )
-
-__all__ = ["register", "request", "run"]
-
-
-def _on_off(model: str, option: str) -> str:
-    """``on`` / ``off`` / ``auto``: the default of a boolean network option, read from the
-    presets so that the help cannot drift from what a run gets."""
-    value = DEFAULT_NET_OPTIONS[model][option]
-    return value if isinstance(value, str) else ("on" if value else "off")
 
 
 def register(sub: Any) -> None:
@@ -92,9 +75,7 @@ def register(sub: Any) -> None:
         what="training device (default auto; a resumed run keeps its recorded device)",
         default=None,
     )
-    p.add_argument(
-        "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/MODEL-lL)"
-    )
+    _options.add_out(p, "runs/MODEL-lL", what="run folder", metavar="RUN")
     _options.add_resume(p, what="training run", path=True)
     p.add_argument(
         "--val",
@@ -119,21 +100,22 @@ def register(sub: Any) -> None:
         "--activation",
         choices=ACTIVATION_NAMES,
         help=f"hidden-layer nonlinearity of Ours (MLP) (default "
-        f"{DEFAULT_NET_OPTIONS['mlp']['activation']}; the paper's is "
+        f"{preset_word('mlp', 'activation')}; the paper's is "
         f"{PAPER_NET_OPTIONS['mlp']['activation']})",
     )
     p.add_argument(
         "--residual",
         action=argparse.BooleanOptionalAction,
-        help=f"predict y_t − y_{{t−1}} (default: {_on_off('mlp', 'residual')} for Ours (MLP), "
+        help=f"predict y_t − y_{{t−1}} (default: {preset_word('mlp', 'residual')} for Ours (MLP), "
         "off for the others)",
     )
     p.add_argument(
         "--feedthrough",
         action=argparse.BooleanOptionalAction,
-        help=f"the output map sees u_t (default: {_on_off('mlp', 'feedthrough')} for Ours (MLP): "
-        "on when u_t lowers the linear fit's one-step validation error clearly; "
-        f"{_on_off('arx', 'feedthrough')} for ARX, on for the others)",
+        help="the output map sees u_t (default: "
+        f"{preset_word('mlp', 'feedthrough')} for Ours (MLP): on when u_t lowers the linear "
+        "fit's one-step validation error clearly; "
+        f"{preset_word('arx', 'feedthrough')} for ARX, on for the others)",
     )
     p.add_argument(
         "--linear",
@@ -143,7 +125,7 @@ def register(sub: Any) -> None:
         help="canonical models' affine path L·[z; u] + c beside the network: skip, a linear "
         "skip started at zero and trained with the network; arx (also a bare --linear), started "
         "at the least-squares ARX fit with the network's output layer at zero; off (default: "
-        f"{DEFAULT_NET_OPTIONS['mlp']['linear']} for Ours (MLP), off for the others; "
+        f"{preset_word('mlp', 'linear')} for Ours (MLP), off for the others; "
         "ARX is the affine path alone)",
     )
     p.add_argument(
@@ -175,7 +157,7 @@ def register(sub: Any) -> None:
         workers=None,
     )
     _options.add_no_progress(p)
-    _data.add_data_options(p)
+    _options.add_data_options(p)
     p.set_defaults(func=run)
 
 
@@ -192,13 +174,7 @@ def _window_arg(text: str) -> int | str:
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
     return _options.request(
-        TrainRequest,
-        args,
-        data_options=_data.data_options(args),
-        **_options.resumed(args),
-        hidden=parse_widths(args.hidden),
-        progress=not args.no_progress,
-        command=("canonid", *sys.argv[1:]),
+        TrainRequest, args, hidden=parse_widths(args.hidden), **_options.resumed(args)
     )
 
 

@@ -22,7 +22,8 @@ INTRO = """\
 Every subcommand has `--help`; this page is generated from the same parsers when the site is
 built, so it lists every flag of the installed version. Errors print one line on stderr and exit
 non-zero; `canonid --debug COMMAND ...` shows the traceback instead. `python -m canonid` is the
-same program as `canonid`.
+same program as `canonid`. Every command that writes figures takes `--figure-format png|pdf|svg`
+(default png; pdf and svg are vector graphics for a paper).
 """
 
 
