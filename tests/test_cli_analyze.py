@@ -131,6 +131,13 @@ def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, m
 
     fake = types.ModuleType("canonid.learning")
     fake.Model = Model
+    # canonid.learned binds Model when first imported: import the real one first, so that the
+    # test's own import (under the fake) is undone with the fake and later tests see the real one
+    import canonid
+    import canonid.learned
+
+    monkeypatch.setattr(canonid, "learned", canonid.learned)
+    monkeypatch.delitem(sys.modules, "canonid.learned")
     monkeypatch.setitem(sys.modules, "canonid.learning", fake)
     out = tmp_path / "out"
     code = main(
