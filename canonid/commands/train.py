@@ -4,8 +4,10 @@ The run folder holds ``run.json`` (the recipe: data, options, profile; what ``--
 the model (``config.json``, ``weights.pt``, ``normalisation.json``), ``checkpoint.pt``,
 ``history.csv`` and ``training_curve.png``, then ``metrics.json`` and ``rollouts.png`` from the
 evaluation on the test split (the validation split when there is none); ``--figure-format pdf``
-or ``svg`` writes the figures as vector graphics. ``--window auto`` and ``--hidden auto`` train
-candidates and keep the best on validation (:mod:`canonid.selection`).
+or ``svg`` writes the figures as vector graphics. Without ``--window`` (or with ``--window auto``)
+the window is chosen on validation by a short screen (:mod:`canonid.learning.screen`); a list of
+windows and ``--hidden auto`` train every candidate and keep the best on validation
+(:mod:`canonid.selection`).
 """
 
 from __future__ import annotations
@@ -24,11 +26,12 @@ from canonid.kernel.catalog import (
 )
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
-    AUTO,
+    SCREEN_FRACTION,
     WIDTH_CANDIDATES,
     WINDOW_CANDIDATES,
     TrainRequest,
     parse_widths,
+    parse_window,
     train,
 )
 
@@ -59,11 +62,12 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--window",
-        type=_window_arg,
         metavar="L",
-        help="window ℓ (required unless --resume); auto: train ℓ = "
-        f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) and keep the "
-        "best on validation",
+        help="window ℓ: L trains exactly L; a list, e.g. 5,10,20, trains each fully and keeps "
+        "the best on validation; default auto (a resumed run keeps its own): screen ℓ = "
+        f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) for "
+        f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the one with the lowest "
+        "validation loss",
     )
     _options.add_profile(
         p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
@@ -93,7 +97,10 @@ def register(sub: Any) -> None:
         default=None,
     )
     p.add_argument(
-        "--out", type=_paths.folder, metavar="RUN", help="run folder (default runs/MODEL-lL)"
+        "--out",
+        type=_paths.folder,
+        metavar="RUN",
+        help="run folder (default runs/MODEL-lL, runs/MODEL-lauto without --window)",
     )
     _options.add_resume(p, what="training run", path=True)
     p.add_argument(
@@ -113,7 +120,7 @@ def register(sub: Any) -> None:
         "quadrotor; default 256,256,256): Ours (MLP)'s regressor, each MLP of Masti et al., "
         "the head of Ours (GRU); not classic-gru, whose sizes follow from ℓ; auto: train "
         f"{', '.join('×'.join(map(str, w)) for w in WIDTH_CANDIDATES)} and keep the best on "
-        "validation",
+        "validation (with --window L or a list)",
     )
     p.add_argument(
         "--activation",
@@ -170,23 +177,13 @@ def register(sub: Any) -> None:
     _options.add_threads(p)
     _options.add_where(
         p,
-        jobs="with --window/--hidden auto: train the candidates",
+        jobs="with a list of windows or --hidden auto: train the candidates",
         sees="DATA and RUN",
         workers=None,
     )
     _options.add_no_progress(p)
     _data.add_data_options(p)
     p.set_defaults(func=run)
-
-
-def _window_arg(text: str) -> int | str:
-    """argparse type of ``--window``: an integer, or ``auto``."""
-    if text == AUTO:
-        return AUTO
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer or auto, got {text!r}") from None
 
 
 def request(args: argparse.Namespace) -> TrainRequest:
@@ -197,6 +194,7 @@ def request(args: argparse.Namespace) -> TrainRequest:
         data_options=_data.data_options(args),
         **_options.resumed(args),
         hidden=parse_widths(args.hidden),
+        window=parse_window(args.window),
         progress=not args.no_progress,
         command=("canonid", *sys.argv[1:]),
     )
