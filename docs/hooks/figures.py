@@ -171,6 +171,14 @@ FIGURES: dict[str, Cell | Code] = {
     ),
     "code/feedthrough-gain": Code(lambda: _feedthrough_gain()),
     "code/screen-fraction": Code(lambda: _screen_fraction()),
+    **{
+        f"window/{system}/chosen": Cell(
+            "Window on validation",
+            (("system", system), ("fraction (epochs)", "0.1 (60)")),
+            "chosen",
+        )
+        for system in ("tank", "drone2d", "silverbox", "masses")
+    },
     "quick/train/epochs": Code(_quick("train", "epochs")),
     "quick/train/horizon": Code(_quick("train", "horizon")),
     "quick/train/val_horizon": Code(_quick("train", "val_horizon")),
