@@ -217,7 +217,7 @@ def table() -> str:
             )
     lines += [
         "",
-        "Cost of the default (screen at the fraction of `SCREEN_FRACTION`, then the full run):",
+        "Cost of the default (the screen at canonid's fraction, then the full run):",
     ]
     from canonid.learning.screen import SCREEN_FRACTION
 
