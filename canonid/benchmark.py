@@ -73,8 +73,6 @@ __all__ = [
 REPORT_FILE = "benchmark.json"
 #: the benchmark as a canonid dataset, the data the run trains on
 DATA_FILE = "benchmark-data.npz"
-#: window when none is given: 10, or n_init when the rule allows fewer measured outputs
-DEFAULT_WINDOW = 10
 #: samples shown in the zoomed panel of a test part's figure
 ZOOM_SAMPLES = 500
 
@@ -289,15 +287,12 @@ def _reserved(arg: str) -> bool:
     )
 
 
-def parse_window(text: str | None) -> int | Literal["auto"] | None:
-    """``--window``: an integer, ``auto``, or ``None`` (the benchmark's default)."""
-    if text is None:
-        return None
-    if text == "auto":
-        return "auto"
-    if not (text.isascii() and text.isdigit()):  # '²'.isdigit() is true, int('²') fails
-        raise OptionError(f"--window: expected an integer or auto, got {text!r}")
-    return int(text)
+def parse_window(text: str | None) -> int | Literal["auto"] | tuple[int, ...] | None:
+    """``--window``: as ``canonid train`` reads it (:func:`canonid.training.parse_window`);
+    ``None``: the benchmark's default, the screen."""
+    from canonid.training import parse_window as train_window
+
+    return train_window(text)
 
 
 #: the options a resumed run takes from its run.json instead: field → command-line flag
@@ -315,8 +310,9 @@ _FIXED_ON_RESUME = {
 @dataclass(frozen=True, kw_only=True)
 class BenchmarkRequest:
     """A benchmark run: train on benchmark ``name``'s official training part (from ``files``,
-    default the package's cache) with ``model`` (default ``mlp``), ``window`` (default
-    min(:data:`DEFAULT_WINDOW`, n_init)) and ``profile`` (default
+    default the package's cache) with ``model`` (default ``mlp``), ``window`` (an integer, a
+    tuple or ``"auto"``; default ``"auto"``, the screen of the candidate windows ≤ n_init) and
+    ``profile`` (default
     :data:`~canonid.profiles.DEFAULT_PROFILE`) as ``train`` asks (its data, model, window,
     profile, folder, seed and threads are the benchmark's), with the last ``val_fraction``
     (default 0.2) of every training record validating; score every official test part.
@@ -330,7 +326,7 @@ class BenchmarkRequest:
     name: str | None = None
     files: Path | None = None
     model: str | None = None
-    window: int | Literal["auto"] | None = None
+    window: int | Literal["auto"] | tuple[int, ...] | None = None
     profile: str | None = None
     out: Path | None = None
     seed: int | None = None
@@ -379,17 +375,24 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     assert request.name is not None  # checked when the request was built
     bench = benchmark(request.name)
     model = request.model or "mlp"
-    window = request.window if request.window is not None else min(DEFAULT_WINDOW, bench.n_init)
-    if isinstance(window, int):
-        check_window(window, bench)
+    window = request.window if request.window is not None else "auto"
+    listed = (window,) if isinstance(window, int) else () if window == "auto" else window
+    for ell in listed:
+        check_window(ell, bench)
+    # the screen tries only the windows the official rule can feed
+    candidates = tuple(w for w in WINDOW_CANDIDATES if w <= bench.n_init)
+    if window == "auto" and not candidates:
+        raise OptionError(
+            f"{bench.name}'s n_init = {bench.n_init} is below every window the screen tries "
+            f"({', '.join(map(str, WINDOW_CANDIDATES))}); choose --window ≤ {bench.n_init}"
+        )
     run_dir = request.out or Path("runs") / f"{bench.name}-{model}"
     wanted = dataclasses.replace(
         request.train,
         data=str(run_dir / DATA_FILE),
         model=model,
         window=window,
-        # --window auto tries only the windows the official rule can feed
-        window_candidates=tuple(w for w in WINDOW_CANDIDATES if w <= bench.n_init),
+        window_candidates=candidates,
         profile=request.profile or DEFAULT_PROFILE,
         out=run_dir,
         seed=request.seed,

@@ -225,29 +225,35 @@ class Selection:
         return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
 
 
-def allowed_windows(base: RunRecipe, windows: Sequence[int]) -> list[int]:
+def allowed_windows(base: RunRecipe, windows: Sequence[int], *, screen: bool = False) -> list[int]:
     """The ``windows`` that the data of ``base`` allow: every training and validation record
-    holds ℓ + 1 samples, the longest ones the training and validation rollouts after ℓ, and a
-    scored record ℓ + 1; none allowed is a :class:`DataError`."""
+    holds ℓ + 1 samples, the longest ones the training and validation rollouts after ℓ (for
+    the ``screen``, half the validation rollout: :func:`canonid.learning.screen.fitting_windows`),
+    and a scored record ℓ + 1; none allowed is a :class:`DataError`."""
+    from canonid.learning.screen import fitting_windows
+
     dataset, train, val, test_name, _ = load_splits(base)
     data_path = base.data
     opts = base.options()
     scored = list(dataset.split(test_name))
-
-    def fits(ell: int) -> bool:
-        return (
-            min(t.T for t in [*train, *val]) >= ell + 1
+    if screen:
+        kept = fitting_windows(train, val, windows, opts)
+    else:
+        kept = [
+            ell
+            for ell in windows
+            if min(t.T for t in [*train, *val]) >= ell + 1
             and max(t.T for t in train) >= ell + opts.horizon
             and max(t.T for t in val) >= ell + opts.rollout_horizon
-            and max(t.T for t in scored) >= ell + 1
-        )
-
-    kept = [ell for ell in windows if fits(ell)]
+        ]
+    kept = [ell for ell in kept if max(t.T for t in scored) >= ell + 1]
     if not kept:
+        rollouts = "half of " * screen + f"validation rollouts {opts.rollout_horizon}"
         raise DataError(
             f"{data_path}: no candidate window of {list(windows)} fits the records (shortest "
-            f"training or validation record {min(t.T for t in [*train, *val])} samples, training "
-            f"rollouts {opts.horizon}, validation rollouts {opts.rollout_horizon})"
+            f"training or validation record {min(t.T for t in [*train, *val])} samples, longest "
+            f"validation record {max(t.T for t in val)}, training rollouts {opts.horizon}, "
+            f"{rollouts})"
         )
     return kept
 

@@ -5,8 +5,11 @@ A :class:`TrainRequest` holds the options as the user gave them (``None``: not g
 profile's options with the overrides, the network's options over :mod:`canonid.kernel.catalog`'s
 presets), or checks it against the recipe of the run it resumes (the resume rule: of the training
 options only :data:`canonid.learning.training.RESUMABLE_CHANGES` may change, the network's none),
-or trains the candidates of ``window="auto"`` / ``hidden="auto"`` (:mod:`canonid.selection`);
-it returns a :class:`TrainOutcome`, whose :meth:`~TrainOutcome.summary` the command prints.
+or chooses the window: ``window="auto"`` (the default of a new run) screens the candidate
+windows briefly on validation and trains the chosen one fully (:mod:`canonid.learning.screen`);
+a list of windows or ``hidden="auto"`` trains every candidate fully and keeps the best on
+validation (:mod:`canonid.selection`). It returns a :class:`TrainOutcome`, whose
+:meth:`~TrainOutcome.summary` the command prints.
 
 The module imports no torch: the command line reads its names for ``--help``; the training
 loads when :func:`train` runs.
@@ -21,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
+from canonid.learning.screen import SCREEN_FILE, SCREEN_FRACTION, SCREEN_WINDOWS, WindowScreen
 
 if TYPE_CHECKING:
     from canonid.learning import EpochReport
@@ -29,6 +33,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AUTO",
+    "SCREEN_FRACTION",
     "TRAIN_OPTION_FIELDS",
     "WIDTH_CANDIDATES",
     "WINDOW_CANDIDATES",
@@ -37,13 +42,14 @@ __all__ = [
     "check_new_run",
     "check_request",
     "parse_widths",
+    "parse_window",
     "same_run",
     "train",
 ]
 
 AUTO = "auto"
-#: the windows that ``window="auto"`` tries (those the data allow)
-WINDOW_CANDIDATES = (2, 5, 10, 20)
+#: the windows that ``window="auto"`` screens (those the data allow)
+WINDOW_CANDIDATES = SCREEN_WINDOWS
 #: the hidden widths that ``hidden="auto"`` tries (three layers, up to the default 256)
 WIDTH_CANDIDATES = ((64, 64, 64), (128, 128, 128), (256, 256, 256))
 #: the request's fields that override the profile's training options (same names)
@@ -67,8 +73,10 @@ class TrainRequest:
     Attributes:
         data, data_options, val, val_fraction: the training data, the loader options
             (:data:`canonid.runfolder.DATA_FLAGS`), a validation file, the share held out.
-        model, window: registry name (default ``mlp``) and window ℓ (or ``"auto"``).
-        window_candidates: the windows ``window="auto"`` tries (those the data allow).
+        model, window: registry name (default ``mlp``) and window ℓ; ``"auto"`` (a new run's
+            default): screen ``window_candidates`` and train the chosen one; a tuple: train
+            each of them and keep the best on validation.
+        window_candidates: the windows ``window="auto"`` screens (those the data allow).
         profile: the training budget (default :data:`canonid.profiles.DEFAULT_PROFILE`).
         epochs … device: overrides of the profile's training options (:data:`TRAIN_OPTION_FIELDS`).
         hidden, activation, residual, feedthrough, linear, paper_options: the network's options
@@ -85,7 +93,7 @@ class TrainRequest:
     val: str | None = None
     val_fraction: float | None = None
     model: str | None = None
-    window: int | Literal["auto"] | None = None
+    window: int | Literal["auto"] | tuple[int, ...] | None = None
     window_candidates: tuple[int, ...] = WINDOW_CANDIDATES
     profile: str | None = None
     epochs: int | None = None
@@ -114,13 +122,15 @@ class TrainRequest:
 
 @dataclass(frozen=True)
 class TrainOutcome:
-    """What :func:`train` did: one run trained (``result``) or candidates selected
-    (``selection``), into ``run_dir``, with the chosen model's ``metrics.json`` body."""
+    """What :func:`train` did: one run trained (``result``; ``screen``: its window chosen by
+    the screen) or candidates selected (``selection``), into ``run_dir``, with the chosen
+    model's ``metrics.json`` body."""
 
     run_dir: Path
     metrics: Mapping[str, Any]
     result: RunResult | None = None
     selection: Selection | None = None
+    screen: WindowScreen | None = None
 
     def summary(self) -> str:
         """What ``canonid train`` prints: how training ended, the scores, where the run is."""
@@ -141,6 +151,8 @@ class TrainOutcome:
                 f"best validation loss {fitted.best_val_loss:.4g} (normalised) at epoch "
                 f"{fitted.best_epoch}"
             ]
+            if self.screen is not None:
+                head = [self.screen.table(), self.screen.summary(), *head]
             test = fitted.model.info.get("feedthrough_test")
             if test:  # feedthrough "auto": say what the data decided
                 head.append(
@@ -167,6 +179,22 @@ def parse_widths(text: str | None) -> tuple[int, ...] | Literal["auto"] | None:
             f"got {text!r}"
         )
     return widths
+
+
+def parse_window(text: str | None) -> int | Literal["auto"] | tuple[int, ...] | None:
+    """``--window``: ``"10"`` → 10, ``"5,10,20"`` → ``(5, 10, 20)``, ``"auto"``, ``None`` (not
+    given); else :class:`OptionError` naming ``--window``."""
+    if text is None or text == AUTO:
+        return text  # type: ignore[return-value]
+    parts = text.split(",")
+    # '²'.isdigit() is true and int('²') fails: ASCII digits only
+    if not all(p.isascii() and p.isdigit() and int(p) >= 1 for p in parts):
+        raise OptionError(
+            f"--window: expected an integer >= 1, a comma list of them (e.g. 5,10,20) or auto, "
+            f"got {text!r}"
+        )
+    windows = tuple(dict.fromkeys(int(p) for p in parts))
+    return windows[0] if len(parts) == 1 else windows
 
 
 def _flag(name: str) -> str:
@@ -216,8 +244,8 @@ def _recipe(request: TrainRequest) -> RunRecipe:
 
     if request.data is None:
         raise OptionError("give the training DATA (or --resume --out RUN)")
-    if request.window is None:
-        raise OptionError("--window is required for a new run (e.g. --window 10)")
+    if not isinstance(request.window, int):  # the callers resolve "auto" and lists
+        raise OptionError(f"--window: a new run's recipe needs one window, got {request.window!r}")
     model = request.model or "mlp"
     if request.val_fraction is not None and not 0 < request.val_fraction < 1:
         raise OptionError(f"--val-fraction must be in (0, 1), got {request.val_fraction}")
@@ -322,16 +350,32 @@ def _resume_recipe(request: TrainRequest, run_dir: Path) -> RunRecipe:
     return dataclasses.replace(recipe, train_options=TrainOptions.from_dict(opts).to_dict())
 
 
-def _selection_base(request: TrainRequest) -> RunRecipe:
-    """The recipe that the candidates of ``window="auto"`` / ``hidden="auto"`` vary."""
-    window_auto, hidden_auto = request.window == AUTO, request.hidden == AUTO
-    if window_auto and not request.window_candidates:
-        raise OptionError("--window auto: no candidate window to try")
+def _mode(request: TrainRequest) -> Literal["run", "screen", "select"]:
+    """What ``request`` trains: one run (a window given, or a run resumed), the screen of
+    windows (a new run without one, or ``window="auto"``), or a selection of fully trained
+    candidates (a list of windows, or ``hidden="auto"``)."""
+    if isinstance(request.window, tuple) or request.hidden == AUTO:
+        return "select"
+    if request.window == AUTO or (request.window is None and request.resume is None):
+        return "screen"
+    return "run"
+
+
+def _candidates_base(request: TrainRequest) -> RunRecipe:
+    """The recipe that the candidates (of a screen or a selection) vary, at their first
+    window: every option checked before any data are read."""
+    if isinstance(request.window, tuple):
+        windows = request.window
+    elif isinstance(request.window, int):
+        windows = (request.window,)
+    else:
+        windows = request.window_candidates
+    if not windows:
+        raise OptionError("--window: no candidate window to try")
+    hidden_auto = request.hidden == AUTO
     base = _recipe(
         dataclasses.replace(
-            request,
-            window=request.window_candidates[0] if window_auto else request.window,
-            hidden=None if hidden_auto else request.hidden,
+            request, window=windows[0], hidden=None if hidden_auto else request.hidden
         )
     )
     if hidden_auto:
@@ -339,18 +383,29 @@ def _selection_base(request: TrainRequest) -> RunRecipe:
     return base
 
 
+def _candidate_windows(request: TrainRequest, base: RunRecipe) -> list[int]:
+    """The windows to screen or select from that the data allow (:func:`allowed_windows`)."""
+    from canonid.selection import allowed_windows
+
+    if isinstance(request.window, int):
+        return [request.window]
+    if isinstance(request.window, tuple):
+        return allowed_windows(base, request.window)
+    return allowed_windows(base, request.window_candidates, screen=True)
+
+
 def _select(request: TrainRequest) -> TrainOutcome:
-    """``window="auto"`` / ``hidden="auto"``: train the candidates, keep the best on
+    """A list of windows / ``hidden="auto"``: train the candidates, keep the best on
     validation (:mod:`canonid.selection`)."""
     from canonid.jobs import run_folder_lock
     from canonid.kernel.io import read_json
     from canonid.runfolder import METRICS_FILE
-    from canonid.selection import allowed_windows, plan_candidates, select
+    from canonid.selection import plan_candidates, select
 
-    window_auto, hidden_auto = request.window == AUTO, request.hidden == AUTO
-    base = _selection_base(request)
-    windows = allowed_windows(base, request.window_candidates) if window_auto else [base.window]
-    run_dir = _selection_folder(request, base)
+    hidden_auto = request.hidden == AUTO
+    base = _candidates_base(request)
+    windows = _candidate_windows(request, base)
+    run_dir = _candidates_folder(request, base)
     check_new_run(run_dir, selection=True)
     local = not request.workers and request.scheduler is None
     jobs = plan_candidates(
@@ -376,12 +431,60 @@ def _select(request: TrainRequest) -> TrainOutcome:
     return TrainOutcome(run_dir, metrics, selection=selection)
 
 
-def _selection_folder(request: TrainRequest, base: RunRecipe) -> Path:
-    """``--out``, else ``runs/MODEL-lauto`` (``-hauto`` with ``hidden="auto"``)."""
-    window_auto, hidden_auto = request.window == AUTO, request.hidden == AUTO
+def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | None) -> TrainOutcome:
+    """``window="auto"``: screen the candidate windows on validation
+    (:func:`canonid.learning.screen.screen_windows`), record the screen in the run folder
+    (:data:`~canonid.learning.screen.SCREEN_FILE`), then train the chosen window as
+    ``--window`` would."""
+    import sys
+
+    from canonid.jobs import run_folder_lock, torch_threads
+    from canonid.learning.screen import ScreenCandidate, screen_windows
+    from canonid.runfolder import load_splits
+
+    base = _candidates_base(request)
+    run_dir = _candidates_folder(request, base)
+    with run_folder_lock(run_dir, new=True):
+        check_new_run(run_dir)  # again, now that no one else writes it
+        windows = _candidate_windows(request, base)
+        _, train_part, val_part, _, _ = load_splits(base)  # the test split plays no part
+
+        def shown(index: int, row: ScreenCandidate) -> None:
+            if request.progress:
+                loss = "-" if row.best_val_loss is None else f"{row.best_val_loss:.4g}"
+                print(
+                    f"window screen {index + 1}/{len(windows)}: ℓ = {row.window}, best "
+                    f"validation loss {loss} ({row.stopped})",
+                    file=sys.stderr,
+                )
+
+        with torch_threads(request.threads):
+            screen = screen_windows(
+                train_part,
+                val_part,
+                windows=windows,
+                model=base.model,
+                options=base.options(),
+                net_options=base.net_options,
+                progress=shown,
+            )
+        screen.write(run_dir)
+        recipe = dataclasses.replace(base, window=screen.chosen)
+        outcome = _train_one(request, recipe, run_dir, resume=False, callback=callback)
+    return dataclasses.replace(outcome, screen=screen)
+
+
+def _candidates_folder(request: TrainRequest, base: RunRecipe) -> Path:
+    """``--out``, else ``runs/MODEL-lauto`` (the screen), ``runs/MODEL-l5-10-20`` (a list),
+    with ``-hauto`` for ``hidden="auto"``."""
+    if isinstance(request.window, tuple):
+        window = "-".join(str(w) for w in request.window)
+    elif isinstance(request.window, int):
+        window = str(request.window)
+    else:
+        window = AUTO
     return request.out or Path("runs") / (
-        f"{base.model}-l{'auto' if window_auto else base.window}"
-        + ("-hauto" if hidden_auto else "")
+        f"{base.model}-l{window}" + ("-hauto" if request.hidden == AUTO else "")
     )
 
 
@@ -389,29 +492,34 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe | None]:
     """Check ``request`` as far as it can be without its data: the options and their
     combinations, the recipe of a new run (refusing a folder that holds another run), or the
     resume rule against the recorded recipe. Returns the run folder and the recipe to train,
-    or ``None`` for a selection (whose candidates are planned from the data)."""
+    or ``None`` for a screen or a selection (whose candidates are planned from the data)."""
     from canonid.selection import CANDIDATES_FILE
 
     for flag, value in (("--threads", request.threads), ("--eval-horizon", request.eval_horizon)):
         if value is not None and value < 1:
             raise OptionError(f"{flag} must be an integer >= 1, got {value}")
-    auto = [key for key in ("window", "hidden") if getattr(request, key) == AUTO]
-    if not auto and (request.workers is not None or request.scheduler is not None):
+    mode = _mode(request)
+    if mode != "select" and (request.workers is not None or request.scheduler is not None):
         flag = "--workers" if request.workers is not None else "--scheduler"
-        raise OptionError(f"{flag} applies to --window auto or --hidden auto only")
-    if auto and request.resume is not None:
+        raise OptionError(f"{flag} applies to a list of windows or --hidden auto only")
+    if request.resume is not None and mode != "run":
+        given = "--hidden auto" if request.hidden == AUTO else f"--window {_window_text(request)}"
         raise OptionError(
-            f"--{auto[0]} auto does not combine with --resume: run the same selection again "
-            "(same DATA, options and --out) to continue it"
+            f"{given} does not combine with --resume: the run keeps its recorded window; run the "
+            "same selection again (same DATA, options and --out) to continue one"
+        )
+    if request.hidden == AUTO and not isinstance(request.window, (int, tuple)):
+        raise OptionError(
+            "--hidden auto needs the window: give --window L or a list (e.g. --window 5,10,20)"
         )
     if request.resume is not None and (request.resume / CANDIDATES_FILE).is_file():
         raise CheckpointError(
             f"{request.resume} holds a selection of candidates ({CANDIDATES_FILE}): run the same "
             f"selection again to continue it, or resume one candidate's folder"
         )
-    if auto:
-        run_dir = _selection_folder(request, _selection_base(request))
-        check_new_run(run_dir, selection=True)
+    if mode != "run":
+        run_dir = _candidates_folder(request, _candidates_base(request))
+        check_new_run(run_dir, selection=mode == "select")
         return run_dir, None
     if request.resume is not None:
         return request.resume, _resume_recipe(request, request.resume)
@@ -419,6 +527,11 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe | None]:
     run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
     check_new_run(run_dir)
     return run_dir, recipe
+
+
+def _window_text(request: TrainRequest) -> str:
+    window = request.window
+    return ",".join(map(str, window)) if isinstance(window, tuple) else str(window)
 
 
 def check_request(request: TrainRequest) -> Path:
@@ -435,6 +548,13 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
     from canonid.runfolder import RunRecipe
 
     recorded = RunRecipe.read(run_dir)
+    if _mode(request) == "screen":  # the window the screen chose and recorded
+        if not (run_dir / SCREEN_FILE).is_file():
+            raise CheckpointError(
+                f"{run_dir} holds a run of window ℓ = {recorded.window} that no window screen "
+                f"chose; give --window {recorded.window} to continue it, or choose another --out"
+            )
+        request = dataclasses.replace(request, window=recorded.window)
     ignored = {"command", "data", "data_sha256", "val_sha256"}
     there = _flat({k: v for k, v in recorded.to_dict().items() if k not in ignored})
     wanted = _flat({k: v for k, v in _recipe(request).to_dict().items() if k not in ignored})
@@ -466,16 +586,34 @@ def _flat(body: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 def train(
     request: TrainRequest, *, callback: Callable[[EpochReport], None] | None = None
 ) -> TrainOutcome:
-    """Train (or resume, or select) the run that ``request`` asks for, write its run folder and
-    score it; a single run shows its epochs in a progress bar (``request.progress``) and passes
-    them to ``callback``."""
+    """Train (or resume, screen or select) the run that ``request`` asks for, write its run
+    folder and score it; a single run shows its epochs in a progress bar (``request.progress``)
+    and passes them to ``callback``."""
+    run_dir, recipe = _plan(request)
+    if recipe is not None:
+        resume = request.resume is not None
+        outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
+        if resume and (run_dir / SCREEN_FILE).is_file():  # the recorded choice, never redone
+            return dataclasses.replace(outcome, screen=WindowScreen.read(run_dir))
+        return outcome
+    if _mode(request) == "screen":
+        return _screen(request, callback)
+    return _select(request)
+
+
+def _train_one(
+    request: TrainRequest,
+    recipe: RunRecipe,
+    run_dir: Path,
+    *,
+    resume: bool,
+    callback: Callable[[EpochReport], None] | None,
+) -> TrainOutcome:
+    """Train (or resume) ``recipe`` into ``run_dir`` and score it (:func:`train_run`)."""
     from canonid.jobs import torch_threads
     from canonid.runfolder import train_run
     from canonid.runner import EpochBar
 
-    run_dir, recipe = _plan(request)
-    if recipe is None:
-        return _select(request)
     bar = EpochBar(f"train {recipe.model}", enabled=request.progress, dynamic_ncols=True)
 
     def progress(report: EpochReport) -> None:
@@ -494,7 +632,7 @@ def train(
             result = train_run(
                 recipe,
                 run_dir,
-                resume=request.resume is not None,
+                resume=resume,
                 eval_horizon=request.eval_horizon,
                 callback=progress,
                 figure_format=request.figure_format,

@@ -35,6 +35,8 @@ _EXPORTS = {
     "build_net": "canonid.learning.nets",
     "model_names": "canonid.learning.nets",
     "ReductionOptions": "canonid.learning.reduction",
+    "WindowScreen": "canonid.learning.screen",
+    "screen_windows": "canonid.learning.screen",
     "latent_size": "canonid.learning.reduction",
     "reduce_model": "canonid.learning.reduction",
     "EpochReport": "canonid.learning.training",

@@ -412,14 +412,30 @@ def test_train_args_take_no_abbreviation_and_no_data(tmp_path, capsys):
     _folder_after(tmp_path, [*argv, "--train-args=other.npz"], capsys, "'other.npz'")
 
 
-def test_window_auto_tries_only_windows_within_n_init(tmp_path, capsys):
-    write_benchmark("ced", tmp_path)  # n_init = 10: the candidate ℓ = 20 cannot be scored
+def test_the_default_screens_only_windows_within_n_init(tmp_path, capsys):
+    from canonid.learning.screen import WindowScreen
+
+    write_benchmark("ced", tmp_path)  # n_init = 10: the candidates ℓ ≥ 20 cannot be scored
     run = tmp_path / "r"
-    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--window", "auto", "--out", str(run)]
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run)]
     argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
     assert main(argv) == 0, capsys.readouterr().err
-    assert sorted(p.name for p in (run / "candidates").iterdir()) == ["l10", "l2", "l5"]
-    assert json.loads((run / "benchmark.json").read_text())["window"] <= 10
+    screen = WindowScreen.read(run)
+    assert [c.window for c in screen.candidates] == [5, 10]
+    assert json.loads((run / "benchmark.json").read_text())["window"] == screen.chosen
+    assert main(argv) == 0  # run again: the recorded choice, nothing trained again
+    assert WindowScreen.read(run) == screen
+
+
+def test_a_window_list_tries_only_windows_within_n_init(tmp_path, capsys):
+    write_benchmark("ced", tmp_path)
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--window", "2,5,20"]
+    _folder_after(tmp_path, argv, capsys, "window ℓ = 20 exceeds ced's n_init = 10")
+    run = tmp_path / "r"
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--window", "2,5", "--out", str(run)]
+    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
+    assert main(argv) == 0, capsys.readouterr().err
+    assert sorted(p.name for p in (run / "candidates").iterdir()) == ["l2", "l5"]
 
 
 def test_a_finished_benchmark_run_again_gives_the_same_report_and_other_options_are_refused(

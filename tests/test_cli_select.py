@@ -1,5 +1,6 @@
-"""``canonid train --window auto`` / ``--hidden auto``: candidates trained through the job runner,
-the lowest validation loss kept, the table written, the chosen run the folder's model."""
+"""``canonid train --window 2,5,10,20`` / ``--hidden auto``: candidates trained fully through the
+job runner, the lowest validation loss kept, the table written, the chosen run the folder's
+model."""
 
 from __future__ import annotations
 
@@ -27,13 +28,22 @@ def dataset_path(tmp_path_factory):
 @pytest.fixture(scope="module")
 def selection(dataset_path, tmp_path_factory):
     run = tmp_path_factory.mktemp("auto") / "run"
-    argv = ["train", str(dataset_path), "--window", "auto", "--hidden", "8,8", "--out", str(run)]
+    argv = [
+        "train",
+        str(dataset_path),
+        "--window",
+        "2,5,10,20",
+        "--hidden",
+        "8,8",
+        "--out",
+        str(run),
+    ]
     assert main([*argv, *FAST]) == 0
     return run
 
 
 def test_the_terminal_shows_a_plain_table_naming_the_scored_split(dataset_path, tmp_path, capsys):
-    argv = ["train", str(dataset_path), "--window", "auto", "--hidden", "8,8"]
+    argv = ["train", str(dataset_path), "--window", "2,5,10,20", "--hidden", "8,8"]
     assert main([*argv, "--out", str(tmp_path / "run"), *FAST]) == 0
     out = capsys.readouterr().out
     split = Selection.read(tmp_path / "run").candidates[0].split
@@ -41,7 +51,7 @@ def test_the_terminal_shows_a_plain_table_naming_the_scored_split(dataset_path, 
     assert f"rollout MSE ({split})" in (tmp_path / "run" / "candidates.md").read_text()
 
 
-def test_window_auto_keeps_the_lowest_validation_loss_and_writes_the_table(selection):
+def test_a_window_list_keeps_the_lowest_validation_loss_and_writes_the_table(selection):
     table = Selection.read(selection)
     # T = 60: ℓ = 20 leaves 40 samples, enough for the tiny profile's rollouts of 10 and 20
     assert [c.window for c in table.candidates] == [2, 5, 10, 20]
@@ -67,7 +77,7 @@ def test_the_chosen_run_is_the_folders_model(selection, capsys):
 
 def test_running_the_selection_again_reuses_every_candidate(selection, dataset_path, capsys):
     before = {p: p.stat().st_mtime_ns for p in selection.glob("candidates/*/weights.pt")}
-    argv = ["train", str(dataset_path), "--window", "auto", "--hidden", "8,8"]
+    argv = ["train", str(dataset_path), "--window", "2,5,10,20", "--hidden", "8,8"]
     assert main([*argv, "--out", str(selection), *FAST]) == 0
     assert {p: p.stat().st_mtime_ns for p in selection.glob("candidates/*/weights.pt")} == before
     assert "chosen:" in capsys.readouterr().out
@@ -84,17 +94,17 @@ def test_hidden_auto_tries_the_width_grid(dataset_path, tmp_path):
 
 def test_combinations_that_make_no_sense_are_refused(selection, dataset_path, tmp_path, capsys):
     data = str(dataset_path)
-    code = main(["train", "--resume", str(selection), "--window", "auto", *FAST])
-    one_line_error(capsys, code, "--window auto does not combine with --resume")
+    code = main(["train", "--resume", str(selection), "--window", "2,5", *FAST])
+    one_line_error(capsys, code, "--window 2,5 does not combine with --resume")
     code = main(["train", "--resume", str(selection), *FAST])
     one_line_error(capsys, code, "holds a selection of candidates")
     code = main(["train", data, "--window", "3", "--out", str(selection), *FAST])
     one_line_error(capsys, code, "holds a selection of candidates", "another --out")
     code = main(["train", data, "--window", "3", "--workers", "2", "--out", str(tmp_path), *FAST])
-    one_line_error(capsys, code, "--workers applies to --window auto or --hidden auto only")
-    code = main(["train", data, "--window", "auto", "--model", "classic-gru", "--hidden", "auto"])
+    one_line_error(capsys, code, "--workers applies to a list of windows or --hidden auto only")
+    code = main(["train", data, "--window", "2,5", "--model", "classic-gru", "--hidden", "auto"])
     one_line_error(capsys, code, "--hidden does not apply to classic-gru")
-    argv = ["train", data, "--window", "auto", "--hidden", "8,8", "--lr", "0.5"]
+    argv = ["train", data, "--window", "2,5,10,20", "--hidden", "8,8", "--lr", "0.5"]
     code = main([*argv, "--out", str(selection), *FAST])
     one_line_error(capsys, code, "another recipe", "train_options")
 

@@ -5,7 +5,7 @@
 * one lock per run folder: a second writer is refused in one line naming the holder;
 * ``--out`` into a folder of the user's own files is refused, files untouched;
 * a kill -9 leaves temporary files that the next writer of the folder removes;
-* ``train --window auto`` with a bad ``--workers`` leaves no folder.
+* ``train --window 2,5`` (a selection) with a bad ``--workers`` leaves no folder.
 """
 
 from __future__ import annotations
@@ -216,9 +216,9 @@ def test_an_empty_out_is_refused(tmp_path, monkeypatch, capsys):
 
 
 # ---------------------------------------------------------------------- half-written output
-def test_window_auto_with_a_bad_workers_leaves_no_folder(data_a, tmp_path, capsys):
+def test_a_window_list_with_a_bad_workers_leaves_no_folder(data_a, tmp_path, capsys):
     run = tmp_path / "sel" / "run"
-    argv = ["train", str(data_a), "--window", "auto", "--workers", "-1", "--out", str(run)]
+    argv = ["train", str(data_a), "--window", "2,5", "--workers", "-1", "--out", str(run)]
     one_line_error(capsys, main([*argv, "--epochs", "1", "--no-progress"]), "workers")
     assert not (tmp_path / "sel").exists()
 

@@ -11,7 +11,6 @@ from typing import Any, NoReturn
 
 from canonid.benchmark import (
     BENCHMARKS,
-    DEFAULT_WINDOW,
     REPORT_FILE,
     BenchmarkRequest,
     benchmark_list,
@@ -51,7 +50,9 @@ def register(sub: Any) -> None:
     p.add_argument(
         "--window",
         metavar="L",
-        help=f"window ℓ ≤ n_init (default min({DEFAULT_WINDOW}, n_init)); passed to canonid train",
+        help="window ℓ ≤ n_init, a list of them (e.g. 5,10,20) or auto (default: the windows "
+        "of canonid train's screen that are ≤ n_init, screened on validation); passed to "
+        "canonid train",
     )
     _options.add_profile(
         p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True

@@ -16,11 +16,12 @@ from canonid.kernel.catalog import (
 )
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
-    AUTO,
+    SCREEN_FRACTION,
     WIDTH_CANDIDATES,
     WINDOW_CANDIDATES,
     TrainRequest,
     parse_widths,
+    parse_window,
     train,
 )
 
@@ -42,11 +43,12 @@ def register(sub: Any) -> None:
     )
     p.add_argument(
         "--window",
-        type=_window_arg,
         metavar="L",
-        help="window ℓ (required unless --resume); auto: train ℓ = "
-        f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) and keep the "
-        "best on validation",
+        help="window ℓ: L trains exactly L; a list, e.g. 5,10,20, trains each fully and keeps "
+        "the best on validation; default auto (a resumed run keeps its own): screen ℓ = "
+        f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) for "
+        f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the one with the lowest "
+        "validation loss",
     )
     _options.add_profile(
         p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
@@ -75,7 +77,9 @@ def register(sub: Any) -> None:
         what="training device (default auto; a resumed run keeps its recorded device)",
         default=None,
     )
-    _options.add_out(p, "runs/MODEL-lL", what="run folder", metavar="RUN")
+    _options.add_out(
+        p, "runs/MODEL-lL, runs/MODEL-lauto without --window", what="run folder", metavar="RUN"
+    )
     _options.add_resume(p, what="training run", path=True)
     p.add_argument(
         "--val",
@@ -94,7 +98,7 @@ def register(sub: Any) -> None:
         "quadrotor; default 256,256,256): Ours (MLP)'s regressor, each MLP of Masti et al., "
         "the head of Ours (GRU); not classic-gru, whose sizes follow from ℓ; auto: train "
         f"{', '.join('×'.join(map(str, w)) for w in WIDTH_CANDIDATES)} and keep the best on "
-        "validation",
+        "validation (with --window L or a list)",
     )
     p.add_argument(
         "--activation",
@@ -152,7 +156,7 @@ def register(sub: Any) -> None:
     _options.add_threads(p)
     _options.add_where(
         p,
-        jobs="with --window/--hidden auto: train the candidates",
+        jobs="with a list of windows or --hidden auto: train the candidates",
         sees="DATA and RUN",
         workers=None,
     )
@@ -161,20 +165,14 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
-def _window_arg(text: str) -> int | str:
-    """argparse type of ``--window``: an integer, or ``auto``."""
-    if text == AUTO:
-        return AUTO
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected an integer or auto, got {text!r}") from None
-
-
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
     return _options.request(
-        TrainRequest, args, hidden=parse_widths(args.hidden), **_options.resumed(args)
+        TrainRequest,
+        args,
+        hidden=parse_widths(args.hidden),
+        window=parse_window(args.window),
+        **_options.resumed(args),
     )
 
 

@@ -170,6 +170,15 @@ FIGURES: dict[str, Cell | Code] = {
         "Device", _row(widths="256 × 256 × 256", K="512"), "GPU candidate-epochs per s"
     ),
     "code/feedthrough-gain": Code(lambda: _feedthrough_gain()),
+    "code/screen-fraction": Code(lambda: _screen_fraction()),
+    **{
+        f"window/{system}/chosen": Cell(
+            "Window on validation",
+            (("system", system), ("fraction (epochs)", "0.1 (60)")),
+            "chosen",
+        )
+        for system in ("tank", "drone2d", "silverbox", "masses")
+    },
     "quick/train/epochs": Code(_quick("train", "epochs")),
     "quick/train/horizon": Code(_quick("train", "horizon")),
     "quick/train/val_horizon": Code(_quick("train", "val_horizon")),
@@ -203,6 +212,13 @@ def _feedthrough_gain() -> float:
     from canonid.learning.linear import FEEDTHROUGH_GAIN
 
     return FEEDTHROUGH_GAIN
+
+
+def _screen_fraction() -> str:
+    """The share of the epochs each window of the screen trains for, in words."""
+    from canonid.learning.screen import SCREEN_FRACTION
+
+    return {0.1: "tenth", 0.05: "twentieth", 0.2: "fifth"}[SCREEN_FRACTION]
 
 
 def _auto_cuda_work() -> int:

@@ -1,0 +1,281 @@
+"""The window chosen on validation: ``canonid train`` without ``--window`` screens the candidate
+windows briefly (:mod:`canonid.learning.screen`) and trains the one with the lowest validation
+loss as ``--window`` would; ``--window L`` trains exactly L."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import torch
+from cli_helpers import one_line_error
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from learning_helpers import damped_siso, trajectories
+
+from canonid.cli import main
+from canonid.kernel.dataset import Dataset, Trajectory
+from canonid.kernel.errors import CheckpointError, OptionError
+from canonid.learning import TrainOptions
+from canonid.learning.screen import (
+    SCREEN_FILE,
+    ScreenCandidate,
+    WindowScreen,
+    screen_options,
+    screen_windows,
+)
+from canonid.training import parse_window
+
+FAST = ["--profile", "tiny", "--epochs", "3", "--no-progress", "--device", "cpu", "--threads", "1"]
+
+
+def siso_file(folder, *, T=70, test_scale=1.0):
+    """A small canonid dataset of a damped SISO system; ``test_scale`` multiplies the test
+    split's outputs (the screen must not notice)."""
+    system = damped_siso()
+
+    def make(n, seed, scale=1.0):
+        return tuple(
+            Trajectory(u=t.u, y=t.y * scale, y_clean=t.y_clean * scale)
+            for t in trajectories(system, n, T, noise=0.01, seed=seed)
+        )
+
+    ds = Dataset(
+        splits={"train": make(3, 1), "val": make(1, 2), "test": make(2, 3, test_scale)},
+        dt=1.0,
+        input_names=("u",),
+        output_names=("y",),
+    )
+    return ds.save(folder / "dataset.npz")
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    return siso_file(tmp_path_factory.mktemp("data"))
+
+
+@pytest.fixture(scope="module")
+def screened(data, tmp_path_factory):
+    run = tmp_path_factory.mktemp("screen") / "run"
+    assert main(["train", str(data), "--out", str(run), *FAST]) == 0
+    return run
+
+
+def weights(run):
+    return torch.load(run / "weights.pt", weights_only=True)
+
+
+# ------------------------------------------------------------------------------ the grammar
+@pytest.mark.parametrize(
+    ("text", "window"),
+    [(None, None), ("auto", "auto"), ("10", 10), ("5,10,20", (5, 10, 20)), ("5,5,10", (5, 10))],
+)
+def test_window_reads_one_window_a_list_or_auto(text, window):
+    assert parse_window(text) == window
+
+
+@pytest.mark.parametrize("text", ["0", "x", "5,,10", "5,-1", "²", "10.5", ""])
+def test_a_bad_window_is_one_line_naming_the_option(text, data, tmp_path, capsys):
+    with pytest.raises(OptionError, match="--window: expected an integer >= 1"):
+        parse_window(text)
+    code = main(["train", str(data), "--window", text, "--out", str(tmp_path / "r"), *FAST])
+    one_line_error(capsys, code, "--window: expected an integer >= 1")
+    assert not (tmp_path / "r").exists()
+
+
+def test_combinations_the_screen_does_not_make_are_refused(screened, data, tmp_path, capsys):
+    code = main(["train", str(data), "--hidden", "auto", "--out", str(tmp_path / "r"), *FAST])
+    one_line_error(capsys, code, "--hidden auto needs the window")
+    code = main(["train", str(data), "--workers", "2", "--out", str(tmp_path / "r"), *FAST])
+    one_line_error(capsys, code, "--workers applies to a list of windows or --hidden auto only")
+    code = main(["train", "--resume", str(screened), "--window", "auto", *FAST[:-2]])
+    one_line_error(capsys, code, "--window auto does not combine with --resume")
+    assert not (tmp_path / "r").exists()
+
+
+# ------------------------------------------------------------------------------ the screen
+def test_an_explicit_window_trains_exactly_that_window(data, tmp_path):
+    run = tmp_path / "l7"
+    assert main(["train", str(data), "--window", "7", "--out", str(run), *FAST]) == 0
+    assert json.loads((run / "run.json").read_text())["window"] == 7
+    assert json.loads((run / "config.json").read_text())["net"]["window"] == 7
+    assert not (run / SCREEN_FILE).exists()
+
+
+def test_no_window_chooses_the_candidate_of_lowest_validation_loss(screened, capsys):
+    screen = WindowScreen.read(screened)
+    windows = [c.window for c in screen.candidates]
+    # T = 70, the tiny profile's rollouts of 10 to train and 20 to validate (at least half of
+    # them left after ℓ): ℓ = 80 does not fit
+    assert windows == [5, 10, 20, 40]
+    assert screen.options["val_horizon"] == 20  # every candidate on the same rollouts
+    best = min(screen.candidates, key=lambda c: c.best_val_loss)
+    assert screen.chosen == best.window
+    assert json.loads((screened / "run.json").read_text())["window"] == best.window
+    assert json.loads((screened / "config.json").read_text())["net"]["window"] == best.window
+    assert screen.epochs == 1 and all(c.epochs_run == 1 for c in screen.candidates)  # 10 % of 3
+
+
+def test_the_screened_run_is_the_run_of_the_chosen_window(screened, data, tmp_path):
+    """The full run after the screen is ``--window <chosen>``'s, weight for weight; the same
+    seed gives the same choice and the same weights again."""
+    chosen = WindowScreen.read(screened).chosen
+    run = tmp_path / "explicit"
+    assert main(["train", str(data), "--window", str(chosen), "--out", str(run), *FAST]) == 0
+    again = tmp_path / "again"
+    assert main(["train", str(data), "--out", str(again), *FAST]) == 0
+    for other in (run, again):
+        mine, theirs = weights(screened), weights(other)
+        assert mine.keys() == theirs.keys()
+        assert all(torch.equal(mine[k], theirs[k]) for k in mine)
+    first, second = WindowScreen.read(screened), WindowScreen.read(again)
+    assert [c.best_val_loss for c in first.candidates] == [
+        c.best_val_loss for c in second.candidates
+    ]
+    assert (screened / "weights.pt").read_bytes() == (again / "weights.pt").read_bytes()
+
+
+def test_the_screen_never_reads_the_test_split(data, tmp_path):
+    poisoned = siso_file(tmp_path / "poisoned-data", test_scale=1e6)
+    runs = []
+    for name, path in (("clean", data), ("poisoned", poisoned)):
+        run = tmp_path / f"run-{name}"
+        assert main(["train", str(path), "--out", str(run), *FAST]) == 0
+        runs.append(WindowScreen.read(run))
+    assert runs[0].to_dict()["chosen"] == runs[1].to_dict()["chosen"]
+    assert [c.best_val_loss for c in runs[0].candidates] == [
+        c.best_val_loss for c in runs[1].candidates
+    ]
+
+
+def test_resume_keeps_the_recorded_choice(screened, tmp_path, capsys):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(screened, run)
+    recorded = (run / SCREEN_FILE).read_bytes()
+    capsys.readouterr()
+    argv = ["train", "--resume", str(run), "--epochs", "4", "--no-progress", "--threads", "1"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert (run / SCREEN_FILE).read_bytes() == recorded  # not screened again
+    chosen = WindowScreen.read(run).chosen
+    assert f"window ℓ = {chosen} chosen on validation" in out and "after 4 epochs" in out
+    assert json.loads((run / "run.json").read_text())["window"] == chosen
+
+
+def test_the_printed_line_names_the_choice_and_the_candidates(data, tmp_path, capsys):
+    run = tmp_path / "run"
+    capsys.readouterr()
+    assert main(["train", str(data), "--out", str(run), *FAST]) == 0
+    screen = WindowScreen.read(run)
+    out = capsys.readouterr().out
+    assert (
+        f"window ℓ = {screen.chosen} chosen on validation from 5, 10, 20, 40 "
+        "(screen of 1 epoch each); --window L trains L"
+    ) in out
+
+
+# ------------------------------------------------------------------------------ the caps
+def test_candidates_longer_than_the_records_allow_are_not_tried(tmp_path):
+    """T = 35: ℓ ≤ 25 leaves half the validation rollout of 20; all candidates are validated
+    on the 15 steps that ℓ = 20 leaves."""
+    data = siso_file(tmp_path / "d", T=35)
+    run = tmp_path / "run"
+    assert main(["train", str(data), "--out", str(run), *FAST]) == 0
+    screen = WindowScreen.read(run)
+    assert [c.window for c in screen.candidates] == [5, 10, 20]
+    assert screen.options["val_horizon"] == 15
+
+
+def test_no_window_that_fits_is_one_line_naming_the_data(tmp_path, capsys):
+    data = siso_file(tmp_path / "d", T=14)  # ℓ = 5 needs 5 + 10 samples to train
+    run = tmp_path / "run"
+    code = main(["train", str(data), "--out", str(run), *FAST])
+    one_line_error(capsys, code, str(data), "no candidate window of [5, 10, 20, 40, 80] fits")
+    assert not run.exists()
+
+
+# ------------------------------------------------------------------------------ closed forms
+def delayed(d: int, n: int, T: int, seed: int) -> list[Trajectory]:
+    """``y_t = u_{t−d}`` with white-noise inputs: a window shorter than ``d`` cannot predict."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        u = rng.standard_normal((T + d, 1))
+        out.append(Trajectory(u=u[d:], y=u[:T]))
+    return out
+
+
+@settings(max_examples=8, deadline=None)
+@given(d=st.integers(1, 12))
+def test_a_delay_of_d_samples_is_screened_to_a_window_of_at_least_d(d):
+    """ARX (least squares) sees u_{t−d} only when ℓ ≥ d: the shorter windows keep an error of
+    about the input's variance, the others none, so the screen picks a window ≥ d."""
+    opts = TrainOptions(epochs=1, horizon=5, val_horizon=10, val_stride=3, device="cpu")
+    windows = (2, 4, 8, 16)
+    screen = screen_windows(
+        delayed(d, 3, 200, 0), delayed(d, 1, 200, 1), windows=windows, model="arx", options=opts
+    )
+    assert screen.chosen >= d
+    for c in screen.candidates:
+        assert c.best_val_loss is not None
+        assert (c.best_val_loss > 0.3) if c.window < d else (c.best_val_loss < 1e-6)
+
+
+def test_a_failing_candidate_is_recorded_and_left_out(monkeypatch):
+    import canonid.learning.training as training
+
+    real = training.fit
+
+    def fit(*args, window, **kwargs):
+        if window == 4:
+            raise RuntimeError("the rollout blew up\nsecond line")
+        return real(*args, window=window, **kwargs)
+
+    monkeypatch.setattr(training, "fit", fit)
+    opts = TrainOptions(epochs=1, horizon=5, val_horizon=10, device="cpu")
+    train, val = delayed(3, 2, 100, 0), delayed(3, 1, 100, 1)
+    screen = screen_windows(train, val, windows=(2, 4, 8), model="arx", options=opts)
+    failed = next(c for c in screen.candidates if c.window == 4)
+    assert failed.stopped == "failed" and failed.error == "the rollout blew up"
+    assert failed.best_val_loss is None and screen.chosen == 8
+    monkeypatch.setattr(training, "fit", lambda *a, **k: fit(*a, **{**k, "window": 4}))
+    with pytest.raises(OptionError, match="no candidate window reached a finite validation"):
+        screen_windows(train, val, windows=(2, 8), model="arx", options=opts)
+
+
+# ------------------------------------------------------------------------------ the record
+@given(
+    fraction=st.floats(0.01, 1.0),
+    epochs=st.integers(1, 2000),
+    curriculum=st.integers(0, 500),
+    patience=st.one_of(st.none(), st.integers(1, 500)),
+)
+def test_the_screens_options_are_the_profiles_scaled(fraction, epochs, curriculum, patience):
+    full = TrainOptions(epochs=epochs, curriculum_epochs=curriculum, patience=patience)
+    short = screen_options(full, fraction)
+    assert short.epochs == max(1, round(epochs * fraction)) <= epochs
+    assert short.curriculum_epochs == round(curriculum * fraction)
+    assert short.patience == (None if patience is None else max(1, round(patience * fraction)))
+    assert (short.lr, short.horizon, short.seed) == (full.lr, full.horizon, full.seed)
+
+
+def test_the_record_reads_back_and_a_malformed_one_is_refused(tmp_path):
+    rows = (
+        ScreenCandidate(5, 0.5, 3, 4, "completed", None, 1.0),
+        ScreenCandidate(10, None, 0, 0, "failed", "boom", 0.0),
+    )
+    screen = WindowScreen(rows, 5, 0.1, TrainOptions(epochs=4).to_dict())
+    screen.write(tmp_path)
+    assert WindowScreen.read(tmp_path) == screen
+    body = json.loads((tmp_path / SCREEN_FILE).read_text())
+    with pytest.raises(CheckpointError, match="chosen window 20 is not a candidate"):
+        WindowScreen.from_dict({**body, "chosen": 20}, where="x")
+    with pytest.raises(CheckpointError, match="malformed window screen"):
+        WindowScreen.from_dict({**body, "candidates": [{"window": 5}]}, where="x")
+    with pytest.raises(CheckpointError, match="not a canonid window screen"):
+        WindowScreen.from_dict({"format": "other"}, where="x")
+    assert math.isclose(screen.cpu_seconds, 1.0)
