@@ -26,9 +26,12 @@ longest first); per system the dataset (``data``: seed, flights per split, sampl
 constructor options over the paper's network (:data:`canonid.learning.presets.PAPER_NET_OPTIONS`);
 ``evaluation``: the paper metric's rollout length and start stride; ``analysis``: per system,
 the windows, sets, Monte-Carlo trials and the budget of every certified search (systems not
-listed are not analysed); ``compression``: which trained runs the compression study reduces, at
-which rates and seeds (``epochs`` overrides the ``reduce`` stage's); ``rollouts``: the window of
-the per-system rollout figure.
+listed are not analysed); ``defaults``: the models and windows that also get a column trained
+with canonid's default network options (:data:`canonid.learning.presets.DEFAULT_NET_OPTIONS`)
+and the profile's ``train`` stage without the overrides above (what ``canonid train --profile
+P`` runs), beside the paper's columns; ``compression``: which trained runs the compression study
+reduces, at which rates and seeds (``epochs`` overrides the ``reduce`` stage's); ``rollouts``:
+the window of the per-system rollout figure.
 """
 
 from __future__ import annotations
@@ -117,6 +120,9 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "epochs": 60,
             },
             "rollouts": {"window": 10},
+            # what `canonid train --model mlp` gets, beside the paper's model; one window keeps
+            # the demo within its 10 minutes (docs: Reproducing the paper)
+            "defaults": {"models": ["mlp"], "windows": [10]},
         },
         # chosen on validation over three systems (docs: Identification, "Defaults and …")
         "train": {
@@ -211,6 +217,8 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "seeds": [0, 1, 2],
             },
             "rollouts": {"window": 10},
+            # no "defaults" column: under this train stage it would be canonid's network at the
+            # paper's budget, not what canonid does by default (the quick profile shows that)
         },
         "train": {
             "epochs": 10_000,
@@ -275,6 +283,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             },
             "compression": {"models": ["mlp"], "windows": [5], "rates": [0.5], "seeds": [0]},
             "rollouts": {"window": 5},
+            "defaults": {"models": ["mlp"], "windows": [5]},
         },
         "train": {
             "epochs": 3,
@@ -367,11 +376,13 @@ class ReproduceStage:
     analysis: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     compression: Mapping[str, Any] = field(default_factory=dict)
     rollouts: Mapping[str, Any] = field(default_factory=dict)
+    defaults: Mapping[str, Any] = field(default_factory=dict)
 
     #: the keys of the nested mappings that have a fixed set of them
     EVALUATION_KEYS = frozenset({"horizon", "stride"})
     COMPRESSION_KEYS = frozenset({"models", "windows", "rates", "seeds", "epochs"})
     ROLLOUTS_KEYS = frozenset({"window"})
+    DEFAULTS_KEYS = frozenset({"models", "windows"})
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, where: str) -> ReproduceStage:
@@ -384,6 +395,7 @@ class ReproduceStage:
             ("evaluation", cls.EVALUATION_KEYS),
             ("compression", cls.COMPRESSION_KEYS),
             ("rollouts", cls.ROLLOUTS_KEYS),
+            ("defaults", cls.DEFAULTS_KEYS),
         ):
             _refuse_unknown(data.get(key, {}), keys, f"{where}.{key}")
         train = dict(data.get("train", {}))

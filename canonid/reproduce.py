@@ -6,18 +6,21 @@
 1. **Datasets** — one per system, generated with :func:`canonid.datagen.generate.generate_dataset`
    into ``OUT/data/SYSTEM`` or reused when the dataset there was made from the same
    :class:`~canonid.datagen.generate.GenerationConfig` (its checksum is validated on loading).
-2. **Jobs** — one :class:`TrainJob` per (system, model, window, seed) for Table 1 and one
-   :class:`AnalysisJob` per analysed system, all independent, run through
-   :func:`canonid.runner.run_jobs` serially, on ``workers`` local Dask processes or on a Dask
-   cluster (``scheduler``): the same job list and the same results whichever way. Each job writes
-   its folder and, last and atomically, ``result.json`` holding its recipe (what it was asked to
-   do) and its result. A job whose ``result.json`` holds the same recipe is finished and is never
-   run again; a training job interrupted mid-way continues from its checkpoint. A job that fails
-   is retried once; one that still fails is named in the report and the error, never dropped.
-3. **Learned-model checks** — the one-step residual and a state probe of the trained canonical
-   models (Ours MLP/GRU, seed 0) against the analysis's certified constants
+2. **Jobs** — one :class:`TrainJob` per (system, model, window, seed) for Table 1 (the paper's
+   network options), one per (system, model, window, seed) of the stage's ``defaults`` entry
+   (canonid's default network options and the profile's ``train`` stage: the column of canonid's
+   defaults beside Table 1) and one :class:`AnalysisJob` per analysed system, all independent,
+   run through :func:`canonid.runner.run_jobs` serially, on ``workers`` local Dask processes or
+   on a Dask cluster (``scheduler``): the same job list and the same results whichever way. Each
+   job writes its folder and, last and atomically, ``result.json`` holding its recipe (what it
+   was asked to do) and its result. A job whose ``result.json`` holds the same recipe is
+   finished and is never run again; a training job interrupted mid-way continues from its
+   checkpoint. A job that fails is retried once; one that still fails is named in the report and
+   the error, never dropped.
+3. **Learned-model checks** — the one-step residual and a state probe of Table 1's trained
+   canonical models (Ours MLP/GRU, seed 0) against the analysis's certified constants
    (:mod:`canonid.analysis.learned`), for the windows both stages cover.
-4. **Compression study** — :func:`canonid.reduction.compression_sweep` on the profile's trained
+4. **Compression study** — :func:`canonid.reduction.compression_sweep` on the profile's Table-1
    canonical runs of seed 0 (heat-map and reduced-model figure); its jobs go through the same
    runner and are resumable too.
 5. **Figures and report** — Table 1 against the paper's printed values (:mod:`canonid.paper`)
@@ -34,6 +37,7 @@ Layout of ``OUT``::
 
     data/SYSTEM/dataset.npz|.json        the datasets
     runs/SYSTEM/MODEL-lL-sS/             one Table-1 job: canonid-train run folder + result.json
+    runs/SYSTEM/MODEL-defaults-lL-sS/    one job of canonid's defaults column, the same files
     analysis/SYSTEM/                     analysis.json, bound_vs_window.png, result.json
     compression/SYSTEM/                  the compression study (sweep.json, figures)
     figures/                             table1_SYSTEM.png, rollouts_SYSTEM.png (or .pdf, .svg)
@@ -72,11 +76,14 @@ from canonid.profiles import profile as profile_stages
 from canonid.reduction import SweepPlan, compression_sweep
 from canonid.reproduce_jobs import (
     ANALYSIS_KEYS,
+    DEFAULT_OPTIONS,
+    PAPER_OPTIONS,
     RESULT_FILE,
     AnalysisJob,
     Job,
     JobOutcome,
     TrainJob,
+    job_options,
     run_job,
 )
 from canonid.reproduce_report import write_report
@@ -318,8 +325,14 @@ def prepare_datasets(
 # ------------------------------------------------------------------------------ jobs
 def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) -> list[Job]:
     """The reproduction's independent jobs, in a fixed order: the analyses first (the longest
-    single jobs), then Table 1 by system, model, window and seed. The list depends only on the
-    settings and the datasets, never on how it is run."""
+    single jobs), then the column of canonid's defaults (the longest training jobs), then Table 1
+    by system, model, window and seed. The list depends only on the settings and the datasets,
+    never on how it is run.
+
+    Table 1 trains the paper's network options with the stage's ``train`` overrides; the
+    stage's ``defaults`` entry names the models and windows that also get canonid's default
+    network options with the profile's ``train`` stage as it is (``canonid train``'s model),
+    for the models and windows of this run only."""
     stage = settings.stage
     out = settings.out.resolve()
     overrides = dict(stage.get("train", {}))
@@ -343,47 +356,65 @@ def plan_jobs(settings: ReproduceSettings, datasets: Mapping[str, DatasetInfo]) 
                 figure_format=settings.figure_format,
             )
         )
+
+    def train_job(system: str, model: str, window: int, seed: int, options: str) -> TrainJob:
+        run = f"{model}-l{window}-s{seed}"
+        if options == PAPER_OPTIONS:
+            merged = {**overrides, **per_system.get(system, {}), **per_model.get(model, {})}
+            net = net_options(model, networks.get(system, {}).get(model, {}), paper=True)
+        else:
+            merged, net, run = {}, net_options(model), f"{model}-{options}-l{window}-s{seed}"
+        # an explicit None in the stage switches an option off
+        train = stage_train_options(
+            settings.profile, {**merged, "seed": seed, "device": settings.device}
+        )
+        return TrainJob(
+            system=system,
+            model=model,
+            window=window,
+            seed=seed,
+            data=str(datasets[system].path),
+            data_sha256=datasets[system].checksum,
+            folder=str(out / "runs" / system / run),
+            profile=settings.profile,
+            train_options=train.to_dict(),
+            evaluation=evaluation,
+            net_options=net,
+            options=options,
+            figure_format=settings.figure_format,
+        )
+
+    defaults = dict(stage.get("defaults", {}))
+    unknown_models = sorted(set(defaults.get("models", ())) - set(model_names()))
+    if unknown_models:
+        raise OptionError(
+            f"reproduce stage, defaults.models: unknown model(s) {unknown_models}; expected "
+            f"some of {model_names()}"
+        )
+    default_models = [m for m in settings.models if m in defaults.get("models", ())]
+    default_windows = [w for w in settings.windows if w in defaults.get("windows", ())]
     for system in settings.systems:
-        info = datasets[system]
+        for model in default_models:
+            for window in default_windows:
+                for seed in range(settings.seeds):
+                    jobs.append(train_job(system, model, window, seed, DEFAULT_OPTIONS))
+    for system in settings.systems:
         for model in settings.models:
             for window in settings.windows:
                 for seed in range(settings.seeds):
-                    merged = {
-                        **overrides,
-                        **per_system.get(system, {}),
-                        **per_model.get(model, {}),
-                    }
-                    # an explicit None in the stage switches an option off
-                    options = stage_train_options(
-                        settings.profile, {**merged, "seed": seed, "device": settings.device}
-                    )
-                    jobs.append(
-                        TrainJob(
-                            system=system,
-                            model=model,
-                            window=window,
-                            seed=seed,
-                            data=str(info.path),
-                            data_sha256=info.checksum,
-                            folder=str(out / "runs" / system / f"{model}-l{window}-s{seed}"),
-                            profile=settings.profile,
-                            train_options=options.to_dict(),
-                            evaluation=evaluation,
-                            net_options=net_options(
-                                model, networks.get(system, {}).get(model, {}), paper=True
-                            ),
-                            figure_format=settings.figure_format,
-                        )
-                    )
+                    jobs.append(train_job(system, model, window, seed, PAPER_OPTIONS))
     return jobs
 
 
 # ------------------------------------------------------------------------------ tables
 @dataclass(frozen=True)
 class Table1Cell:
-    """One (system, model, window) of Table 1 over the seeds (MSE in physical units).
+    """One (system, model, window, options) of Table 1 over the seeds (MSE in physical units).
 
-    ``std`` is the sample standard deviation over seeds (``None`` with one seed)."""
+    ``std`` is the sample standard deviation over seeds (``None`` with one seed); ``options``:
+    the paper's model (:data:`~canonid.reproduce_jobs.PAPER_OPTIONS`, Table 1 itself) or
+    canonid's defaults (:data:`~canonid.reproduce_jobs.DEFAULT_OPTIONS`, the column beside it);
+    ``paper``: the paper's printed value of the model at that window, either way."""
 
     system: str
     model: str
@@ -394,6 +425,7 @@ class Table1Cell:
     mean_clean: float | None
     std_clean: float | None
     paper: float | None
+    options: str = PAPER_OPTIONS
 
 
 def _mean_std(values: Sequence[float]) -> tuple[float, float | None]:
@@ -401,15 +433,22 @@ def _mean_std(values: Sequence[float]) -> tuple[float, float | None]:
     return float(arr.mean()), (float(arr.std(ddof=1)) if arr.size > 1 else None)
 
 
+def _paper_runs(outcomes: Sequence[JobOutcome]) -> list[JobOutcome]:
+    """The training jobs of Table 1 itself (the paper's model), which the checks and the
+    compression study read."""
+    return [o for o in outcomes if o.kind == "train" and job_options(o) == PAPER_OPTIONS]
+
+
 def table1_rows(outcomes: Sequence[JobOutcome]) -> list[Table1Cell]:
-    """Mean and spread over seeds of every (system, model, window) among the training jobs."""
-    groups: dict[tuple[str, str, int], list[dict[str, Any]]] = {}
+    """Mean and spread over seeds of every (system, model, window, options) among the training
+    jobs."""
+    groups: dict[tuple[str, str, int, str], list[dict[str, Any]]] = {}
     for o in outcomes:
         if o.kind == "train":
-            key = (o.recipe["system"], o.recipe["model"], int(o.recipe["window"]))
+            key = (o.recipe["system"], o.recipe["model"], int(o.recipe["window"]), job_options(o))
             groups.setdefault(key, []).append(o.result)
     cells = []
-    for (system, model, window), results in groups.items():
+    for (system, model, window, options), results in groups.items():
         mean, std = _mean_std([r["rollout_mse"] for r in results])
         clean = [r["rollout_mse_clean"] for r in results if r["rollout_mse_clean"] is not None]
         mean_c, std_c = _mean_std(clean) if len(clean) == len(results) else (None, None)
@@ -424,6 +463,7 @@ def table1_rows(outcomes: Sequence[JobOutcome]) -> list[Table1Cell]:
                 mean_c,
                 std_c,
                 table1_value(system, model, window),
+                options,
             )
         )
     return cells
@@ -615,7 +655,8 @@ def learned_checks(
 ) -> dict[str, dict[str, list[dict[str, Any]]]]:
     """Checks of :mod:`canonid.analysis.learned` on the test split with the certified constants, for
     each analysed system (:meth:`canonid.analysis.report.AnalysisReport.learned_checks`):
-    ``"residual"`` — one record per trained canonical model of seed 0 whose window the analysis
+    ``"residual"`` — one record per trained canonical model of Table 1 (the paper's options),
+    seed 0, whose window the analysis
     covers (its one-step residual against the noise-induced level); ``"probe"`` — one record
     per such window (an affine probe z_t → x_t against Proposition 2's bound; it depends on the
     data and ℓ only, not on a model)."""
@@ -627,9 +668,8 @@ def learned_checks(
         dataset = Dataset.load(datasets[system].path)
         runs = [
             o
-            for o in outcomes
-            if o.kind == "train"
-            and o.recipe["system"] == system
+            for o in _paper_runs(outcomes)
+            if o.recipe["system"] == system
             and o.recipe["model"] in CANONICAL_MODELS
             and o.recipe["seed"] == 0
             and o.recipe["window"] in windows
@@ -654,7 +694,8 @@ def compression_study(
     settings: ReproduceSettings, outcomes: Sequence[JobOutcome]
 ) -> dict[str, Any]:
     """The compression study per system (:func:`canonid.reduction.compression_sweep`) on the
-    trained runs of seed 0 that the profile's ``compression`` entry names; a dict per system
+    Table-1 runs (the paper's options) of seed 0 that the profile's ``compression`` entry
+    names; a dict per system
     with the sweep's folder, figures and rows, or a ``"skipped"`` reason."""
     spec = dict(settings.stage.get("compression", {}))
     if not spec:
@@ -663,9 +704,8 @@ def compression_study(
     for system in settings.systems:
         runs = [
             o.folder
-            for o in outcomes
-            if o.kind == "train"
-            and o.recipe["system"] == system
+            for o in _paper_runs(outcomes)
+            if o.recipe["system"] == system
             and o.recipe["seed"] == 0
             and o.recipe["model"] in spec.get("models", CANONICAL_MODELS)
             and o.recipe["window"] in spec.get("windows", settings.windows)

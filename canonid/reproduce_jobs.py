@@ -3,7 +3,9 @@ StoredJob` s, whose ``folder/result.json`` holds their recipe and result (a job 
 the same recipe is finished and never runs again).
 
 * :class:`TrainJob` — one cell of Table 1 for one seed: a ``canonid train`` run folder, trained
-  (or continued from its checkpoint) and scored on the test split.
+  (or continued from its checkpoint) and scored on the test split; its ``options`` say whether
+  the model is the paper's (:data:`PAPER_OPTIONS`, Table 1 itself) or canonid's defaults
+  (:data:`DEFAULT_OPTIONS`, the column beside it).
 * :class:`AnalysisJob` — the analysis of one system (:func:`canonid.analysis.report.analyze`).
 """
 
@@ -27,15 +29,28 @@ from canonid.runfolder import RunRecipe, train_run
 
 __all__ = [
     "ANALYSIS_KEYS",
+    "DEFAULT_OPTIONS",
+    "PAPER_OPTIONS",
     "RESULT_FILE",
     "AnalysisJob",
     "Job",
     "JobOutcome",
     "TrainJob",
     "finished",
+    "job_options",
     "run_job",
     "store",
 ]
+
+#: a Table-1 job's model: the paper's network options and the reproduce stage's budget ...
+PAPER_OPTIONS = "paper"
+#: ... or canonid's default network options and the profile's ``train`` stage
+DEFAULT_OPTIONS = "defaults"
+
+
+def job_options(outcome: JobOutcome) -> str:
+    """A training job's options (its recipe names them unless they are the paper's)."""
+    return str(outcome.recipe.get("options", PAPER_OPTIONS))
 
 
 @dataclass(frozen=True)
@@ -62,17 +77,30 @@ class TrainJob(StoredJob):
     train_options: Mapping[str, Any]
     evaluation: Mapping[str, Any]
     net_options: Mapping[str, Any] = field(default_factory=dict)
+    options: str = PAPER_OPTIONS
     threads: int | None = 1
     figure_format: str = "png"
     kind: ClassVar[str] = "train"
 
+    def __post_init__(self) -> None:
+        if self.options not in (PAPER_OPTIONS, DEFAULT_OPTIONS):
+            raise OptionError(
+                f"TrainJob options must be {PAPER_OPTIONS!r} or {DEFAULT_OPTIONS!r}, "
+                f"got {self.options!r}"
+            )
+
     @property
     def name(self) -> str:
-        return f"{self.system} {self.model} ℓ={self.window} seed {self.seed}"
+        model = self.model if self.options == PAPER_OPTIONS else f"{self.model} (canonid defaults)"
+        return f"{self.system} {model} ℓ={self.window} seed {self.seed}"
 
     def recipe(self) -> dict[str, Any]:
-        """What a finished job must match to be reused (the data by checksum, not by path)."""
+        """What a finished job must match to be reused (the data by checksum, not by path); a
+        paper-options job's recipe has no ``options`` key, as before that key existed, so an
+        older reproduction resumes."""
+        marked = {} if self.options == PAPER_OPTIONS else {"options": self.options}
         return {
+            **marked,
             "system": self.system,
             "model": self.model,
             "window": self.window,

@@ -306,14 +306,17 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
     assert "--linear cannot change when resuming" in capsys.readouterr().err
 
 
-def test_reproduce_trains_the_papers_model(tmp_path):
+def test_reproduce_trains_the_papers_model_and_canonids_beside_it(tmp_path):
     from canonid.reproduce import plan_jobs, settings_from_profile
 
     settings_ = settings_from_profile("tiny", out=tmp_path)
     info = SimpleNamespace(path=tmp_path / "data", checksum="0")
     jobs = plan_jobs(settings_, {s: info for s in settings_.systems})
     mlp = [j for j in jobs if getattr(j, "model", None) == "mlp"]
-    assert mlp and all(j.net_options == PAPER_NET_OPTIONS["mlp"] for j in mlp)
+    paper = [j for j in mlp if j.options == "paper"]
+    assert paper and all(j.net_options == PAPER_NET_OPTIONS["mlp"] for j in paper)
+    defaults = [j for j in mlp if j.options == "defaults"]
+    assert defaults and all(j.net_options == DEFAULT_NET_OPTIONS["mlp"] for j in defaults)
 
 
 def _first_order(direct: float, delayed: float, *, seed: int, n: int = 3, T: int = 300):

@@ -36,6 +36,7 @@ def _misspelt(path: tuple[str, ...], key: str) -> dict:
         (("reproduce", "evaluation"), "horizn", "reproduce.evaluation"),
         (("reproduce", "compression"), "rate", "reproduce.compression"),
         (("reproduce", "rollouts"), "windows", "reproduce.rollouts"),
+        (("reproduce", "defaults"), "window", "reproduce.defaults"),
         (("reproduce", "train"), "lr_fnal", "reproduce.train"),
         (("reproduce", "train", "per_model", "mlp"), "epochz", "train.per_model.mlp"),
     ],

@@ -1,9 +1,12 @@
 """``canonid reproduce`` on the tiny profile: the report, the same table serially and on a
-2-worker Dask cluster, and resumption that never redoes a finished job."""
+2-worker Dask cluster, resumption that never redoes a finished job, and the column of canonid's
+defaults beside the paper's model."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import math
 import re
 import shutil
 from pathlib import Path
@@ -17,7 +20,7 @@ from canonid.learning.training import OptionError
 from canonid.paper import TABLE1
 from canonid.reproduce import reproduce, settings_from_profile
 from canonid.reproduce_jobs import RESULT_FILE, JobOutcome, finished, store
-from canonid.reproduce_report import system_label
+from canonid.reproduce_report import column_label, system_label
 from canonid.runner import JobsFailedError
 
 
@@ -48,7 +51,11 @@ def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
     md = (serial / "report.md").read_text()
     data = json.loads((serial / "reproduction.json").read_text())
     cells = data["table1"]
-    assert {(c["model"], c["window"]) for c in cells} == {("mlp", 5), ("classic-gru", 5)}
+    assert {(c["model"], c["window"], c["options"]) for c in cells} == {
+        ("mlp", 5, "paper"),
+        ("classic-gru", 5, "paper"),
+        ("mlp", 5, "defaults"),
+    }
     scale = TABLE1["tank"].scale
     for c in cells:
         assert c["paper"] == pytest.approx(
@@ -58,17 +65,34 @@ def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
         assert f"{c['mean'] / scale:.3g}" in md and f"{c['paper'] / scale:.3g}" in md
     assert "profile tiny" in md and "Machine:" in md and "load average" in md
     assert "against measured y" in md and "against noise-free y_clean" in md
+    # the column of canonid's defaults, labelled, with finite numbers in both tables and pages
+    html = (serial / "report.html").read_text()
+    (defaults,) = [c for c in cells if c["options"] == "defaults"]
+    assert math.isfinite(defaults["mean"]) and math.isfinite(defaults["mean_clean"])
+    for page in (md, html):
+        assert "Ours (MLP), paper options" in page and "Ours (MLP), canonid defaults" in page
+        assert page.count(f"{defaults['mean'] / scale:.3g}") >= 1
+    header = next(line for line in md.splitlines() if line.startswith("| ℓ | Classic GRU"))
+    assert header.split(" | ")[1:] == [
+        "Classic GRU",
+        "paper",
+        "Ours (MLP), paper options",
+        "paper",
+        "Ours (MLP), canonid defaults |",
+    ]
+    assert "<th>Ours (MLP), canonid defaults</th>" in html
+    assert "network: Ours (MLP), canonid defaults" in md  # its options in the Budget table
     for target in re.findall(r"\]\(([^)]+)\)", md):
         assert (serial / target).exists(), target
-    html = (serial / "report.html").read_text()
     assert html.count("data:image/png;base64,") == md.count("![")  # figures inlined
     (row,) = data["compression"]["tank"]["rows"]  # the tiny study: one run, one rate
     assert row["window"] == 5 and row["compression"] == 0.5 and row["latent_dim"] < row["state_dim"]
     kinds = sorted(j["kind"] for j in data["jobs"])
-    assert kinds == ["analysis", "train", "train"]
+    assert kinds == ["analysis", "train", "train", "train"]
     checks = data["learned_checks"]["tank"]
-    (residual,) = checks["residual"]  # the trained MLP (canonical) at the analysed window
+    (residual,) = checks["residual"]  # Table 1's MLP (canonical) at the analysed window
     assert residual["model"] == "mlp" and residual["window"] == 5
+    assert residual["run"].endswith("mlp-l5-s0")
     assert residual["rows"] + residual["excluded"] > 0
     (probe,) = checks["probe"]
     assert probe["window"] == 5 and probe["test_rows"] == residual["rows"] + residual["excluded"]
@@ -78,7 +102,8 @@ def test_report_sets_every_cell_beside_the_paper_and_links_exist(serial):
 def test_resume_of_a_finished_reproduction_runs_nothing(serial, capsys):
     before = _results(serial)
     assert main(["reproduce", "--profile", "tiny", "--out", str(serial), "--resume"]) == 0
-    assert "0 run now, 3 already finished" in capsys.readouterr().out
+    assert "0 run now, 4 already finished" in capsys.readouterr().out
+    assert "runs/tank/mlp-defaults-l5-s0/result.json" in before  # the defaults' job too
     assert _results(serial) == before
 
 
@@ -95,7 +120,7 @@ def test_two_dask_workers_give_the_same_table(serial, tmp_path):
     settings = settings_from_profile("tiny", out=out, workers=2, progress=False)
     result = reproduce(settings)
     assert all(d.reused for d in result.datasets.values())
-    assert result.jobs_run == 3
+    assert result.jobs_run == 4
     assert _table(out) == _table(serial)
 
 
@@ -123,8 +148,12 @@ def test_interrupted_run_resumes_without_redoing_finished_jobs(tmp_path, monkeyp
     calls.clear()
     monkeypatch.setattr(rp, "run_job", lambda job: (calls.append(job.name), real(job))[1])
     result = reproduce(settings_from_profile("tiny", out=out, progress=False, resume=True))
-    assert sorted(calls) == ["tank classic-gru ℓ=5 seed 0", "tank mlp ℓ=5 seed 0"]
-    assert result.jobs_run == 2 and len(result.outcomes) == 3
+    assert sorted(calls) == [
+        "tank classic-gru ℓ=5 seed 0",
+        "tank mlp (canonid defaults) ℓ=5 seed 0",
+        "tank mlp ℓ=5 seed 0",
+    ]
+    assert result.jobs_run == 3 and len(result.outcomes) == 4
     after = _results(out)
     assert after["analysis/tank/result.json"] == finished["analysis/tank/result.json"]
 
@@ -151,18 +180,18 @@ def test_a_failing_job_is_retried_once_and_reported(tmp_path, monkeypatch):
 
     monkeypatch.setattr(rp, "run_job", classic_gru_fails)
     settings = settings_from_profile("tiny", out=out, progress=False)
-    with pytest.raises(JobsFailedError, match="1 of 3 jobs failed") as exc:
+    with pytest.raises(JobsFailedError, match="1 of 4 jobs failed") as exc:
         reproduce(settings)
     assert calls.count("tank classic-gru ℓ=5 seed 0") == 2  # the first try and one retry
     assert "simulated failure" in exc.value.failures[0].error
     md = (out / "report.md").read_text()
     assert "Failed jobs" in md and "simulated failure" in md
     cells = json.loads((out / "reproduction.json").read_text())["table1"]
-    assert [c["model"] for c in cells] == ["mlp"]  # the finished job is kept
+    assert sorted(c["model"] for c in cells) == ["mlp", "mlp"]  # the finished jobs are kept
 
 
-def _outcome(model: str, window: int, seed: int, mse: float) -> JobOutcome:
-    recipe = {"system": "tank", "model": model, "window": window, "seed": seed}
+def _outcome(model: str, window: int, seed: int, mse: float, **more: str) -> JobOutcome:
+    recipe = {"system": "tank", "model": model, "window": window, "seed": seed, **more}
     result = {"rollout_mse": mse, "rollout_mse_clean": mse / 2}
     return JobOutcome("train", f"{model} {window} {seed}", "f", recipe, result, ran=True)
 
@@ -173,10 +202,15 @@ def test_table_rows_are_mean_and_sample_spread_over_seeds():
             _outcome("mlp", 5, 0, 1.0),
             _outcome("mlp", 5, 1, 3.0),
             _outcome("mlp", 7, 0, 2.0),
+            _outcome("mlp", 5, 0, 0.5, options="defaults"),
             JobOutcome("analysis", "a", "f", {"system": "tank"}, {}, ran=True),
         ]
     )
-    by_window = {c.window: c for c in cells}
+    (defaults,) = [c for c in cells if c.options == "defaults"]  # a column of its own
+    assert (defaults.window, defaults.mean, defaults.seeds) == (5, 0.5, 1)
+    # beside the paper's value of the same model
+    assert defaults.paper == pytest.approx(TABLE1["tank"].values["mlp"][0] * TABLE1["tank"].scale)
+    by_window = {c.window: c for c in cells if c.options == "paper"}
     assert set(by_window) == {5, 7}
     five = by_window[5]
     assert (five.mean, five.std, five.seeds) == (2.0, pytest.approx(2**0.5), 2)
@@ -231,7 +265,7 @@ def test_the_job_list_depends_on_the_settings_only(tmp_path):
         for w in (0, 2)
     ]
     assert plans[0] == plans[1]
-    assert [type(j).__name__ for j in plans[0]] == ["AnalysisJob", "TrainJob", "TrainJob"]
+    assert [type(j).__name__ for j in plans[0]] == ["AnalysisJob", *["TrainJob"] * 3]
 
 
 def test_table1_trains_as_measured_without_the_quick_profiles_clipping(tmp_path):
@@ -242,6 +276,82 @@ def test_table1_trains_as_measured_without_the_quick_profiles_clipping(tmp_path)
     assert train_options("quick").grad_clip is not None
     info = rp.DatasetInfo("tank", tmp_path / "d.npz", {}, "abc", {}, reused=False, seconds=0.0)
     jobs = rp.plan_jobs(settings_from_profile("quick", out=tmp_path), {"tank": info})
-    trains = [j for j in jobs if type(j).__name__ == "TrainJob"]
+    trains = [j for j in jobs if type(j).__name__ == "TrainJob" and j.options == "paper"]
     assert trains and all(j.train_options["grad_clip"] is None for j in trains)
     assert all(j.train_options["batch_size"] == 16 for j in trains)
+
+
+def _quick_tank_jobs(tmp_path: Path, profile: str = "quick", **overrides) -> list:
+    info = rp.DatasetInfo("tank", tmp_path / "d.npz", {}, "abc", {}, reused=False, seconds=0.0)
+    settings = settings_from_profile(profile, out=tmp_path, systems=["tank"], **overrides)
+    return rp.plan_jobs(settings, {"tank": info})
+
+
+def test_the_quick_tank_reproduction_trains_canonids_defaults_beside_table1(tmp_path):
+    """`make demo`'s job list: Table 1 with the paper's model as measured, plus one job of
+    canonid's defaults (Ours (MLP) at ℓ = 10: what `canonid train` trains) started right after
+    the analysis, in a folder of its own."""
+    from canonid.learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS
+    from canonid.profiles import train_options
+
+    jobs = _quick_tank_jobs(tmp_path)
+    (defaults,) = [j for j in jobs if getattr(j, "options", None) == "defaults"]
+    assert jobs.index(defaults) == 1  # the longest training job starts first
+    assert (defaults.model, defaults.window, defaults.seed) == ("mlp", 10, 0)
+    assert defaults.net_options == DEFAULT_NET_OPTIONS["mlp"]
+    assert defaults.train_options == train_options("quick", seed=0, device="auto").to_dict()
+    assert Path(defaults.folder) == tmp_path.resolve() / "runs" / "tank" / "mlp-defaults-l10-s0"
+    assert defaults.recipe()["options"] == "defaults"
+    paper = [j for j in jobs if getattr(j, "options", None) == "paper"]
+    assert len(paper) == 10  # 5 models × ℓ = 10, 5, as before
+    # a paper job's recipe is what it was before the defaults' column, so an older demo resumes
+    assert all("options" not in j.recipe() for j in paper)
+    assert all(Path(j.folder).name == f"{j.model}-l{j.window}-s0" for j in paper)
+    assert [j.net_options for j in paper if j.model == "mlp"] == [PAPER_NET_OPTIONS["mlp"]] * 2
+
+
+@pytest.mark.parametrize(
+    ("profile", "overrides"),
+    [
+        ("quick", {"windows": [5]}),  # the defaults' window is not in this run
+        ("quick", {"models": ["masti"]}),  # nor its model
+        ("paper", {}),  # the paper profile has no defaults' column
+    ],
+)
+def test_the_defaults_column_follows_the_runs_models_and_windows(tmp_path, profile, overrides):
+    jobs = _quick_tank_jobs(tmp_path, profile, **overrides)
+    trains = [j for j in jobs if type(j).__name__ == "TrainJob"]
+    assert trains and all(j.options == "paper" for j in trains)
+
+
+def test_a_train_job_names_its_options_or_refuses_others(tmp_path):
+    (job,) = [j for j in _quick_tank_jobs(tmp_path) if getattr(j, "options", "") == "defaults"]
+    assert job.name == "tank mlp (canonid defaults) ℓ=10 seed 0"
+    with pytest.raises(OptionError, match="options must be 'paper' or 'defaults'"):
+        dataclasses.replace(job, options="mine")
+
+
+def test_columns_are_labelled_by_the_options_they_were_trained_with():
+    assert column_label("mlp") == "Ours (MLP), paper options"
+    assert column_label("mlp", "defaults") == "Ours (MLP), canonid defaults"
+    assert column_label("classic-gru") == "Classic GRU"  # one set of options: no suffix
+
+
+def test_the_table1_figure_names_both_mlp_columns_in_its_legend():
+    from canonid.reproduce_report import plot_table1
+
+    def cell(model: str, window: int, options: str = "paper") -> rp.Table1Cell:
+        return rp.Table1Cell("tank", model, window, 1, 1e-4, None, 1e-4, None, None, options)
+
+    cells = [cell("mlp", 5), cell("mlp", 10), cell("gru", 10), cell("mlp", 10, "defaults")]
+    fig = plot_table1(cells, "tank")
+    labels = [t.get_text() for legend in fig.legends for t in legend.get_texts()]
+    assert sorted(labels) == sorted(
+        [
+            "Ours (GRU) (this run)",
+            "Ours (GRU) (paper)",
+            "Ours (MLP), paper options (this run)",
+            "Ours (MLP) (paper)",
+            "Ours (MLP), canonid defaults (this run)",
+        ]
+    )
