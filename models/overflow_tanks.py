@@ -33,10 +33,11 @@ the levels), so a full tank stays exactly at ``top``; a substep that reaches the
 overshoots it, and the overshoot spills at the substep's end (``p`` times it into the lower tank;
 then both levels are clipped at 0). A full tank leaves the rim only when ``u`` changes, at a
 sample's start, so the only event inside a sample is the rim being reached. Against 512 substeps,
-the default 16 differ by at most 3e-5 V over a record of the ``tanks-overflow`` scenario (4
-substeps: 5e-3 V, 32: 8e-6 V). Water is conserved exactly: with equal tank sections
-(``k2 = k1``) and a closed lower tank (``k3 = 0``) each step raises ``x1 + x2`` by
-``k4 u dt − (1 − p) S``, ``S`` the level spilled during the step (:attr:`OverflowTanks.spill`).
+the default 16 differ by at most 2.3e-5 V on the records of the ``tanks-overflow`` scenario (seed
+0; 4 substeps: 3e-4 V, 32: 6e-6 V), a thousandth of the noise's half-width. Water is conserved
+exactly: with equal tank sections (``k2 = k1``) and a closed lower tank (``k3 = 0``) each step
+raises ``x1 + x2`` by ``k4 u dt − (1 − p) S``, ``S`` the level spilled during the step
+(:attr:`OverflowTanks.spill`).
 
 Parameters
 ----------
@@ -44,8 +45,8 @@ Parameters
 ``p = 0.5``, ``y_max = 10 V``. Around ``u = 5 V`` both tanks settle with time constants
 ``2 √x / k`` of about 50 s (12 samples). In steady state the lower level is ``1.108 x1*``
 below the rim, so the sensor saturates from ``u = 6.01 V`` on, and the rim is reached from
-``u = k1 √top / k4 = 6.32 V`` on. The scenario ``tanks-overflow`` (an offset of 5 V and a
-multisine of RMS 1.5 V) spills a few times per record and saturates the sensor now and then.
+``u = k1 √top / k4 = 6.32 V`` on. The scenario ``tanks-overflow`` (an offset of 5.3 V and a
+multisine of RMS 1.2 V) spills a few times per record and saturates the sensor now and then.
 
 √x has an unbounded slope at 0, so the analysis set starts at ``eps > 0``, as for ``tank``.
 """
