@@ -160,6 +160,8 @@ def generate(request: GenerateRequest) -> str:
         chunks_text = ", ".join(f"{k} {v}" for k, v in result.chunks.items())
         length = get_scenario(system).chunk_length
         lines.append(f"  flights cut into {length}-sample chunks: {chunks_text} chunks")
+    if result.validation is not None:
+        lines.append(f"  validation: {result.validation}")
     stand_in = config.true_system.simulated_stand_in_for
     if stand_in:
         lines.append(f"  SIMULATED data: {system} is a simulated stand-in for {stand_in}")

@@ -31,6 +31,10 @@ On disk (``out`` is the folder the caller names)::
     out/parts/<split>-<index>.npz/.json    one finished flight each (removed after assembly
                                            unless keep_parts)
 
+When the scenario has a ``val_tail`` (``tanks-overflow``: 0.2), it generates no validation flights:
+the validation split is the last ``val_tail`` share of every training flight, and the training
+split keeps the rest of it (the single-record cut of ``canonid benchmark``).
+
 When the scenario has a ``chunk_length`` (the quadrotor's 200), the assembled dataset holds each
 flight's consecutive chunks (:func:`canonid.datagen.chunks.cut_chunks`) in flight order; parts stay
 whole flights.
@@ -180,6 +184,11 @@ class GenerationConfig:
             counts[split] = int(n)
         if sum(counts.values()) == 0:
             raise ShapeError("nothing to generate: every split has 0 flights")
+        if scenario.val_tail is not None and counts.get("val", 0):
+            raise ShapeError(
+                f"{self.system} takes its validation from the last {scenario.val_tail:.0%} of "
+                f"each training flight: ask for 0 validation flights, not {counts['val']}"
+            )
         object.__setattr__(self, "counts", counts)
         unknown = sorted(set(self.controller_options) - set(scenario.controller_options))
         if unknown:
@@ -291,6 +300,8 @@ class GenerationResult:
         solver_failures: failed controller steps in the kept flights (all fell back).
         replaced: flights that were regenerated with a new seed at least once.
         informativeness: the measure written into the metadata (designed configurations only).
+        validation: how the validation split was cut from the training flights (scenarios with
+            a ``val_tail``), else None.
     """
 
     path: Path
@@ -301,6 +312,7 @@ class GenerationResult:
     replaced: int
     chunks: dict[str, int] | None = None
     informativeness: Informativeness | None = None
+    validation: str | None = None
 
 
 def plan_flights(config: GenerationConfig) -> list[FlightJob]:
@@ -520,6 +532,23 @@ def _check_existing(dataset_path: Path, config: GenerationConfig) -> None:
         )
 
 
+def _validation_tails(
+    splits: Mapping[str, tuple[Trajectory, ...]], tail: float, steps: int
+) -> tuple[dict[str, tuple[Trajectory, ...]], str]:
+    """Every training flight of ``steps`` samples cut in two: samples ``0 … ⌊(1 − tail)·steps⌋
+    − 1`` stay training data, the rest becomes its validation part (``info["samples"]``: each
+    part's ``[start, stop)`` within its flight); and the sentence the metadata keeps."""
+    cut = int((1 - tail) * steps)
+    if not 2 <= cut <= steps - 2:
+        raise ShapeError(
+            f"a flight of {steps} samples is too short to cut a validation tail of {tail:.0%}"
+        )
+    heads = tuple(tr.part(0, cut, samples=[0, cut]) for tr in splits["train"])
+    tails = tuple(tr.part(cut, steps, samples=[cut, steps]) for tr in splits["train"])
+    how = f"the last {tail:.0%} of every training flight: samples {cut}…{steps - 1} of {steps}"
+    return {**splits, "train": heads, "val": tails}, how
+
+
 def generate_dataset(
     config: GenerationConfig,
     out: str | Path,
@@ -589,7 +618,11 @@ def generate_dataset(
         for split in SPLIT_CODES
     }
     kept = [tr for trs in splits.values() for tr in trs]
+    flights = {split: len(trs) for split, trs in splits.items()}
     metadata = _metadata(config)
+    tail = config.scenario.val_tail
+    if tail is not None:
+        splits, metadata["validation_split"] = _validation_tails(splits, tail, config.steps)
     measure = None
     if config.designed and splits["train"]:
         measure = measure_informativeness(
@@ -600,7 +633,6 @@ def generate_dataset(
         )
         metadata["informativeness"] = measure.to_dict()
     chunk = config.scenario.chunk_length
-    flights = {split: len(trs) for split, trs in splits.items()}
     if chunk is not None:
         splits = {
             split: tuple(c for tr in trs for c in cut_chunks(tr, chunk))
@@ -626,4 +658,5 @@ def generate_dataset(
         replaced=sum(1 for tr in kept if tr.info.get("replaced")),
         chunks=dataset.counts() if chunk is not None else None,
         informativeness=measure,
+        validation=metadata.get("validation_split"),
     )

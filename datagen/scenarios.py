@@ -79,6 +79,10 @@ class Scenario:
         reference_families: other reference samplers a user may pick by name instead of
             ``reference`` (``canonid generate --references NAME``).
         measure_window: the window ℓ of the informativeness written into the metadata.
+        val_tail: when set, validation is the last ``val_tail`` share of every training flight
+            (the first ``⌊(1 − val_tail) T⌋`` samples stay training data), as ``canonid
+            benchmark`` cuts a single training record; the scenario then generates no
+            validation flights.
     """
 
     system: str
@@ -102,6 +106,7 @@ class Scenario:
     design: InputDesign | None = None
     reference_families: Mapping[str, ReferenceSampler] = field(default_factory=dict)
     measure_window: int = 10
+    val_tail: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", self.name or self.system)
@@ -120,6 +125,16 @@ class Scenario:
                 f"scenario {self.system}: chunk_length must be in [1, T={self.T}], got "
                 f"{self.chunk_length}"
             )
+        if self.val_tail is not None:
+            if not 0.0 < self.val_tail < 1.0:
+                raise ShapeError(
+                    f"scenario {self.system}: val_tail must be in (0, 1), got {self.val_tail}"
+                )
+            if self.chunk_length is not None or self.split_sizes.get("val", 0):
+                raise ShapeError(
+                    f"scenario {self.system}: val_tail cuts validation from the training "
+                    "flights; it takes no chunk_length and no validation flights"
+                )
         object.__setattr__(self, "split_sizes", MappingProxyType(dict(self.split_sizes)))
 
     def describe(self) -> dict[str, Any]:
@@ -142,6 +157,7 @@ class Scenario:
             "chunk_length": self.chunk_length,
             "notes": self.notes,
             **designed,
+            **({} if self.val_tail is None else {"val_tail": self.val_tail}),
         }
 
 
@@ -318,6 +334,50 @@ _MASSES_ID = Scenario(
     ),
 )
 
+# ---------------------------------------------------------------------------- tanks with overflow
+#: the pump's mean voltage: the multisine swings around it
+TANKS_OVERFLOW_OFFSET = 5.3
+#: a random-phase multisine on every grid line of a 1,024-sample record (4,096 s) up to 0.0144 Hz
+#: (58 lines, about a ninth of Nyquist): slow enough for the tanks (time constants near 50 s) to
+#: follow, so that peaks of the input fill the upper tank to its rim and lift the lower one past
+#: the sensor's range a few times per record; with RMS 1.2 V around 5.3 V the voltage seldom
+#: reaches the edges of U = [0, 10] V (clipped there: a broadband kink the rest of the record lacks)
+TANKS_OVERFLOW_DESIGN = Multisine(band=(0.0, 0.0144), lines=58, amplitude=1.2)
+
+
+def _offset_reference(system: System, rng: np.random.Generator, T: int) -> np.ndarray:
+    return np.full((T, system.n_u), TANKS_OVERFLOW_OFFSET)
+
+
+def _offset_equilibrium(system: System, reference: np.ndarray) -> np.ndarray:
+    """Start at rest at the levels the mean pump voltage holds."""
+    from canonid.models.overflow_tanks import OverflowTanks
+
+    if not isinstance(system, OverflowTanks):
+        raise ShapeError(f"the tanks-overflow scenario needs an OverflowTanks, got {system!r}")
+    return np.array(system.equilibrium(float(reference[0, 0])))
+
+
+_TANKS_OVERFLOW = Scenario(
+    system="tanks-overflow",
+    T=1024,
+    split_sizes={"train": 1, "val": 0, "test": 1},
+    reference=_offset_reference,
+    reference_names=("u_offset",),
+    initial_state=_offset_equilibrium,
+    controller=_feedforward,
+    clip_input=True,
+    design=TANKS_OVERFLOW_DESIGN,
+    val_tail=0.2,
+    notes=(
+        "The shape of the Cascaded Tanks benchmark: one training and one test record of 1024 "
+        "samples at Ts = 4 s, each driven open loop by its own random-phase multisine (every "
+        "line of the 1/4096 Hz grid up to 0.0144 Hz, RMS 1.2 V) around a pump voltage of 5.3 V, "
+        "clipped to U = [0, 10] V, from rest at the levels 5.3 V holds; validation is the last "
+        "20 % of the training record (samples 819-1023), as canonid benchmark cuts it."
+    ),
+)
+
 _SCENARIOS: dict[str, Scenario] = {
     "tank": Scenario(
         system="tank",
@@ -337,6 +397,7 @@ _SCENARIOS: dict[str, Scenario] = {
     "drone2d-id": _DRONE2D_ID,
     "quadrotor": _QUADROTOR,
     "masses-id": _MASSES_ID,
+    "tanks-overflow": _TANKS_OVERFLOW,
 }
 
 

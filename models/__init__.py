@@ -17,6 +17,7 @@ _EXPORTS = {
     "LinearSystem": "canonid.models.linear",
     "linear_example": "canonid.models.linear",
     "MassChain": "canonid.models.masses",
+    "OverflowTanks": "canonid.models.overflow_tanks",
     "get_system": "canonid.models.registry",
     "register_system": "canonid.models.registry",
     "system_names": "canonid.models.registry",

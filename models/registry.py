@@ -14,6 +14,7 @@ from canonid.models.base import System
 from canonid.models.drone2d import Drone2D
 from canonid.models.linear import LINEAR_EXAMPLES
 from canonid.models.masses import MassChain
+from canonid.models.overflow_tanks import OverflowTanks
 from canonid.models.quadrotor import Quadrotor
 from canonid.models.tank import Tank
 
@@ -24,6 +25,7 @@ _FACTORIES: dict[str, Callable[..., System]] = {
     "drone2d": Drone2D,
     "quadrotor": Quadrotor,
     "masses": MassChain,
+    "tanks-overflow": OverflowTanks,
     **LINEAR_EXAMPLES,
 }
 

@@ -130,6 +130,32 @@ FIGURES: dict[str, Cell | Code] = {
         f"masses/lowest-fit/{ell}": Cell("Chain of masses", _row(**{"ℓ": str(ell)}), "lowest")
         for ell in (10, 30)
     },
+    # the overflow tanks (bench_overflow_tanks.py): test RMSE per contestant, events per part
+    **{
+        f"overflow/rmse/{who}": Cell("Overflow tanks", _row(model=model), "RMSE [V]")
+        for who, model in (
+            ("defaults", "canonid defaults (Ours (MLP))"),
+            ("classic-gru", "Classic GRU"),
+            ("arx", "ARX (linear)"),
+            ("deepsi", "deepSI SUBNET (its defaults)"),
+        )
+    },
+    **{
+        f"overflow/{part}/{what}": Cell("Overflow tanks", _row(part=part), column, whole=True)
+        for part in ("training", "validation", "test")
+        for what, column in (
+            ("rim", "at the rim (episodes)"),
+            ("sensor", "at the sensor limit (episodes)"),
+        )
+    },
+    **{
+        f"overflow/validation/{who}": Cell("Overflow tanks", _row(run=run), "best validation loss")
+        for who, run in (
+            ("defaults", "canonid defaults (Ours (MLP))"),
+            ("l20", "ℓ = 20"),
+            ("h64", "hidden 64 × 64 × 64"),
+        )
+    },
     "arx-start/drone2d/0": Cell(
         "Defaults study", _row(system="drone2d", seed="0"), "3e-3, clip 1, ARX start"
     ),
