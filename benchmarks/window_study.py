@@ -45,6 +45,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _data import DATA, ensure_dataset  # noqa: E402
 from _results import append_row, read_rows, write_section  # noqa: E402
 
+from canonid.learning.screen import (  # noqa: E402
+    SCREEN_FRACTION,
+    SCREEN_TOLERANCE,
+    SCREEN_WINDOWS,
+    choose_window,
+)
+
 ROWS = ROOT / "benchmarks" / "studies" / "window_study.jsonl"
 DEFAULTS_ROWS = ROOT / "benchmarks" / "studies" / "defaults_study.jsonl"
 MODELS = ROOT / "runs" / "window_study"
@@ -175,26 +182,46 @@ def _g(x: float | None) -> str:
     return "-" if x is None else (f"{x:.4g}" if abs(x) >= 0.01 else f"{x:.3e}")
 
 
+def _choice(screen_row: dict, tolerance: float = SCREEN_TOLERANCE, ladder: bool = True) -> int:
+    """The window a screen's row gives under ``tolerance`` (its recorded losses), among
+    canonid's ladder (:data:`SCREEN_WINDOWS`) or, without ``ladder``, every window screened."""
+    losses = {
+        c["window"]: c["best_val_loss"]
+        for c in screen_row["candidates"]
+        if c["best_val_loss"] is not None and (not ladder or c["window"] in SCREEN_WINDOWS)
+    }
+    return choose_window(losses, tolerance)
+
+
+def _screen_cpu(screen_row: dict) -> float:
+    """CPU seconds of the screen's candidates on canonid's ladder."""
+    return sum(c["cpu_seconds"] for c in screen_row["candidates"] if c["window"] in SCREEN_WINDOWS)
+
+
 def table() -> str:
     rows = read_rows(ROWS)
     lines = [
         "Ours (MLP), canonid's defaults (`quick` profile, feedthrough decided on validation), "
         "seed 0, one torch thread, CPU. **Screen**: each candidate window trained for a fraction "
         "of the profile's 600 epochs (the schedule compressed: curriculum and patience scaled "
-        "alike); the window with the lowest best validation loss (normalised) is chosen. "
+        "alike); the rule keeps the shortest window of the ladder "
+        f"{', '.join(map(str, SCREEN_WINDOWS))} whose best validation loss (normalised) is "
+        f"within {SCREEN_TOLERANCE:g}× of the lowest (the column 'lowest' takes the lowest of "
+        "every window screened). "
         "**Full**: the full `quick` run at a window. The test score is read only for the "
         "window chosen on validation, after the choice.",
         "",
         "### Screens",
         "",
-        "| system | fraction (epochs) | ℓ: best validation loss of the screen | chosen | CPU s |",
-        "|---|---|---|---:|---:|",
+        "| system | fraction (epochs) | ℓ: best validation loss of the screen | lowest | "
+        f"the rule (×{SCREEN_TOLERANCE:g}) | CPU s |",
+        "|---|---|---|---:|---:|---:|",
     ]
     for r in (r for r in rows if r["kind"] == "screen"):
         cells = ", ".join(f"{c['window']}: {_g(c['best_val_loss'])}" for c in r["candidates"])
         lines.append(
-            f"| {r['system']} | {r['fraction']} ({r['epochs']}) | {cells} | {r['chosen']} | "
-            f"{r['cpu_s']:.0f} |"
+            f"| {r['system']} | {r['fraction']} ({r['epochs']}) | {cells} | "
+            f"{_choice(r, 1.0, ladder=False)} | **{_choice(r)}** | {r['cpu_s']:.0f} |"
         )
     lines += [
         "",
@@ -217,10 +244,37 @@ def table() -> str:
             )
     lines += [
         "",
+        "### The rule judged by the full runs (validation only)",
+        "",
+        "| system | the screen's lowest: ℓ, full-run validation loss | the rule: ℓ, full-run "
+        "validation loss | ℓ = 10 | the rule / ℓ = 10 |",
+        "|---|---|---|---:|---:|",
+    ]
+    for system in SYSTEMS:
+        screens = [
+            r
+            for r in rows
+            if r["kind"] == "screen" and r["system"] == system and r["fraction"] == SCREEN_FRACTION
+        ]
+        ref = reference(system, 0)
+        if not screens or ref is None:
+            continue
+        full = {
+            r["window"]: r["best_val"]
+            for r in rows
+            if r["kind"] == "full" and r["system"] == system
+        }
+        full.setdefault(10, ref["best_val"])
+        low, rule = _choice(screens[-1], 1.0, ladder=False), _choice(screens[-1])
+        ratio = f"{full[rule] / full[10]:.2f}" if rule in full else "-"
+        lines.append(
+            f"| {system} | {low}: {_g(full.get(low))} | {rule}: {_g(full.get(rule))} | "
+            f"{_g(full[10])} | {ratio} |"
+        )
+    lines += [
+        "",
         "Cost of the default (the screen at canonid's fraction, then the full run):",
     ]
-    from canonid.learning.screen import SCREEN_FRACTION
-
     for system in SYSTEMS:
         screens = [
             r
@@ -233,12 +287,14 @@ def table() -> str:
             if screens
             and r["kind"] == "full"
             and r["system"] == system
-            and r["window"] == screens[-1]["chosen"]
+            and r["window"] == _choice(screens[-1])
         ]
+        ref = reference(system, 0) if screens and _choice(screens[-1]) == 10 else None
+        fulls = fulls or ([{**ref, "window": 10}] if ref is not None else [])
         if fulls:
-            cpu = screens[-1]["cpu_s"] + fulls[-1]["cpu_s"]
+            cpu = _screen_cpu(screens[-1]) + fulls[-1]["cpu_s"]
             lines.append(
-                f"{system}: ℓ = {fulls[-1]['window']}, {screens[-1]['cpu_s']:.0f} + "
+                f"{system}: ℓ = {fulls[-1]['window']}, {_screen_cpu(screens[-1]):.0f} + "
                 f"{fulls[-1]['cpu_s']:.0f} = {cpu:.0f} CPU s ({cpu / 60:.1f} min)."
             )
     tests = [r for r in rows if r["kind"] == "test"]

@@ -24,7 +24,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
-from canonid.learning.screen import SCREEN_FILE, SCREEN_FRACTION, SCREEN_WINDOWS, WindowScreen
+from canonid.learning.screen import (
+    SCREEN_FILE,
+    SCREEN_FRACTION,
+    SCREEN_TOLERANCE,
+    SCREEN_WINDOWS,
+    WindowScreen,
+)
 
 if TYPE_CHECKING:
     from canonid.learning import EpochReport
@@ -34,6 +40,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AUTO",
     "SCREEN_FRACTION",
+    "SCREEN_TOLERANCE",
     "TRAIN_OPTION_FIELDS",
     "WIDTH_CANDIDATES",
     "WINDOW_CANDIDATES",

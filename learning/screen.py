@@ -3,8 +3,10 @@
 :func:`screen_windows` trains the model once per candidate window with the training options
 compressed to a fraction of their epochs (:func:`screen_options`: the epochs, the curriculum and
 the early-stopping patience scaled by ``fraction``, the learning-rate schedule run over the
-shorter budget), and chooses the window whose best validation loss is lowest (the shortest among
-equals). Each candidate is :func:`canonid.learning.training.fit` itself, so the screen ranks the
+shorter budget), and chooses the shortest window whose best validation loss is within
+:data:`SCREEN_TOLERANCE` of the lowest: a tenth of the budget ranks windows whose losses differ
+several-fold, not near-ties (benchmarks/RESULTS.md, "Window on validation"). Each candidate
+is :func:`canonid.learning.training.fit` itself, so the screen ranks the
 model that will be trained, not a proxy; a linear (ARX) fit's best window is not one (it chose
 ℓ = 2 on Silverbox, where the network prefers longer windows). A candidate that diverges or
 fails is recorded and left out of the choice.
@@ -33,20 +35,27 @@ if TYPE_CHECKING:  # torch loads when a screen runs, not for the command line's 
 __all__ = [
     "SCREEN_FILE",
     "SCREEN_FRACTION",
+    "SCREEN_TOLERANCE",
     "SCREEN_WINDOWS",
     "ScreenCandidate",
     "WindowScreen",
+    "choose_window",
     "fitting_windows",
     "screen_options",
     "screen_windows",
 ]
 
-#: the windows the screen tries (those the data allow): a doubling ladder, long enough for the
-#: slowest modes of the registry's lightly damped systems (the chain of masses chose ℓ = 30)
-SCREEN_WINDOWS = (5, 10, 20, 40, 80)
+#: the windows the screen tries (those the data allow): a doubling ladder from canonid's earlier
+#: fixed ℓ = 10, long enough for the slowest modes of the registry's lightly damped systems (the
+#: chain of masses chose ℓ = 40); shorter windows are there with ``--window L``
+SCREEN_WINDOWS = (10, 20, 40, 80)
 #: the share of the profile's epochs each candidate trains for (benchmarks/RESULTS.md,
 #: "Window on validation")
 SCREEN_FRACTION = 0.1
+#: the screen keeps the shortest window whose loss is at most this factor above the lowest: a
+#: longer window must be clearly better in the short training to be chosen (chosen on the full
+#: runs' validation losses: benchmarks/RESULTS.md, "Window on validation")
+SCREEN_TOLERANCE = 1.6
 #: the screen's table in a run folder
 SCREEN_FILE = "window-screen.json"
 SCREEN_FORMAT = "canonid-window-screen"
@@ -78,19 +87,23 @@ class ScreenCandidate:
 
 @dataclass(frozen=True)
 class WindowScreen:
-    """The candidates of a screen and the window chosen (lowest best validation loss).
+    """The candidates of a screen and the window chosen (the shortest whose best validation
+    loss is within ``tolerance`` of the lowest).
 
     Attributes:
         candidates: one row per window screened, in the order tried.
         chosen: the window chosen.
         fraction: the share of the profile's epochs each candidate trained for.
         options: the candidates' training options (:func:`screen_options`), as a mapping.
+        tolerance: the factor over the lowest loss within which the shortest window is chosen
+            (1: the lowest loss itself).
     """
 
     candidates: tuple[ScreenCandidate, ...]
     chosen: int
     fraction: float
     options: Mapping[str, Any]
+    tolerance: float = SCREEN_TOLERANCE
 
     @property
     def epochs(self) -> int:
@@ -106,7 +119,8 @@ class WindowScreen:
         windows = ", ".join(str(c.window) for c in self.candidates)
         return (
             f"window ℓ = {self.chosen} chosen on validation from {windows} (screen of "
-            f"{self.epochs} epoch{'' if self.epochs == 1 else 's'} each); --window L trains L"
+            f"{self.epochs} epoch{'' if self.epochs == 1 else 's'} each, the shortest within "
+            f"{self.tolerance:g}× of the lowest loss); --window L trains L"
         )
 
     def table(self) -> str:
@@ -125,10 +139,11 @@ class WindowScreen:
     def to_dict(self) -> dict[str, Any]:
         return {
             "format": SCREEN_FORMAT,
-            "version": 1,
-            "criterion": "best_val_loss",
+            "version": 2,
+            "criterion": "shortest window with best_val_loss <= tolerance × the lowest",
             "chosen": self.chosen,
             "fraction": self.fraction,
+            "tolerance": self.tolerance,
             "options": dict(self.options),
             "candidates": [dataclasses.asdict(c) for c in self.candidates],
         }
@@ -139,7 +154,14 @@ class WindowScreen:
             raise CheckpointError(f"{where} is not a canonid window screen")
         try:
             rows = tuple(ScreenCandidate(**row) for row in data["candidates"])
-            screen = cls(rows, int(data["chosen"]), float(data["fraction"]), data["options"])
+            screen = cls(
+                rows,
+                int(data["chosen"]),
+                float(data["fraction"]),
+                data["options"],
+                # version 1 chose the lowest loss itself
+                float(data.get("tolerance", 1.0)),
+            )
         except (KeyError, TypeError, ValueError) as exc:
             raise CheckpointError(f"{where}: malformed window screen ({exc})") from exc
         if screen.chosen not in [c.window for c in rows]:
@@ -199,10 +221,12 @@ def screen_windows(
     options: TrainOptions | None = None,
     net_options: Mapping[str, Any] | None = None,
     fraction: float = SCREEN_FRACTION,
+    tolerance: float = SCREEN_TOLERANCE,
     progress: Callable[[int, ScreenCandidate], None] | None = None,
 ) -> WindowScreen:
     """Train ``model`` at each of ``windows`` for :func:`screen_options` ``(options, fraction)``
-    and choose the window with the lowest best validation loss (see the module docstring).
+    and choose the shortest window whose best validation loss is at most ``tolerance`` times the
+    lowest (see the module docstring).
     Every candidate is validated on rollouts of one length: the profile's, or what the longest
     validation record leaves after the longest window when that is shorter (a longer window
     must not win by being scored on shorter rollouts).
@@ -212,16 +236,24 @@ def screen_windows(
         windows: the candidate windows, each one the data allow (the caller checks).
         model, options, net_options: as for :func:`fit` (``options``: the full run's).
         fraction: the share of ``options.epochs`` each candidate trains for.
+        tolerance: ≥ 1; 1 chooses the lowest loss (the shortest window on a tie).
         progress: called as ``progress(index, row)`` after each candidate.
 
-    Raises :class:`OptionError` when no window is given or none reaches a finite validation
-    loss.
+    One window alone is chosen without training. Raises :class:`OptionError` when no window is
+    given or none reaches a finite validation loss.
     """
     from canonid.learning.training import TrainOptions, fit
 
     if not windows:
         raise OptionError("the window screen needs at least one candidate window")
+    if not tolerance >= 1:
+        raise OptionError(f"the window screen's tolerance must be at least 1, got {tolerance}")
     opts = screen_options(options or TrainOptions(), fraction)
+    if len(windows) == 1:  # nothing to choose between: no training spent on it
+        only = ScreenCandidate(
+            int(windows[0]), None, 0, 0, "not screened: the only window", None, 0.0
+        )
+        return WindowScreen((only,), only.window, float(fraction), opts.to_dict(), float(tolerance))
     longest_val = max(len(t.y) for t in val)
     common = min(opts.rollout_horizon, longest_val - max(windows))
     opts = dataclasses.replace(opts, val_horizon=max(common, 1))
@@ -254,5 +286,12 @@ def screen_windows(
     if not scored:
         reasons = "; ".join(f"ℓ = {r.window}: {r.error or r.stopped}" for r in rows)
         raise OptionError(f"no candidate window reached a finite validation loss ({reasons})")
-    best = min(scored, key=lambda r: r.best_val_loss)  # type: ignore[arg-type, return-value]
-    return WindowScreen(tuple(rows), best.window, float(fraction), opts.to_dict())
+    chosen = choose_window({r.window: r.best_val_loss for r in scored}, tolerance)  # type: ignore[misc]
+    return WindowScreen(tuple(rows), chosen, float(fraction), opts.to_dict(), float(tolerance))
+
+
+def choose_window(losses: Mapping[int, float], tolerance: float = SCREEN_TOLERANCE) -> int:
+    """The shortest window whose loss is at most ``tolerance`` times the lowest of ``losses``
+    (window → finite best validation loss)."""
+    lowest = min(losses.values())
+    return min(window for window, loss in losses.items() if loss <= tolerance * lowest)

@@ -421,7 +421,8 @@ def test_the_default_screens_only_windows_within_n_init(tmp_path, capsys):
     argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
     assert main(argv) == 0, capsys.readouterr().err
     screen = WindowScreen.read(run)
-    assert [c.window for c in screen.candidates] == [5, 10]
+    # ℓ = 10 alone is left: chosen without a screen's training
+    assert [c.window for c in screen.candidates] == [10] and screen.cpu_seconds == 0
     assert json.loads((run / "benchmark.json").read_text())["window"] == screen.chosen
     assert main(argv) == 0  # run again: the recorded choice, nothing trained again
     assert WindowScreen.read(run) == screen

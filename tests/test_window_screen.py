@@ -21,8 +21,10 @@ from canonid.kernel.errors import CheckpointError, OptionError
 from canonid.learning import TrainOptions
 from canonid.learning.screen import (
     SCREEN_FILE,
+    SCREEN_TOLERANCE,
     ScreenCandidate,
     WindowScreen,
+    choose_window,
     screen_options,
     screen_windows,
 )
@@ -104,17 +106,18 @@ def test_an_explicit_window_trains_exactly_that_window(data, tmp_path):
     assert not (run / SCREEN_FILE).exists()
 
 
-def test_no_window_chooses_the_candidate_of_lowest_validation_loss(screened, capsys):
+def test_no_window_chooses_the_shortest_candidate_near_the_lowest_validation_loss(screened, capsys):
     screen = WindowScreen.read(screened)
     windows = [c.window for c in screen.candidates]
     # T = 70, the tiny profile's rollouts of 10 to train and 20 to validate (at least half of
     # them left after ℓ): ℓ = 80 does not fit
-    assert windows == [5, 10, 20, 40]
+    assert windows == [10, 20, 40]
     assert screen.options["val_horizon"] == 20  # every candidate on the same rollouts
-    best = min(screen.candidates, key=lambda c: c.best_val_loss)
-    assert screen.chosen == best.window
-    assert json.loads((screened / "run.json").read_text())["window"] == best.window
-    assert json.loads((screened / "config.json").read_text())["net"]["window"] == best.window
+    lowest = min(c.best_val_loss for c in screen.candidates)
+    near = [c.window for c in screen.candidates if c.best_val_loss <= SCREEN_TOLERANCE * lowest]
+    assert screen.tolerance == SCREEN_TOLERANCE and screen.chosen == min(near)
+    assert json.loads((screened / "run.json").read_text())["window"] == screen.chosen
+    assert json.loads((screened / "config.json").read_text())["net"]["window"] == screen.chosen
     assert screen.epochs == 1 and all(c.epochs_run == 1 for c in screen.candidates)  # 10 % of 3
 
 
@@ -173,8 +176,9 @@ def test_the_printed_line_names_the_choice_and_the_candidates(data, tmp_path, ca
     screen = WindowScreen.read(run)
     out = capsys.readouterr().out
     assert (
-        f"window ℓ = {screen.chosen} chosen on validation from 5, 10, 20, 40 "
-        "(screen of 1 epoch each); --window L trains L"
+        f"window ℓ = {screen.chosen} chosen on validation from 10, 20, 40 "
+        f"(screen of 1 epoch each, the shortest within {SCREEN_TOLERANCE:g}× of the lowest loss); "
+        "--window L trains L"
     ) in out
 
 
@@ -186,15 +190,15 @@ def test_candidates_longer_than_the_records_allow_are_not_tried(tmp_path):
     run = tmp_path / "run"
     assert main(["train", str(data), "--out", str(run), *FAST]) == 0
     screen = WindowScreen.read(run)
-    assert [c.window for c in screen.candidates] == [5, 10, 20]
+    assert [c.window for c in screen.candidates] == [10, 20]
     assert screen.options["val_horizon"] == 15
 
 
 def test_no_window_that_fits_is_one_line_naming_the_data(tmp_path, capsys):
-    data = siso_file(tmp_path / "d", T=14)  # ℓ = 5 needs 5 + 10 samples to train
+    data = siso_file(tmp_path / "d", T=14)  # ℓ = 10 needs 10 + 10 samples to train
     run = tmp_path / "run"
     code = main(["train", str(data), "--out", str(run), *FAST])
-    one_line_error(capsys, code, str(data), "no candidate window of [5, 10, 20, 40, 80] fits")
+    one_line_error(capsys, code, str(data), "no candidate window of [10, 20, 40, 80] fits")
     assert not run.exists()
 
 
@@ -279,3 +283,33 @@ def test_the_record_reads_back_and_a_malformed_one_is_refused(tmp_path):
     with pytest.raises(CheckpointError, match="not a canonid window screen"):
         WindowScreen.from_dict({"format": "other"}, where="x")
     assert math.isclose(screen.cpu_seconds, 1.0)
+
+
+@given(
+    st.dictionaries(
+        st.integers(1, 200), st.floats(1e-9, 1e3, allow_nan=False), min_size=1, max_size=6
+    ),
+    st.floats(1.0, 3.0),
+)
+def test_the_rule_keeps_the_shortest_window_near_the_lowest_loss(losses, tolerance):
+    chosen = choose_window(losses, tolerance)
+    lowest = min(losses.values())
+    assert losses[chosen] <= tolerance * lowest
+    assert all(losses[w] > tolerance * lowest for w in losses if w < chosen)
+    # tolerance 1: the lowest loss itself, the shortest window on a tie
+    exact = choose_window(losses, 1.0)
+    assert losses[exact] == lowest and exact == min(w for w, v in losses.items() if v == lowest)
+
+
+def test_a_longer_window_must_be_clearly_better():
+    # near-ties go to the shorter window; a several-fold gain to the longer one
+    assert choose_window({10: 2.05e-4, 20: 1.98e-4}) == 10
+    assert choose_window({10: 4.04e-4, 20: 2.61e-4, 40: 2.86e-4}) == 10  # 1.55× is a near-tie
+    assert choose_window({10: 1.4e-2, 20: 1.2e-3, 40: 2.4e-4, 80: 3.3e-4}) == 40
+
+
+def test_one_window_alone_is_chosen_without_training():
+    # a screen of one candidate has nothing to rank: no CPU is spent on it
+    screen = screen_windows([], [], windows=(10,))
+    assert screen.chosen == 10 and screen.cpu_seconds == 0
+    assert screen.candidates[0].best_val_loss is None

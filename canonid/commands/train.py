@@ -17,6 +17,7 @@ from canonid.kernel.catalog import (
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
     SCREEN_FRACTION,
+    SCREEN_TOLERANCE,
     WIDTH_CANDIDATES,
     WINDOW_CANDIDATES,
     TrainRequest,
@@ -47,8 +48,8 @@ def register(sub: Any) -> None:
         help="window ℓ: L trains exactly L; a list, e.g. 5,10,20, trains each fully and keeps "
         "the best on validation; default auto (a resumed run keeps its own): screen ℓ = "
         f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) for "
-        f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the one with the lowest "
-        "validation loss",
+        f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the shortest whose "
+        f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest",
     )
     _options.add_profile(
         p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True

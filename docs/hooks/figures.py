@@ -30,6 +30,13 @@ MARKER = re.compile(r"<!-- figure: (?P<key>[\w./-]+) -->")
 log = logging.getLogger("mkdocs.plugins.figures")
 
 
+def _screen_tolerance() -> float:
+    """The factor over the lowest screen loss within which the shortest window is kept."""
+    from canonid.learning.screen import SCREEN_TOLERANCE
+
+    return SCREEN_TOLERANCE
+
+
 class Cell(NamedTuple):
     """The first number (or, with ``whole``, the whole text) of one cell of a RESULTS.md table:
     the ``nth`` table of ``section`` that has ``column`` (0: the first), the row whose cells
@@ -197,11 +204,12 @@ FIGURES: dict[str, Cell | Code] = {
     ),
     "code/feedthrough-gain": Code(lambda: _feedthrough_gain()),
     "code/screen-fraction": Code(lambda: _screen_fraction()),
+    "code/screen-tolerance": Code(lambda: f"{_screen_tolerance():g}"),
     **{
         f"window/{system}/chosen": Cell(
             "Window on validation",
             (("system", system), ("fraction (epochs)", "0.1 (60)")),
-            "chosen",
+            f"the rule (×{_screen_tolerance():g})",
         )
         for system in ("tank", "drone2d", "silverbox", "masses")
     },
