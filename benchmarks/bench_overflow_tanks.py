@@ -11,9 +11,10 @@ Writes the section "Overflow tanks" of benchmarks/RESULTS.md.
 * Contestants, each in its own child process with one torch thread, CPU time of the child
   (user + system, from ``getrusage``) recorded:
 
-  - ``canonid train DATA --window 10 --threads 1``: canonid's defaults (Ours (MLP), the quick
-    profile; ℓ given, as ``canonid train`` requires one);
-  - the same with ``--model classic-gru`` and ``--model arx``;
+  - ``canonid train DATA --threads 1``: canonid's defaults (Ours (MLP), the quick profile, the
+    window chosen on validation by the screen);
+  - ``canonid train DATA --window 10 --threads 1``: the same at ℓ = 10, and at ℓ = 10 with
+    ``--model classic-gru`` and ``--model arx``;
   - deepSI 0.4.4 with its defaults: ``deepSI.SUBNET(n_u, n_y, norm)`` (state dimension 10,
     encoder windows na = nb = 20, residual MLPs) trained by ``deepSI.fit`` (rollouts T = 50,
     batch 256, Adam at 1e-3, validation every 250 iterations by a simulation of the validation
@@ -28,16 +29,17 @@ Writes the section "Overflow tanks" of benchmarks/RESULTS.md.
   is chosen on the test record: every contestant runs with its defaults, each keeps its best
   model on the validation part.
 
-* What the defaults lack, on validation only: canonid's defaults with one change each
+* What the defaults lack, on validation only: Ours (MLP) at ℓ = 10 with one change each
   (:data:`VARIANTS`: ℓ = 20; hidden layers of 64): the best validation loss, its epoch and the
   training loss there, and both losses at the last epoch (training falling while validation
   does not: overfitting); the test score is read for the run the validation loss picks, after
   it picked it.
 
 The run folders, deepSI's scores and the CPU seconds stay in ``runs/overflow-tanks``;
-``--record`` writes the section again from them without training.
+``--record`` writes the section again from them without training; ``--only FOLDER`` trains that
+canonid contestant alone and keeps the others' runs and CPU times.
 
-Usage: python benchmarks/bench_overflow_tanks.py [--deepsi-iterations N] [--record]
+Usage: python benchmarks/bench_overflow_tanks.py [--deepsi-iterations N] [--only FOLDER] [--record]
 (about 16 CPU-minutes)
 """
 
@@ -76,16 +78,18 @@ WINDOW, N_INIT = 10, 50
 DEEPSI_ITERATIONS = 5000
 #: the canonid contestants: table label → (run folder, extra ``canonid train`` arguments)
 DEFAULTS_LABEL = "canonid defaults (Ours (MLP))"
+FIXED_LABEL = "Ours (MLP), ℓ = 10"
 CANONID = {
-    DEFAULTS_LABEL: ("mlp", []),
-    "Classic GRU": ("classic-gru", ["--model", "classic-gru"]),
-    "ARX (linear)": ("arx", ["--model", "arx"]),
+    DEFAULTS_LABEL: ("mlp-default", []),
+    FIXED_LABEL: ("mlp", ["--window", str(WINDOW)]),
+    "Classic GRU": ("classic-gru", ["--window", str(WINDOW), "--model", "classic-gru"]),
+    "ARX (linear)": ("arx", ["--window", str(WINDOW), "--model", "arx"]),
 }
 DEEPSI_LABEL = "deepSI SUBNET (its defaults)"
 #: the diagnosis, read on validation only: canonid's defaults with one thing changed
 VARIANTS = {
     "ℓ = 20": ("l20", ["--window", "20"]),
-    "hidden 64 × 64 × 64": ("h64", ["--hidden", "64,64,64"]),
+    "hidden 64 × 64 × 64": ("h64", ["--window", str(WINDOW), "--hidden", "64,64,64"]),
 }
 #: CPU seconds of every child and the load readings of the last full run
 CPU_FILE = "cpu.json"
@@ -156,8 +160,8 @@ def score(label: str, model: Any, data: Path, cpu: float, best_val: str) -> Scor
 
 
 def canonid_train(folder: str, extra: list[str], data: Path) -> float:
-    """``canonid train DATA --window 10 EXTRA`` into ``RUNS/folder``; its CPU seconds."""
-    cmd = [sys.executable, "-m", "canonid", "train", str(data), "--window", str(WINDOW)]
+    """``canonid train DATA EXTRA`` into ``RUNS/folder``; its CPU seconds."""
+    cmd = [sys.executable, "-m", "canonid", "train", str(data)]
     out = RUNS / folder
     return child_cpu([*cmd, *extra, "--threads", "1", "--no-progress", "--out", str(out)])
 
@@ -254,10 +258,20 @@ def main() -> int:
         action="store_true",
         help=f"write the section from the runs in {RUNS.relative_to(ROOT)} (no training)",
     )
+    parser.add_argument(
+        "--only",
+        choices=[folder for folder, _ in [*CANONID.values(), *VARIANTS.values()]],
+        help="train this canonid contestant alone; the others' runs and CPU times are kept",
+    )
     parser.add_argument("--deepsi-child", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.deepsi_child is not None:
         return deepsi_child(DATA, args.deepsi_iterations, args.deepsi_child)
+    if args.only is not None:
+        cpu = json.loads((RUNS / CPU_FILE).read_text())
+        cpu[args.only] = canonid_train(args.only, _extra(args.only), DATA)
+        atomic_write_json(RUNS / CPU_FILE, cpu)
+        return record(rewritten=True)
     if not args.record:
         start = time.perf_counter()
         load = [os.getloadavg()[0]]
@@ -272,6 +286,11 @@ def main() -> int:
         cpu.update(load=load, minutes=(time.perf_counter() - start) / 60)
         atomic_write_json(RUNS / CPU_FILE, cpu)
     return record(rewritten=args.record)
+
+
+def _extra(folder: str) -> list[str]:
+    """The ``canonid train`` arguments of the contestant or variant trained into ``folder``."""
+    return next(extra for f, extra in [*CANONID.values(), *VARIANTS.values()] if f == folder)
 
 
 def record(*, rewritten: bool = False) -> int:
@@ -290,8 +309,9 @@ def record(*, rewritten: bool = False) -> int:
     if rewritten:
         lines += [
             "",
-            "(Section written by `--record` from the runs, CPU times and load readings "
-            "of the last full run, `python bench_overflow_tanks.py`.)",
+            "(Section written from the runs, CPU times and load readings of the last full run, "
+            "`python bench_overflow_tanks.py`; a contestant added later was trained alone by "
+            "`--only FOLDER` and its CPU time merged.)",
         ]
     return publish(SECTION, [*lines, "", *diagnosis(cpu)], cpu["minutes"])
 
@@ -299,7 +319,7 @@ def record(*, rewritten: bool = False) -> int:
 def diagnosis(cpu: dict[str, Any]) -> list[str]:
     """The validation-only look at what the defaults lack (the test score is read only for the
     run the validation loss picks, after it picked it)."""
-    runs = {DEFAULTS_LABEL: "mlp", **{k: folder for k, (folder, _) in VARIANTS.items()}}
+    runs = {FIXED_LABEL: "mlp", **{k: folder for k, (folder, _) in VARIANTS.items()}}
     found = {label: validation(RUNS / folder) for label, folder in runs.items()}
     rows = [
         f"| {label} | {v.best:.4f} | {v.epoch} | {v.train_at_best:.5f} | {v.last} | "
@@ -311,12 +331,13 @@ def diagnosis(cpu: dict[str, Any]) -> list[str]:
     return [
         "### What the defaults lack: validation only",
         "",
-        "canonid's defaults and the same with one change (`canonid train DATA --window 10 "
-        "--threads 1` plus the change). Losses are canonid's validation loss (100-step rollouts "
-        "on the validation part) and the training loss (the epoch's rollouts of up to 50 "
-        "steps), both normalised by the training output variance; each run stops 200 epochs "
-        "after its best validation loss and keeps that epoch's model. The validation part holds "
-        "no sample at the sensor's limit (table above): it cannot judge how a model treats it.",
+        "Ours (MLP) at ℓ = 10 and the same with one change (`canonid train DATA --window 10 "
+        "--threads 1` plus the change, or `--window 20`). Losses are canonid's validation loss "
+        "(100-step rollouts on the validation part) and the training loss (the epoch's "
+        "rollouts of up to 50 steps), both normalised by the training output variance; each "
+        "run stops 200 epochs after its best validation loss and keeps that epoch's model. "
+        "The validation part holds no sample at the sensor's limit (table above): it cannot "
+        "judge how a model treats it.",
         "",
         "| run | best validation loss | at epoch | training loss there | last epoch | validation "
         "loss, last | training loss, last | CPU s |",

@@ -158,7 +158,7 @@ FIGURES: dict[str, Cell | Code] = {
     **{
         f"overflow/validation/{who}": Cell("Overflow tanks", _row(run=run), "best validation loss")
         for who, run in (
-            ("defaults", "canonid defaults (Ours (MLP))"),
+            ("l10", "Ours (MLP), ℓ = 10"),
             ("l20", "ℓ = 20"),
             ("h64", "hidden 64 × 64 × 64"),
         )
