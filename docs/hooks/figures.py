@@ -87,7 +87,7 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
 
 #: the row of RESULTS.md's "make demo" section that the pages quote: the latest timing on an
 #: idle machine (later rows measured under load say so)
-DEMO_RUN = "quick profile with gradient clipping (Table 1 pinned without it)"
+DEMO_RUN = "canonid's defaults beside Table 1, idle machine"
 _NOW = "feedthrough auto (now)"
 _FEEDTHROUGH = "3e-3, clip 1, skip from zero, feedthrough"
 _NO_FEEDTHROUGH = "3e-3, clip 1, skip from zero, no feedthrough"
