@@ -193,6 +193,15 @@ def _choice(screen_row: dict, tolerance: float = SCREEN_TOLERANCE, ladder: bool 
     return choose_window(losses, tolerance)
 
 
+def _screens(rows: list[dict], system: str) -> list[dict]:
+    """The screens of ``system`` at canonid's fraction, in the order they ran."""
+    return [
+        r
+        for r in rows
+        if r["kind"] == "screen" and r["system"] == system and r["fraction"] == SCREEN_FRACTION
+    ]
+
+
 def _screen_cpu(screen_row: dict) -> float:
     """CPU seconds of the screen's candidates on canonid's ladder."""
     return sum(c["cpu_seconds"] for c in screen_row["candidates"] if c["window"] in SCREEN_WINDOWS)
@@ -251,11 +260,7 @@ def table() -> str:
         "|---|---|---|---:|---:|",
     ]
     for system in SYSTEMS:
-        screens = [
-            r
-            for r in rows
-            if r["kind"] == "screen" and r["system"] == system and r["fraction"] == SCREEN_FRACTION
-        ]
+        screens = _screens(rows, system)
         ref = reference(system, 0)
         if not screens or ref is None:
             continue
@@ -276,11 +281,7 @@ def table() -> str:
         "Cost of the default (the screen at canonid's fraction, then the full run):",
     ]
     for system in SYSTEMS:
-        screens = [
-            r
-            for r in rows
-            if r["kind"] == "screen" and r["system"] == system and r["fraction"] == SCREEN_FRACTION
-        ]
+        screens = _screens(rows, system)
         fulls = [
             r
             for r in rows
