@@ -10,8 +10,10 @@ gets the command line's model.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
 
+from canonid.kernel.errors import DataError
 from canonid.profiles import DEFAULT_PROFILE, train_options
 
 if TYPE_CHECKING:
@@ -26,20 +28,59 @@ def fit(
     val: Sequence[Trajectory],
     *,
     model: str = "mlp",
-    window: int,
+    window: int | Literal["auto"] = "auto",
     options: TrainOptions | None = None,
     profile: str = DEFAULT_PROFILE,
     **kwargs: Any,
 ) -> FitResult:
-    """Train ``model`` with window ``window`` by output error (:func:`canonid.learning.fit`).
+    """Train ``model`` by output error (:func:`canonid.learning.fit`) with window ``window``.
+
+    ``window="auto"`` (the default, as ``canonid train`` without ``--window``) screens the
+    windows :data:`~canonid.learning.screen.SCREEN_WINDOWS` that the records allow on the
+    validation trajectories (:func:`~canonid.learning.screen.screen_windows`: a short training
+    each), trains the chosen one fully and returns it with the screen's table as
+    ``result.screen``; with ``run_dir`` the table is written there too
+    (:data:`~canonid.learning.screen.SCREEN_FILE`), and ``resume=True`` keeps the window recorded
+    there instead of screening again. An integer trains exactly that window.
 
     ``options`` default to the ``train`` stage of ``profile`` (the command line's default,
     ``quick``); ``canonid.train_options(profile, epochs=…)`` changes one value of it. The other
     keyword arguments (``net_options``, ``run_dir``, ``resume``, ``callback``, ``info``) go to
     :func:`canonid.learning.fit` unchanged.
     """
+    import dataclasses
+
+    from canonid.kernel.dataset import Trajectory as Record
+    from canonid.learning.screen import SCREEN_WINDOWS, WindowScreen, fitting_windows
+    from canonid.learning.screen import screen_windows as screen_of
     from canonid.learning.training import fit as fit_library  # torch, only when training
 
     if options is None:
         options = train_options(profile)
-    return fit_library(train, val, model=model, window=window, options=options, **kwargs)
+    if window != "auto":
+        return fit_library(train, val, model=model, window=window, options=options, **kwargs)
+    run_dir = kwargs.get("run_dir")
+    if kwargs.get("resume") and run_dir is not None:  # the window the interrupted run chose
+        screen = WindowScreen.read(Path(run_dir))
+    else:
+        train, val = [Record.of(t) for t in train], [Record.of(t) for t in val]
+        windows = fitting_windows(train, val, SCREEN_WINDOWS, options)
+        if not windows:
+            raise DataError(
+                f"window='auto': none of the windows {list(SCREEN_WINDOWS)} fits the records "
+                f"(shortest {min(len(t.y) for t in [*train, *val])} samples; training rollouts "
+                f"{options.horizon}, validation rollouts {options.rollout_horizon}); give window=L"
+            )
+        screen = screen_of(
+            train,
+            val,
+            windows=windows,
+            model=model,
+            options=options,
+            net_options=kwargs.get("net_options"),
+        )
+        if run_dir is not None:
+            Path(run_dir).mkdir(parents=True, exist_ok=True)
+            screen.write(Path(run_dir))
+    result = fit_library(train, val, model=model, window=screen.chosen, options=options, **kwargs)
+    return dataclasses.replace(result, screen=screen)

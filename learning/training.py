@@ -63,7 +63,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch
@@ -77,6 +77,9 @@ from canonid.learning.model import Model, check_same, load_state
 from canonid.learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
 from canonid.learning.nets.base import linear_path
 from canonid.learning.presets import net_options as preset_net_options
+
+if TYPE_CHECKING:
+    from canonid.learning.window_screen import WindowScreen
 
 __all__ = [
     "CHECKPOINT_FILE",
@@ -266,6 +269,8 @@ class FitResult:
         epochs_run: the last epoch trained.
         stopped: ``"completed"``, ``"early_stopping"``, ``"diverged"`` or ``"least_squares"``
             (a model fitted in closed form, with no gradient step).
+        screen: the window screen that chose ``model.window`` (``canonid.fit`` without a
+            window), else ``None``.
     """
 
     model: Model
@@ -274,6 +279,7 @@ class FitResult:
     best_val_loss: float
     epochs_run: int
     stopped: str
+    screen: WindowScreen | None = None
 
 
 #: ``device="auto"`` trains on CUDA only when one rollout step of the job takes at least this

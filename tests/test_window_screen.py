@@ -140,6 +140,42 @@ def test_the_screened_run_is_the_run_of_the_chosen_window(screened, data, tmp_pa
     assert (screened / "weights.pt").read_bytes() == (again / "weights.pt").read_bytes()
 
 
+def test_canonid_fit_without_a_window_screens_as_the_command_line_does(screened, data, tmp_path):
+    """``canonid.fit`` without ``window`` runs the same screen (same table, same choice) and
+    returns the chosen window's model with the table; with ``run_dir`` the table is written,
+    and ``resume=True`` keeps it instead of screening again."""
+    import canonid
+
+    ds = Dataset.load(data)
+    options = canonid.train_options("tiny", epochs=3, device="cpu")
+    run = tmp_path / "api"
+    result = canonid.fit(ds.split("train"), ds.split("val"), options=options, run_dir=run)
+    cli = WindowScreen.read(screened)
+    assert result.screen is not None and result.model.window == result.screen.chosen
+    assert result.screen.chosen == cli.chosen
+    assert [c.best_val_loss for c in result.screen.candidates] == [
+        c.best_val_loss for c in cli.candidates
+    ]
+    assert WindowScreen.read(run).to_dict() == result.screen.to_dict()
+    explicit = canonid.fit(ds.split("train"), ds.split("val"), window=cli.chosen, options=options)
+    assert explicit.screen is None and explicit.best_val_loss == result.best_val_loss
+    recorded = (run / SCREEN_FILE).read_bytes()
+    longer = canonid.train_options("tiny", epochs=4, device="cpu")
+    resumed = canonid.fit(
+        ds.split("train"), ds.split("val"), options=longer, run_dir=run, resume=True
+    )
+    assert (run / SCREEN_FILE).read_bytes() == recorded and resumed.epochs_run == 4
+    assert resumed.model.window == cli.chosen
+
+
+def test_canonid_fit_with_no_window_that_fits_is_one_line(tmp_path):
+    import canonid
+
+    short = [Trajectory(u=np.zeros((9, 1)), y=np.zeros((9, 1)))]
+    with pytest.raises(canonid.CanonidError, match="window='auto': none of the windows"):
+        canonid.fit(short, short, options=canonid.train_options("tiny", epochs=1))
+
+
 def test_the_screen_never_reads_the_test_split(data, tmp_path):
     poisoned = siso_file(tmp_path / "poisoned-data", test_scale=1e6)
     runs = []
