@@ -38,10 +38,14 @@ def fit(
     ``window="auto"`` (the default, as ``canonid train`` without ``--window``) screens the
     windows :data:`~canonid.learning.screen.SCREEN_WINDOWS` that the records allow on the
     validation trajectories (:func:`~canonid.learning.screen.screen_windows`: a short training
-    each), trains the chosen one fully and returns it with the screen's table as
-    ``result.screen``; with ``run_dir`` the table is written there too
-    (:data:`~canonid.learning.screen.SCREEN_FILE`), and ``resume=True`` keeps the window recorded
-    there instead of screening again. An integer trains exactly that window.
+    each) and trains the chosen one fully; while the full runs stop early within
+    :data:`~canonid.learning.window_screen.FOLLOWUP_SHARE` of the epochs, the screen's next
+    near-tied window is trained fully too and the lowest full-run validation loss chooses.
+    The result carries the screen's table as ``result.screen``; with ``run_dir`` the table is
+    written there too (:data:`~canonid.learning.screen.SCREEN_FILE`), the follow-ups in
+    ``run_dir/followups/lL`` (the chosen one's files copied into ``run_dir``), and
+    ``resume=True`` continues from what is recorded there instead of screening again. An
+    integer trains exactly that window.
 
     ``options`` default to the ``train`` stage of ``profile`` (the command line's default,
     ``quick``); ``canonid.train_options(profile, epochs=…)`` changes one value of it. The other
@@ -51,7 +55,8 @@ def fit(
     import dataclasses
 
     from canonid.kernel.dataset import Trajectory as Record
-    from canonid.learning.screen import SCREEN_WINDOWS, WindowScreen, fitting_windows
+    from canonid.kernel.io import atomic_copy
+    from canonid.learning.screen import SCREEN_WINDOWS, WindowScreen, fit_row, fitting_windows
     from canonid.learning.screen import screen_windows as screen_of
     from canonid.learning.training import fit as fit_library  # torch, only when training
 
@@ -59,9 +64,9 @@ def fit(
         options = train_options(profile)
     if window != "auto":
         return fit_library(train, val, model=model, window=window, options=options, **kwargs)
-    run_dir = kwargs.get("run_dir")
+    run_dir = None if kwargs.get("run_dir") is None else Path(kwargs["run_dir"])
     if kwargs.get("resume") and run_dir is not None:  # the window the interrupted run chose
-        screen = WindowScreen.read(Path(run_dir))
+        screen = WindowScreen.read(run_dir)
     else:
         train, val = [Record.of(t) for t in train], [Record.of(t) for t in val]
         windows = fitting_windows(train, val, SCREEN_WINDOWS, options)
@@ -80,7 +85,32 @@ def fit(
             net_options=kwargs.get("net_options"),
         )
         if run_dir is not None:
-            Path(run_dir).mkdir(parents=True, exist_ok=True)
-            screen.write(Path(run_dir))
+            run_dir.mkdir(parents=True, exist_ok=True)
+            screen.write(run_dir)
     result = fit_library(train, val, model=model, window=screen.chosen, options=options, **kwargs)
+    if not screen.full_runs:
+        screen = screen.with_full_run(fit_row(result), options.epochs)
+        if run_dir is not None:
+            screen.write(run_dir)
+    # the screen's near-tied windows, while the full runs so far stopped early (as canonid train)
+    while (ell := screen.next_followup()) is not None:
+        folder = None if run_dir is None else run_dir / "followups" / f"l{ell}"
+        again = folder is not None and (folder / "checkpoint.pt").is_file()
+        other = fit_library(
+            train,
+            val,
+            model=model,
+            window=ell,
+            options=options,
+            **{**kwargs, "run_dir": folder, "resume": again},
+        )
+        screen = screen.with_full_run(fit_row(other), options.epochs)
+        if screen.chosen == ell:
+            result = other
+            if folder is not None and run_dir is not None:  # checkpoint first, as adopt does
+                for path in sorted(folder.iterdir(), key=lambda p: p.name != "checkpoint.pt"):
+                    if path.is_file():
+                        atomic_copy(path, run_dir / path.name)
+        if run_dir is not None:
+            screen.write(run_dir)
     return dataclasses.replace(result, screen=screen)

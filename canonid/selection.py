@@ -54,6 +54,7 @@ __all__ = [
     "Candidate",
     "CandidateJob",
     "Selection",
+    "adopt",
     "allowed_windows",
     "plan_candidates",
     "select",
@@ -325,7 +326,7 @@ def select(
     ]
     best = min(rows, key=lambda c: c.best_val_loss)  # the first of equals
     selection = Selection(rows, best.name)
-    _adopt(Path(best.folder), run_dir)
+    adopt(Path(best.folder), run_dir)
     atomic_write_json(run_dir / CANDIDATES_FILE, selection.to_dict())
     atomic_write_text(
         run_dir / CANDIDATES_TABLE,
@@ -334,8 +335,10 @@ def select(
     return selection
 
 
-def _adopt(source: Path, run_dir: Path) -> None:
-    """Copy the chosen candidate's run files into ``run_dir`` (each replaced atomically)."""
-    for name in ADOPTED:
+def adopt(source: Path, run_dir: Path, *, checkpoint: bool = False) -> None:
+    """Copy the chosen candidate's run files into ``run_dir`` (each replaced atomically);
+    ``checkpoint``: its checkpoint too, first, so that ``--resume`` continues the adopted run
+    (the window screen's full runs, :func:`canonid.training.train`)."""
+    for name in ((CHECKPOINT_FILE,) if checkpoint else ()) + ADOPTED:
         if (source / name).is_file():
             atomic_copy(source / name, run_dir / name)

@@ -39,6 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AUTO",
+    "FOLLOWUPS_DIR",
     "SCREEN_FRACTION",
     "SCREEN_TOLERANCE",
     "TRAIN_OPTION_FIELDS",
@@ -478,6 +479,73 @@ def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | Non
         screen.write(run_dir)
         recipe = dataclasses.replace(base, window=screen.chosen)
         outcome = _train_one(request, recipe, run_dir, resume=False, callback=callback)
+        return _follow_up(request, recipe, run_dir, screen, outcome)
+
+
+FOLLOWUPS_DIR = "followups"
+
+
+def _follow_up(
+    request: TrainRequest,
+    recipe: RunRecipe,
+    run_dir: Path,
+    screen: WindowScreen,
+    outcome: TrainOutcome,
+) -> TrainOutcome:
+    """After the screened window's full run (``outcome``, of ``recipe``): record it in the
+    screen, then, while the full runs ended within
+    :data:`~canonid.learning.window_screen.FOLLOWUP_SHARE` of the profile's epochs, train the
+    screen's next near-tied window fully in ``RUN/followups/lL`` (resumed from its checkpoint
+    when one is there); a full run of lower validation loss becomes the run folder's model
+    (:func:`canonid.selection.adopt`, checkpoint included, so ``--resume`` continues it). The
+    screen file is written after each step, so an interrupted run continues where it stopped."""
+    import sys
+
+    from canonid.learning.screen import fit_row
+    from canonid.learning.training import CHECKPOINT_FILE
+    from canonid.learning.window_screen import ScreenCandidate
+    from canonid.selection import adopt
+
+    epochs = recipe.options().epochs
+
+    def row(result: RunResult) -> ScreenCandidate:
+        return fit_row(result.fit, result.cpu_seconds)
+
+    if not screen.full_runs:  # the screened window's own run, recorded once
+        assert outcome.result is not None
+        screen = screen.with_full_run(row(outcome.result), epochs)
+        screen.write(run_dir)
+    while (window := screen.next_followup()) is not None:
+        folder = run_dir / FOLLOWUPS_DIR / f"l{window}"
+        if request.progress:
+            used = sum(r.epochs_run for r in screen.full_runs)
+            print(
+                f"window screen: the full runs ended after {used} of {epochs} epochs; training "
+                f"the near-tied ℓ = {window} fully too",
+                file=sys.stderr,
+            )
+        other = _train_one(
+            request,
+            dataclasses.replace(recipe, window=window),
+            folder,
+            resume=(folder / CHECKPOINT_FILE).is_file(),
+            callback=None,
+        )
+        assert other.result is not None
+        screen = screen.with_full_run(row(other.result), epochs)
+        if screen.chosen == window:  # the new best: the run folder's model from now on
+            adopt(folder, run_dir, checkpoint=True)
+            outcome = dataclasses.replace(other, run_dir=run_dir)
+        screen.write(run_dir)
+    if outcome.result is not None and outcome.result.recipe.window != screen.chosen:
+        # resumed after an adoption: the run folder's model is the chosen full run's
+        outcome = _train_one(
+            request,
+            dataclasses.replace(recipe, window=screen.chosen),
+            run_dir,
+            resume=True,
+            callback=None,
+        )
     return dataclasses.replace(outcome, screen=screen)
 
 
@@ -601,7 +669,7 @@ def train(
         resume = request.resume is not None
         outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
         if resume and (run_dir / SCREEN_FILE).is_file():  # the recorded choice, never redone
-            return dataclasses.replace(outcome, screen=WindowScreen.read(run_dir))
+            return _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
         return outcome
     if _mode(request) == "screen":
         return _screen(request, callback)

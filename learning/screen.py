@@ -37,7 +37,7 @@ from canonid.learning.window_screen import (
 )
 
 if TYPE_CHECKING:  # torch loads when a screen runs, not for the command line's --help
-    from canonid.learning.training import TrainOptions
+    from canonid.learning.training import FitResult, TrainOptions
 
 __all__ = [
     "SCREEN_FILE",
@@ -47,10 +47,26 @@ __all__ = [
     "ScreenCandidate",
     "WindowScreen",
     "choose_window",
+    "fit_row",
     "fitting_windows",
     "screen_options",
     "screen_windows",
 ]
+
+
+def fit_row(result: FitResult, cpu_seconds: float = 0.0) -> ScreenCandidate:
+    """The row of a training's outcome in the screen's table (a loss that is not finite:
+    ``None``)."""
+    loss = result.best_val_loss
+    return ScreenCandidate(
+        window=result.model.window,
+        best_val_loss=loss if math.isfinite(loss) else None,
+        best_epoch=result.best_epoch,
+        epochs_run=result.epochs_run,
+        stopped=result.stopped,
+        error=None,
+        cpu_seconds=round(cpu_seconds, 3),
+    )
 
 
 def fitting_windows(
@@ -144,16 +160,7 @@ def screen_windows(
             message = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
             row = ScreenCandidate(int(ell), None, 0, 0, "failed", message, 0.0)
         else:
-            loss = result.best_val_loss
-            row = ScreenCandidate(
-                window=int(ell),
-                best_val_loss=loss if math.isfinite(loss) else None,
-                best_epoch=result.best_epoch,
-                epochs_run=result.epochs_run,
-                stopped=result.stopped,
-                error=None,
-                cpu_seconds=0.0,
-            )
+            row = fit_row(result)
         row = dataclasses.replace(row, cpu_seconds=round(time.process_time() - cpu0, 3))
         rows.append(row)
         if progress is not None:

@@ -17,6 +17,7 @@ from canonid.kernel.errors import CheckpointError
 from canonid.kernel.io import atomic_write_json, read_json
 
 __all__ = [
+    "FOLLOWUP_SHARE",
     "SCREEN_FILE",
     "SCREEN_FRACTION",
     "SCREEN_TOLERANCE",
@@ -37,6 +38,11 @@ SCREEN_FRACTION = 0.1
 #: longer window must be clearly better in the short training to be chosen (chosen on the full
 #: runs' validation losses: benchmarks/RESULTS.md, "Window on validation")
 SCREEN_TOLERANCE = 1.6
+#: full runs that together ended within this share of the profile's epochs (early stopping:
+#: they overfitted early, as on small records) leave budget for the screen's next near-tied
+#: window, trained fully too; the lowest full-run validation loss then chooses
+#: (benchmarks/RESULTS.md, "Small data")
+FOLLOWUP_SHARE = 0.5
 #: the screen's table in a run folder
 SCREEN_FILE = "window-screen.json"
 SCREEN_FORMAT = "canonid-window-screen"
@@ -68,16 +74,24 @@ class ScreenCandidate:
 
 @dataclass(frozen=True)
 class WindowScreen:
-    """The candidates of a screen and the window chosen (the shortest whose best validation
-    loss is within ``tolerance`` of the lowest).
+    """The candidates of a screen, the window its rule chose (the shortest whose best
+    validation loss is within ``tolerance`` of the lowest) and the full runs that followed.
+
+    The screened window is trained fully; when the full runs so far ended within
+    :data:`FOLLOWUP_SHARE` of the profile's epochs, the next of the screen's near-tied windows
+    (:meth:`near_ties`, shortest first) is trained fully too (:meth:`next_followup`), and the
+    lowest best validation loss of the full runs chooses the model.
 
     Attributes:
         candidates: one row per window screened, in the order tried.
-        chosen: the window chosen.
+        chosen: the window of the model (the screened one until a full run beats it).
         fraction: the share of the profile's epochs each candidate trained for.
         options: the candidates' training options (:func:`screen_options`), as a mapping.
         tolerance: the factor over the lowest loss within which the shortest window is chosen
             (1: the lowest loss itself).
+        screened: the window the screen's rule chose (``None``: ``chosen``).
+        full_runs: the full runs recorded, in the order trained (the screened window first).
+        full_epochs: the profile's epochs of a full run (``None`` until one is recorded).
     """
 
     candidates: tuple[ScreenCandidate, ...]
@@ -85,6 +99,9 @@ class WindowScreen:
     fraction: float
     options: Mapping[str, Any]
     tolerance: float = SCREEN_TOLERANCE
+    screened: int | None = None
+    full_runs: tuple[ScreenCandidate, ...] = ()
+    full_epochs: int | None = None
 
     @property
     def epochs(self) -> int:
@@ -92,27 +109,87 @@ class WindowScreen:
         return int(self.options["epochs"])
 
     @property
+    def screened_window(self) -> int:
+        return self.chosen if self.screened is None else self.screened
+
+    @property
     def cpu_seconds(self) -> float:
         return sum(c.cpu_seconds for c in self.candidates)
+
+    def near_ties(self) -> list[int]:
+        """The windows screened within ``tolerance`` of the lowest loss, shortest first."""
+        scored = {c.window: c.best_val_loss for c in self.candidates if c.best_val_loss is not None}
+        if not scored:
+            return []
+        lowest = min(scored.values())
+        return sorted(w for w, loss in scored.items() if loss <= self.tolerance * lowest)
+
+    def next_followup(self) -> int | None:
+        """The window to train fully next, or ``None``: the shortest near-tied window not yet
+        trained fully, while the full runs so far used at most :data:`FOLLOWUP_SHARE` of the
+        profile's epochs (none before the screened window's own full run is recorded)."""
+        if not self.full_runs or self.full_epochs is None:
+            return None
+        if sum(r.epochs_run for r in self.full_runs) > FOLLOWUP_SHARE * self.full_epochs:
+            return None
+        done = {r.window for r in self.full_runs}
+        return next((w for w in self.near_ties() if w not in done), None)
+
+    def with_full_run(self, row: ScreenCandidate, full_epochs: int) -> WindowScreen:
+        """This screen with ``row``, a full run, recorded: ``chosen`` becomes the full run of
+        lowest best validation loss (the earlier one on a tie)."""
+        runs = (*self.full_runs, row)
+        scored = [r for r in runs if r.best_val_loss is not None]
+        best = min(scored, key=lambda r: r.best_val_loss) if scored else runs[0]  # type: ignore[arg-type, return-value]
+        return dataclasses.replace(
+            self,
+            chosen=best.window,
+            screened=self.screened_window,
+            full_runs=runs,
+            full_epochs=int(full_epochs),
+        )
 
     def summary(self) -> str:
         """The choice in one line (what ``canonid train`` prints)."""
         windows = ", ".join(str(c.window) for c in self.candidates)
-        return (
-            f"window ℓ = {self.chosen} chosen on validation from {windows} (screen of "
+        line = (
+            f"window ℓ = {self.screened_window} chosen on validation from {windows} (screen of "
             f"{self.epochs} epoch{'' if self.epochs == 1 else 's'} each, the shortest within "
-            f"{self.tolerance:g}× of the lowest loss); --window L trains L"
+            f"{self.tolerance:g}× of the lowest loss)"
         )
+        if len(self.full_runs) > 1:
+            first = self.full_runs[0]
+            others = ", ".join(str(r.window) for r in self.full_runs[1:])
+            line += (
+                f"; its full run ended at epoch {first.epochs_run} of {self.full_epochs}, so the "
+                f"near-tied ℓ = {others} trained fully too: ℓ = {self.chosen} has the lowest "
+                "full-run validation loss"
+            )
+        return line + "; --window L trains L"
 
     def table(self) -> str:
-        """The candidates in aligned columns, the chosen one marked."""
-        rows = [("ℓ", "best validation loss (normalised)", "at epoch", "stopped", "CPU s", "")]
-        for c in self.candidates:
+        """The candidates and the full runs in aligned columns, the chosen one marked."""
+        rows = [
+            ("ℓ", "run", "best validation loss (normalised)", "at epoch", "stopped", "CPU s", "")
+        ]
+        full = [("full", r) for r in self.full_runs]
+        for kind, c in [*(("screen", c) for c in self.candidates), *full]:
             loss = "-" if c.best_val_loss is None else f"{c.best_val_loss:.4g}"
             stopped = c.stopped if c.error is None else f"failed: {c.error}"
-            mark = "chosen" if c.window == self.chosen else ""
+            is_model = c.window == self.chosen and (kind == "full" or not self.full_runs)
+            mark = "chosen" if is_model else ""
+            if kind == "screen" and self.full_runs and c.window == self.screened_window:
+                mark = "screened"
             rows.append(
-                (str(c.window), loss, str(c.best_epoch), stopped, f"{c.cpu_seconds:.0f}", mark)
+                (
+                    str(c.window),
+                    kind,
+                    loss,
+                    str(c.best_epoch),
+                    stopped,
+                    f"{c.cpu_seconds:.0f}",
+                    mark,
+                )
             )
         widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
         return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
@@ -120,13 +197,18 @@ class WindowScreen:
     def to_dict(self) -> dict[str, Any]:
         return {
             "format": SCREEN_FORMAT,
-            "version": 2,
-            "criterion": "shortest window with best_val_loss <= tolerance × the lowest",
+            "version": 3,
+            "criterion": "shortest window with best_val_loss <= tolerance × the lowest; then "
+            "the lowest best_val_loss of the full runs",
             "chosen": self.chosen,
+            "screened": self.screened,
             "fraction": self.fraction,
             "tolerance": self.tolerance,
+            "followup_share": FOLLOWUP_SHARE,
+            "full_epochs": self.full_epochs,
             "options": dict(self.options),
             "candidates": [dataclasses.asdict(c) for c in self.candidates],
+            "full_runs": [dataclasses.asdict(c) for c in self.full_runs],
         }
 
     @classmethod
@@ -135,6 +217,8 @@ class WindowScreen:
             raise CheckpointError(f"{where} is not a canonid window screen")
         try:
             rows = tuple(ScreenCandidate(**row) for row in data["candidates"])
+            full = tuple(ScreenCandidate(**row) for row in data.get("full_runs", ()))
+            epochs = data.get("full_epochs")
             screen = cls(
                 rows,
                 int(data["chosen"]),
@@ -142,11 +226,18 @@ class WindowScreen:
                 data["options"],
                 # version 1 chose the lowest loss itself
                 float(data.get("tolerance", 1.0)),
+                None if data.get("screened") is None else int(data["screened"]),
+                full,
+                None if epochs is None else int(epochs),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise CheckpointError(f"{where}: malformed window screen ({exc})") from exc
-        if screen.chosen not in [c.window for c in rows]:
-            raise CheckpointError(f"{where}: chosen window {screen.chosen} is not a candidate")
+        if screen.screened_window not in [c.window for c in rows]:
+            raise CheckpointError(
+                f"{where}: chosen window {screen.screened_window} is not a candidate"
+            )
+        if full and screen.chosen not in [r.window for r in full]:
+            raise CheckpointError(f"{where}: chosen window {screen.chosen} is not a full run")
         return screen
 
     @classmethod

@@ -143,7 +143,7 @@ def test_a_failed_atomic_copy_leaves_the_old_file_and_no_temporary_file(tmp_path
 
 
 def test_window_auto_adopts_the_chosen_model_without_a_fixed_temporary_name(tmp_path):
-    from canonid.selection import ADOPTED, _adopt
+    from canonid.selection import ADOPTED, adopt
 
     chosen = tmp_path / "candidates" / "w3"
     chosen.mkdir(parents=True)
@@ -151,7 +151,7 @@ def test_window_auto_adopts_the_chosen_model_without_a_fixed_temporary_name(tmp_
         (chosen / name).write_text(f"chosen {name}\n", encoding="utf-8")
     run = tmp_path / "run"
     victims = [_plant_symlink(run / f".{name}.tmp", tmp_path / "outside") for name in ADOPTED]
-    _adopt(chosen, run)
+    adopt(chosen, run)
     assert all(v.read_text(encoding="utf-8") == VICTIM_TEXT for v in victims)
     for name in ADOPTED:
         assert not (run / name).is_symlink()

@@ -349,3 +349,140 @@ def test_one_window_alone_is_chosen_without_training():
     screen = screen_windows([], [], windows=(10,))
     assert screen.chosen == 10 and screen.cpu_seconds == 0
     assert screen.candidates[0].best_val_loss is None
+
+
+# ------------------------------------------------------------------------------ full runs after
+def _row(window, loss, epochs_run, stopped="early_stopping"):
+    return ScreenCandidate(window, loss, max(epochs_run - 5, 0), epochs_run, stopped, None, 1.0)
+
+
+def _screen_of(losses):
+    rows = tuple(_row(w, loss, 6) for w, loss in losses.items())
+    return WindowScreen(rows, choose_window(losses), 0.1, TrainOptions(epochs=6).to_dict())
+
+
+def test_full_runs_that_stop_early_leave_budget_for_the_near_tied_windows():
+    """ℓ = 10 and 20 are within the tolerance, 40 is not: ℓ = 10's full run ended at epoch 260
+    of 600 (≤ half), so ℓ = 20 trains fully too; after it 565 epochs are used: no more."""
+    screen = _screen_of({10: 0.0158, 20: 0.0161, 40: 0.05})
+    assert screen.near_ties() == [10, 20] and screen.next_followup() is None  # nothing run yet
+    screen = screen.with_full_run(_row(10, 0.0151, 260), 600)
+    assert screen.chosen == 10 and screen.next_followup() == 20
+    screen = screen.with_full_run(_row(20, 0.0097, 305), 600)
+    assert (screen.chosen, screen.screened_window, screen.next_followup()) == (20, 10, None)
+    assert "ℓ = 20 has the lowest full-run validation loss" in screen.summary()
+    assert "screened" in screen.table() and "full" in screen.table()
+
+
+@given(
+    losses=st.dictionaries(
+        st.sampled_from([10, 20, 40, 80]), st.floats(1e-6, 1.0), min_size=1, max_size=4
+    ),
+    runs=st.lists(st.tuples(st.integers(1, 600), st.floats(1e-6, 1.0)), max_size=4),
+)
+@settings(max_examples=60, deadline=None)
+def test_follow_ups_stay_within_the_budget_and_the_lowest_full_run_is_chosen(losses, runs):
+    """Every follow-up is a near tie not yet trained, started only while the full runs used at
+    most the share of the budget; the model is the full run of lowest loss (the first on a tie)."""
+    from canonid.learning.window_screen import FOLLOWUP_SHARE
+
+    screen = _screen_of(losses)
+    window = screen.chosen
+    done = []
+    for epochs_run, loss in runs:
+        if window is None:
+            break
+        assert window in screen.near_ties() and window not in [r.window for r in done]
+        done.append(_row(window, loss, epochs_run))
+        screen = screen.with_full_run(done[-1], 600)
+        assert screen.chosen == min(done, key=lambda r: r.best_val_loss).window
+        window = screen.next_followup()
+        if window is not None:
+            assert sum(r.epochs_run for r in done) <= FOLLOWUP_SHARE * 600
+
+
+def test_a_completed_full_run_has_no_follow_up(screened):
+    """The tiny profile's 3 epochs run to the end: the screened window is the model."""
+    screen = WindowScreen.read(screened)
+    assert [r.window for r in screen.full_runs] == [screen.chosen] == [screen.screened_window]
+    assert screen.full_runs[0].epochs_run == screen.full_epochs == 3
+    assert not (screened / "followups").exists()
+
+
+@pytest.fixture
+def every_window_near(monkeypatch):
+    """Follow-ups on the small test data: every screened window near-tied, and a full run that
+    used the whole budget counted as leaving it (the share at 1)."""
+    import canonid.learning.window_screen as ws
+
+    monkeypatch.setattr(ws, "FOLLOWUP_SHARE", 1.0)
+    monkeypatch.setattr(
+        ws.WindowScreen,
+        "near_ties",
+        lambda self: sorted(c.window for c in self.candidates if c.best_val_loss is not None),
+    )
+
+
+def test_a_follow_up_run_that_validates_lower_becomes_the_model(every_window_near, data, tmp_path):
+    run = tmp_path / "run"
+    assert main(["train", str(data), "--out", str(run), *FAST]) == 0
+    screen = WindowScreen.read(run)
+    first, second = screen.full_runs  # 3 epochs, then 6 > 3 used: one follow-up
+    assert first.window == screen.screened_window == 10 and second.window == 20
+    assert (run / "followups" / "l20" / "weights.pt").is_file()
+    best = min(screen.full_runs, key=lambda r: r.best_val_loss)
+    assert screen.chosen == best.window
+    assert json.loads((run / "run.json").read_text())["window"] == screen.chosen
+    explicit = tmp_path / "explicit"
+    argv = ["train", str(data), "--window", str(screen.chosen), "--out", str(explicit), *FAST]
+    assert main(argv) == 0
+    mine, theirs = weights(run), weights(explicit)
+    assert all(torch.equal(mine[k], theirs[k]) for k in mine)
+
+
+def test_an_interrupted_follow_up_continues_on_resume_to_the_same_bytes(
+    every_window_near, data, tmp_path, monkeypatch
+):
+    import canonid.training as training
+    from canonid.commands.benchmark import train_request
+
+    whole = tmp_path / "whole"
+    assert main(["train", str(data), "--out", str(whole), *FAST]) == 0
+    train_one = training._train_one
+
+    def interrupted(request, recipe, run_dir, **kwargs):
+        if "followups" in str(run_dir):
+            raise KeyboardInterrupt
+        return train_one(request, recipe, run_dir, **kwargs)
+
+    run = tmp_path / "run"
+    monkeypatch.setattr(training, "_train_one", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        training.train(train_request([str(data), "--out", str(run), *FAST]))
+    assert len(WindowScreen.read(run).full_runs) == 1  # the screened window's run is recorded
+    monkeypatch.setattr(training, "_train_one", train_one)
+    argv = ["train", "--resume", "--out", str(run), "--no-progress", "--threads", "1"]
+    assert main(argv) == 0
+    assert (run / "weights.pt").read_bytes() == (whole / "weights.pt").read_bytes()
+    assert json.loads((run / "run.json").read_text())["window"] == WindowScreen.read(whole).chosen
+    losses = [r.best_val_loss for r in WindowScreen.read(run).full_runs]
+    assert losses == [r.best_val_loss for r in WindowScreen.read(whole).full_runs]
+
+
+def test_canonid_fit_follows_up_as_the_command_line_does(every_window_near, data, tmp_path):
+    import canonid
+
+    run = tmp_path / "cli"
+    assert main(["train", str(data), "--out", str(run), *FAST]) == 0
+    cli = WindowScreen.read(run)
+    ds = Dataset.load(data)
+    options = canonid.train_options("tiny", epochs=3, device="cpu")
+    api = tmp_path / "api"
+    result = canonid.fit(ds.split("train"), ds.split("val"), options=options, run_dir=api)
+    assert result.screen is not None and result.model.window == result.screen.chosen
+    assert [(r.window, r.best_val_loss) for r in result.screen.full_runs] == [
+        (r.window, r.best_val_loss) for r in cli.full_runs
+    ]
+    assert result.best_val_loss == min(r.best_val_loss for r in cli.full_runs)
+    assert (api / "followups" / "l20" / "checkpoint.pt").is_file()
+    assert WindowScreen.read(api).to_dict() == result.screen.to_dict()

@@ -30,6 +30,13 @@ MARKER = re.compile(r"<!-- figure: (?P<key>[\w./-]+) -->")
 log = logging.getLogger("mkdocs.plugins.figures")
 
 
+def _followup_share() -> str:
+    """The share of the budget within which full runs leave room for a near-tied window."""
+    from canonid.learning.window_screen import FOLLOWUP_SHARE
+
+    return f"{FOLLOWUP_SHARE:.0%}"
+
+
 def _screen_tolerance() -> float:
     """The factor over the lowest screen loss within which the shortest window is kept."""
     from canonid.learning.screen import SCREEN_TOLERANCE
@@ -205,6 +212,7 @@ FIGURES: dict[str, Cell | Code] = {
     "code/feedthrough-gain": Code(lambda: _feedthrough_gain()),
     "code/screen-fraction": Code(lambda: _screen_fraction()),
     "code/screen-tolerance": Code(lambda: f"{_screen_tolerance():g}"),
+    "code/followup-share": Code(lambda: _followup_share()),
     **{
         f"window/{system}/chosen": Cell(
             "Window on validation",
