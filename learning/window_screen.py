@@ -41,7 +41,7 @@ SCREEN_TOLERANCE = 1.6
 #: full runs that together ended within this share of the profile's epochs (early stopping:
 #: they overfitted early, as on small records) leave budget for the screen's next near-tied
 #: window, trained fully too; the lowest full-run validation loss then chooses
-#: (benchmarks/RESULTS.md, "Small data")
+#: (benchmarks/studies/window_study_notes.md, "Full runs of the near ties")
 FOLLOWUP_SHARE = 0.5
 #: the screen's table in a run folder
 SCREEN_FILE = "window-screen.json"

@@ -149,6 +149,7 @@ FIGURES: dict[str, Cell | Code] = {
         f"overflow/rmse/{who}": Cell("Overflow tanks", _row(model=model), "RMSE [V]")
         for who, model in (
             ("defaults", "canonid defaults (Ours (MLP))"),
+            ("l10", "Ours (MLP), ℓ = 10"),
             ("classic-gru", "Classic GRU"),
             ("arx", "ARX (linear)"),
             ("deepsi", "deepSI SUBNET (its defaults)"),
