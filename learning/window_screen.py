@@ -152,20 +152,23 @@ class WindowScreen:
     def summary(self) -> str:
         """The choice in one line (what ``canonid train`` prints)."""
         windows = ", ".join(str(c.window) for c in self.candidates)
-        line = (
-            f"window ℓ = {self.screened_window} chosen on validation from {windows} (screen of "
-            f"{self.epochs} epoch{'' if self.epochs == 1 else 's'} each, the shortest within "
-            f"{self.tolerance:g}× of the lowest loss)"
+        screen = (
+            f"{windows} (screen of {self.epochs} epoch{'' if self.epochs == 1 else 's'} each, "
+            f"the shortest within {self.tolerance:g}× of the lowest loss)"
         )
-        if len(self.full_runs) > 1:
-            first = self.full_runs[0]
-            others = ", ".join(str(r.window) for r in self.full_runs[1:])
-            line += (
-                f"; its full run ended at epoch {first.epochs_run} of {self.full_epochs}, so the "
-                f"near-tied ℓ = {others} trained fully too: ℓ = {self.chosen} has the lowest "
-                "full-run validation loss"
+        if len(self.full_runs) < 2:
+            return (
+                f"window ℓ = {self.chosen} chosen on validation from {screen}; --window L trains L"
             )
-        return line + "; --window L trains L"
+        first = self.full_runs[0]
+        others = ", ".join(str(r.window) for r in self.full_runs[1:])
+        return (
+            f"window ℓ = {self.chosen} chosen on validation: the screen of {windows} "
+            f"({self.epochs} epochs each) kept ℓ = {self.screened_window}, the shortest within "
+            f"{self.tolerance:g}× of the lowest loss; its full run ended at epoch {first.epochs_run} of "
+            f"{self.full_epochs}, so the near-tied ℓ = {others} trained fully too, and ℓ = "
+            f"{self.chosen} has the lowest full-run validation loss; --window L trains L"
+        )
 
     def table(self) -> str:
         """The candidates and the full runs in aligned columns, the chosen one marked."""

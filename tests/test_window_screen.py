@@ -370,7 +370,8 @@ def test_full_runs_that_stop_early_leave_budget_for_the_near_tied_windows():
     assert screen.chosen == 10 and screen.next_followup() == 20
     screen = screen.with_full_run(_row(20, 0.0097, 305), 600)
     assert (screen.chosen, screen.screened_window, screen.next_followup()) == (20, 10, None)
-    assert "ℓ = 20 has the lowest full-run validation loss" in screen.summary()
+    assert screen.summary().startswith("window ℓ = 20 chosen on validation: the screen of 10")
+    assert "kept ℓ = 10" in screen.summary()
     assert "screened" in screen.table() and "full" in screen.table()
 
 
