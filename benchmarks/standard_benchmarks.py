@@ -29,6 +29,28 @@ def _load() -> str:
     return f"{os.getloadavg()[0]:.2f}"
 
 
+def _screen_line(run: Path) -> str:
+    """How the run's window was chosen (its window screen), or nothing when it was given."""
+    from canonid.learning.screen import SCREEN_FILE, WindowScreen
+
+    if not (run / SCREEN_FILE).is_file():
+        return ""
+    screen = WindowScreen.read(run)
+    losses = ", ".join(
+        f"{c.window}: {c.best_val_loss:.3g}" for c in screen.candidates if c.best_val_loss
+    )
+    full = ", ".join(
+        f"ℓ = {r.window} ended at epoch {r.epochs_run} of {screen.full_epochs}"
+        for r in screen.full_runs
+    )
+    return (
+        f"Window: chosen on validation by the default screen ({screen.epochs} epochs each; "
+        f"ℓ: best validation loss {losses}; the shortest within {screen.tolerance:g}× of the "
+        f"lowest), then trained fully ({full}; near ties follow only a run that stops within "
+        f"half the epochs): ℓ = {screen.chosen}, {screen.cpu_seconds:.0f} CPU s of screen.\n\n"
+    )
+
+
 def _body(run: Path, cpu: float, wall: float, load: str, earlier: str | None = None) -> str:
     report = json.loads((run / "benchmark.json").read_text())
     recipe = json.loads((run / "run.json").read_text())
@@ -57,7 +79,8 @@ def _body(run: Path, cpu: float, wall: float, load: str, earlier: str | None = N
     options = recipe["train_options"]
     sources = "; ".join(sorted({b["source"] for b in report["baselines"]})) or "none entered"
     return (
-        f"{report['title']}: {report['model']}, ℓ = {report['window']}, profile "
+        _screen_line(run)
+        + f"{report['title']}: {report['model']}, ℓ = {report['window']}, profile "
         f"{report['profile']} ({options['epochs']} epochs, rollouts up to {options['horizon']} "
         f"steps), seed {options['seed']}; validation: {report['validation']}. Score: simulation "
         f"RMSE of each official test part after its first n_init measured samples "
@@ -88,7 +111,8 @@ def main() -> int:
     if args.name is None:
         parser.error("give a benchmark NAME or --record RUN")
     out = Path("runs") / f"bench-{args.name}"
-    cmd = ["canonid", "benchmark", args.name, "--out", str(out), "--no-progress", *rest]
+    quiet = [] if "--no-progress" in rest else ["--no-progress"]
+    cmd = ["canonid", "benchmark", args.name, "--out", str(out), *quiet, *rest]
     before, start = _load(), time.perf_counter()
     subprocess.run([sys.executable, "-m", "canonid", *cmd[1:]], check=True)
     wall = time.perf_counter() - start
