@@ -53,9 +53,7 @@ import os
 import resource
 import subprocess
 import sys
-import tempfile
 import time
-from contextlib import redirect_stdout
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -211,31 +209,14 @@ def canonid_score(label: str, run: Path, data: Path, cpu: float) -> Score:
 def deepsi_child(data: Path, iterations: int, out: Path) -> int:
     """Train deepSI's SUBNET with its defaults (this process: one torch thread) and write its
     scores to ``out`` as JSON."""
-    os.environ.setdefault("TQDM_DISABLE", "1")
-    import deepSI
-    import deepSI.fitting
-    import torch
-    from bench_deepsi import SubnetModel
-    from nonlinear_benchmarks import Input_output_data
+    from _deepsi import fit_subnet
 
     from canonid.kernel.dataset import Dataset
 
-    torch.set_num_threads(1)
-    torch.manual_seed(0)
     ds = Dataset.load(data)
-    (train,), (val,) = ds.split("train"), ds.split("val")
-    records = [Input_output_data(u=t.u, y=t.y) for t in (train, val)]
-    n_u, n_y, norm = deepSI.get_nu_ny_and_auto_norm(records[0])
-    net = deepSI.SUBNET(n_u, n_y, norm)
-    with tempfile.TemporaryDirectory() as tmp, open(os.devnull, "w") as quiet:
-        deepSI.fitting.get_checkpoint_dir = lambda: tmp  # its checkpoint file: not in $HOME
-        with redirect_stdout(quiet):
-            info = deepSI.fit(net, records[0], records[1], n_its=iterations)
-    best = info["best_model"]
-    val_curve = np.asarray(info["NRMS_val"])
-    at = int(np.argmin(val_curve)) * int(info["val_freq"])
-    model = SubnetModel(best, best.na, n_u, n_y)
-    result = score(DEEPSI_LABEL, model, data, 0.0, f"iteration {at} of {iterations}")
+    found = fit_subnet(ds.split("train"), ds.split("val"), iterations)
+    best_val = f"iteration {found.at} of {iterations}"
+    result = score(DEEPSI_LABEL, found.model, data, 0.0, best_val)
     out.write_text(json.dumps(asdict(result)))
     return 0
 
