@@ -144,6 +144,21 @@ FIGURES: dict[str, Cell | Code] = {
         f"masses/lowest-fit/{ell}": Cell("Chain of masses", _row(**{"ℓ": str(ell)}), "lowest")
         for ell in (10, 30)
     },
+    # Silverbox's training part cut short (small_data.py): multisine test RMSE of each
+    **{
+        f"small/{n}/{who}": Cell(
+            "Small data", _row(**{"size (training / validation)": label}), column
+        )
+        for n, label in (
+            (1000, "1,000 (800 / 200)"),
+            (3000, "3,000 (2,400 / 600)"),
+            (10000, "10,000 (8,000 / 2,000)"),
+        )
+        for who, column in (
+            ("canonid", "multisine [mV]"),
+            ("deepsi", "deepSI: multisine [mV]"),
+        )
+    },
     # the overflow tanks (bench_overflow_tanks.py): test RMSE per contestant, events per part
     **{
         f"overflow/rmse/{who}": Cell("Overflow tanks", _row(model=model), "RMSE [V]")
