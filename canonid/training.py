@@ -667,10 +667,13 @@ def train(
     run_dir, recipe = _plan(request)
     if recipe is not None:
         resume = request.resume is not None
-        outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
         if resume and (run_dir / SCREEN_FILE).is_file():  # the recorded choice, never redone
-            return _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
-        return outcome
+            from canonid.jobs import run_folder_lock
+
+            with run_folder_lock(run_dir, flag="--resume"):  # its full runs continue too
+                outcome = _train_one(request, recipe, run_dir, resume=True, callback=callback)
+                return _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
+        return _train_one(request, recipe, run_dir, resume=resume, callback=callback)
     if _mode(request) == "screen":
         return _screen(request, callback)
     return _select(request)
