@@ -165,8 +165,8 @@ class WindowScreen:
         return (
             f"window ℓ = {self.chosen} chosen on validation: the screen of {windows} "
             f"({self.epochs} epochs each) kept ℓ = {self.screened_window}, the shortest within "
-            f"{self.tolerance:g}× of the lowest loss; its full run ended at epoch {first.epochs_run} of "
-            f"{self.full_epochs}, so the near-tied ℓ = {others} trained fully too, and ℓ = "
+            f"{self.tolerance:g}× of the lowest loss; its full run ended at epoch "
+            f"{first.epochs_run} of {self.full_epochs}, so the near-tied ℓ = {others} trained fully too, and ℓ = "
             f"{self.chosen} has the lowest full-run validation loss; --window L trains L"
         )
 
