@@ -166,8 +166,8 @@ class WindowScreen:
             f"window ℓ = {self.chosen} chosen on validation: the screen of {windows} "
             f"({self.epochs} epochs each) kept ℓ = {self.screened_window}, the shortest within "
             f"{self.tolerance:g}× of the lowest loss; its full run ended at epoch "
-            f"{first.epochs_run} of {self.full_epochs}, so the near-tied ℓ = {others} trained fully too, and ℓ = "
-            f"{self.chosen} has the lowest full-run validation loss; --window L trains L"
+            f"{first.epochs_run} of {self.full_epochs}, so the near-tied ℓ = {others} trained "
+            f"fully too, and ℓ = {self.chosen} has the lowest full-run validation loss; --window L trains L"
         )
 
     def table(self) -> str:
