@@ -167,7 +167,8 @@ class WindowScreen:
             f"({self.epochs} epochs each) kept ℓ = {self.screened_window}, the shortest within "
             f"{self.tolerance:g}× of the lowest loss; its full run ended at epoch "
             f"{first.epochs_run} of {self.full_epochs}, so the near-tied ℓ = {others} trained "
-            f"fully too, and ℓ = {self.chosen} has the lowest full-run validation loss; --window L trains L"
+            f"fully too, and ℓ = {self.chosen} has the lowest full-run validation loss; "
+            "--window L trains L"
         )
 
     def table(self) -> str:
