@@ -49,7 +49,8 @@ def register(sub: Any) -> None:
         "the best on validation; default auto (a resumed run keeps its own): screen ℓ = "
         f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) for "
         f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the shortest whose "
-        f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest",
+        f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest (while early stopping "
+        "leaves half the epochs unspent, the others within it too, keeping the lowest)",
     )
     _options.add_profile(
         p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
