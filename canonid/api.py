@@ -55,10 +55,17 @@ def fit(
     import dataclasses
 
     from canonid.kernel.dataset import Trajectory as Record
-    from canonid.kernel.io import atomic_copy
-    from canonid.learning.screen import SCREEN_WINDOWS, WindowScreen, fit_row, fitting_windows
+    from canonid.learning.screen import (
+        FOLLOWUPS_DIR,
+        SCREEN_WINDOWS,
+        WindowScreen,
+        fit_row,
+        fitting_windows,
+    )
     from canonid.learning.screen import screen_windows as screen_of
+    from canonid.learning.training import CHECKPOINT_FILE
     from canonid.learning.training import fit as fit_library  # torch, only when training
+    from canonid.selection import adopt
 
     if options is None:
         options = train_options(profile)
@@ -94,8 +101,8 @@ def fit(
             screen.write(run_dir)
     # the screen's near-tied windows, while the full runs so far stopped early (as canonid train)
     while (ell := screen.next_followup()) is not None:
-        folder = None if run_dir is None else run_dir / "followups" / f"l{ell}"
-        again = folder is not None and (folder / "checkpoint.pt").is_file()
+        folder = None if run_dir is None else run_dir / FOLLOWUPS_DIR / f"l{ell}"
+        again = folder is not None and (folder / CHECKPOINT_FILE).is_file()
         other = fit_library(
             train,
             val,
@@ -107,10 +114,8 @@ def fit(
         screen = screen.with_full_run(fit_row(other), options.epochs)
         if screen.chosen == ell:
             result = other
-            if folder is not None and run_dir is not None:  # checkpoint first, as adopt does
-                for path in sorted(folder.iterdir(), key=lambda p: p.name != "checkpoint.pt"):
-                    if path.is_file():
-                        atomic_copy(path, run_dir / path.name)
+            if folder is not None and run_dir is not None:  # its model and checkpoint
+                adopt(folder, run_dir, checkpoint=True)
         if run_dir is not None:
             screen.write(run_dir)
     return dataclasses.replace(result, screen=screen)

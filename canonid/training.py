@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
 from canonid.learning.screen import (
+    FOLLOWUPS_DIR,
     SCREEN_FILE,
     SCREEN_FRACTION,
     SCREEN_TOLERANCE,
@@ -482,9 +483,6 @@ def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | Non
         return _follow_up(request, recipe, run_dir, screen, outcome)
 
 
-FOLLOWUPS_DIR = "followups"
-
-
 def _follow_up(
     request: TrainRequest,
     recipe: RunRecipe,
@@ -537,15 +535,6 @@ def _follow_up(
             adopt(folder, run_dir, checkpoint=True)
             outcome = dataclasses.replace(other, run_dir=run_dir)
         screen.write(run_dir)
-    if outcome.result is not None and outcome.result.recipe.window != screen.chosen:
-        # resumed after an adoption: the run folder's model is the chosen full run's
-        outcome = _train_one(
-            request,
-            dataclasses.replace(recipe, window=screen.chosen),
-            run_dir,
-            resume=True,
-            callback=None,
-        )
     return dataclasses.replace(outcome, screen=screen)
 
 

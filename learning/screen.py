@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING, Any
 
 from canonid.kernel.errors import OptionError
 from canonid.learning.window_screen import (
+    FOLLOWUPS_DIR,
     SCREEN_FILE,
     SCREEN_FRACTION,
     SCREEN_TOLERANCE,
@@ -40,6 +41,7 @@ if TYPE_CHECKING:  # torch loads when a screen runs, not for the command line's 
     from canonid.learning.training import FitResult, TrainOptions
 
 __all__ = [
+    "FOLLOWUPS_DIR",
     "SCREEN_FILE",
     "SCREEN_FRACTION",
     "SCREEN_TOLERANCE",

@@ -17,6 +17,7 @@ from canonid.kernel.errors import CheckpointError
 from canonid.kernel.io import atomic_write_json, read_json
 
 __all__ = [
+    "FOLLOWUPS_DIR",
     "FOLLOWUP_SHARE",
     "SCREEN_FILE",
     "SCREEN_FRACTION",
@@ -43,6 +44,8 @@ SCREEN_TOLERANCE = 1.6
 #: window, trained fully too; the lowest full-run validation loss then chooses
 #: (benchmarks/studies/window_study_notes.md, "Full runs of the near ties")
 FOLLOWUP_SHARE = 0.5
+#: the folder of a run folder that holds the near ties' full runs, one ``lL`` folder each
+FOLLOWUPS_DIR = "followups"
 #: the screen's table in a run folder
 SCREEN_FILE = "window-screen.json"
 SCREEN_FORMAT = "canonid-window-screen"
