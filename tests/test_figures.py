@@ -36,6 +36,31 @@ def test_the_headline_figures_are_checked():
         assert f"<!-- figure: {key} -->" in readme, key
 
 
+def test_the_quoted_screen_line_is_the_overflow_tanks_run():
+    """identification.md quotes the line `canonid train` printed for the overflow tanks (a code
+    block, where no marker can stand): its numbers are those of the record's screen lines."""
+    import re
+
+    record = figures._sections()["Overflow tanks"]
+    screen = re.search(
+        r"window screen \((\d+) epochs each; ℓ: best validation loss ([^)]*)\) kept ℓ = (\d+)",
+        record,
+    )
+    chosen = re.search(r"the model is ℓ = (\d+)", record)
+    assert screen and chosen
+    epochs, losses, kept = screen.groups()
+    windows = ", ".join(w.split(":")[0] for w in losses.split(", "))
+    page = (ROOT / "docs" / "identification.md").read_text("utf-8")
+    line = next(x for x in page.splitlines() if "kept ℓ =" in x and x.startswith("window ℓ ="))
+    assert line.startswith(
+        f"window ℓ = {chosen[1]} chosen on validation: the screen of {windows} ({epochs} epochs "
+        f"each) kept ℓ = {kept}, the shortest within {figures.value('code/screen-tolerance')}× "
+        f"of the lowest loss; its full run ended at epoch "
+        f"{figures.value('overflow/full/l10/ended')} of {figures.value('overflow/full/l10/budget')}"
+        f", so the near-tied ℓ = {chosen[1]} trained fully too"
+    ), line
+
+
 def test_a_figure_that_disagrees_with_its_source_fails():
     tank = figures.value("defaults/tank/0")  # 7.52e-05 in the defaults study
     assert figures.check(f"tank {float(tank):.2e}<!-- figure: defaults/tank/0 -->", "p") == []
@@ -46,6 +71,19 @@ def test_a_figure_that_disagrees_with_its_source_fails():
     demo = figures.value("demo/wall")
     assert figures.check(f"takes {demo}<!-- figure: demo/wall -->", "p") == []
     assert figures.check("takes about 8 min<!-- figure: demo/wall -->", "p")
+
+
+def test_figures_from_prose_and_from_inside_a_cell():
+    import pytest
+
+    # the screen lines of the overflow tanks state where the full run ended only in their text
+    ended, budget = (figures.value(f"overflow/full/l10/{k}") for k in ("ended", "budget"))
+    assert ended.isdigit() and budget.isdigit() and int(ended) <= int(budget)
+    with pytest.raises(KeyError, match="no text matching"):
+        figures.Prose("Overflow tanks", r"no such figure (\d+)").value()
+    # "0.04527 (0.1376; 243 s)": score, best validation loss, CPU seconds
+    cell = figures.FIGURES["arx-start/drone2d/0"]
+    assert [cell._replace(pick=i).value() for i in (0, 1)] == ["0.04527", "0.1376"]
 
 
 def test_rounding_to_the_quoted_digits():

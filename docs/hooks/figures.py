@@ -5,12 +5,13 @@ A quoted figure carries a marker right after it, invisible once rendered::
     7.52e-5<!-- figure: defaults/tank/0 -->
 
 :data:`FIGURES` says where each key's value comes from: a cell of a table in a section of
-``benchmarks/RESULTS.md`` (the file the benchmark scripts write) or a value of the code itself
-(``canonid.profiles``). A number agrees with its source when it is the source rounded to the
-digits quoted (7.52e-5 quotes 7.520165e-05); any other text must be the source's text exactly.
-:func:`check` lists every disagreement, and so every marker whose key is unknown;
-``tests/test_figures.py`` runs it over README.md and docs/, and as a MkDocs hook it turns a
-disagreement into a warning, which fails the strict build. Run this file to print them all.
+``benchmarks/RESULTS.md`` (the file the benchmark scripts write), a number a section states only
+in its text (found by a regular expression) or a value of the code itself (``canonid.profiles``).
+A number agrees with its source when it is the source rounded to the digits quoted (7.52e-5
+quotes 7.520165e-05); any other text must be the source's text exactly. :func:`check` lists every
+disagreement, and so every marker whose key is unknown; ``tests/test_figures.py`` runs it over
+README.md and docs/, and as a MkDocs hook it turns a disagreement into a warning, which fails
+the strict build. Run this file to print them all.
 """
 
 from __future__ import annotations
@@ -45,15 +46,16 @@ def _screen_tolerance() -> float:
 
 
 class Cell(NamedTuple):
-    """The first number (or, with ``whole``, the whole text) of one cell of a RESULTS.md table:
-    the ``nth`` table of ``section`` that has ``column`` (0: the first), the row whose cells
-    match ``row``."""
+    """The first number (with ``pick``, the number at that place; with ``whole``, the whole text)
+    of one cell of a RESULTS.md table: the ``nth`` table of ``section`` that has ``column`` (0:
+    the first), the row whose cells match ``row``."""
 
     section: str
     row: tuple[tuple[str, str], ...]
     column: str
     whole: bool = False
     nth: int = 0
+    pick: int = 0
 
     def value(self) -> str:
         tables = [(h, rows) for h, rows in _tables(self.section) if self.column in h]
@@ -63,11 +65,37 @@ class Cell(NamedTuple):
                 if all(record.get(k) == v for k, v in self.row):
                     # bold and the mark of the lowest published figure are not part of it
                     text = record[self.column].replace("**", "").strip().rstrip("*")
-                    return text if self.whole else text.split()[0]
+                    if self.whole:
+                        return text
+                    if self.pick == 0:
+                        return text.split()[0]
+                    # "0.014 / 0.073 m", "0.04527 (0.1376; 243 s)": the numbers among the words
+                    words = (w.strip("();") for w in text.split())
+                    return [w for w in words if _number(w) is not None][self.pick]
         raise KeyError(
             f"{RESULTS.name}, section {self.section!r}: no row {dict(self.row)} "
             f"with a column {self.column!r}"
         )
+
+
+class Prose(NamedTuple):
+    """A number a RESULTS.md section states in its text rather than in a table: group ``group``
+    of the first match of the regular expression ``pattern`` in ``section``."""
+
+    section: str
+    pattern: str
+    group: int = 1
+
+    def value(self) -> str:
+        body = _sections().get(self.section)
+        if body is None:
+            raise KeyError(f"{RESULTS.name} has no section {self.section!r}")
+        found = re.search(self.pattern, body)
+        if found is None:
+            raise KeyError(
+                f"{RESULTS.name}, section {self.section!r}: no text matching {self.pattern!r}"
+            )
+        return found[self.group]
 
 
 class Code(NamedTuple):
@@ -99,6 +127,8 @@ _NOW = "feedthrough auto (now)"
 _FEEDTHROUGH = "3e-3, clip 1, skip from zero, feedthrough"
 _NO_FEEDTHROUGH = "3e-3, clip 1, skip from zero, no feedthrough"
 _NO_SKIP = "3e-3, clip 1"
+#: the overflow tanks' full run at ℓ = 10 in the screen lines: the epoch it ended at, of how many
+_OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of (\d+)"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 _LEARNED_MPC_RUNS = (  # key slug, the model and data cells of the section's goals table
     ("drone2d-id/mlp", "mlp", "drone2d-id"),
@@ -108,7 +138,7 @@ _LEARNED_MPC_RUNS = (  # key slug, the model and data cells of the section's goa
     ("drone2d/arx", "arx", "drone2d"),
 )
 
-FIGURES: dict[str, Cell | Code] = {
+FIGURES: dict[str, Cell | Prose | Code] = {
     # per system and seed, a column of the defaults study: canonid's defaults; without the
     # linear skip (the defaults before it); the skip without, then with feedthrough
     **{
@@ -159,6 +189,12 @@ FIGURES: dict[str, Cell | Code] = {
             ("deepsi", "deepSI: multisine [mV]"),
         )
     },
+    "small/1000/best-epoch": Cell(
+        "Small data",
+        _row(**{"size (training / validation)": "1,000 (800 / 200)"}),
+        "best epoch of last",
+        whole=True,
+    ),
     # the overflow tanks (bench_overflow_tanks.py): test RMSE per contestant, events per part
     **{
         f"overflow/rmse/{who}": Cell("Overflow tanks", _row(model=model), "RMSE [V]")
@@ -174,6 +210,7 @@ FIGURES: dict[str, Cell | Code] = {
         f"overflow/{part}/{what}": Cell("Overflow tanks", _row(part=part), column, whole=True)
         for part in ("training", "validation", "test")
         for what, column in (
+            ("samples", "samples"),
             ("rim", "at the rim (episodes)"),
             ("sensor", "at the sensor limit (episodes)"),
         )
@@ -186,9 +223,54 @@ FIGURES: dict[str, Cell | Code] = {
             ("h64", "hidden 64 × 64 × 64"),
         )
     },
-    "arx-start/drone2d/0": Cell(
-        "Defaults study", _row(system="drone2d", seed="0"), "3e-3, clip 1, ARX start"
+    # the defaults' window screen there (the section's screen lines): each window's screen loss,
+    # then the epoch at which the full run at ℓ = 10 ended and its budget of epochs
+    **{
+        f"overflow/screen/l{ell}": Prose(
+            "Overflow tanks", rf"ℓ: best validation loss [^)]*?\b{ell}: ([\d.e-]+)"
+        )
+        for ell in (10, 20)
+    },
+    "overflow/full/l10/ended": Prose("Overflow tanks", _OVERFLOW_L10_FULL),
+    "overflow/full/l10/budget": Prose("Overflow tanks", _OVERFLOW_L10_FULL, group=2),
+    # the ARX start (round 1 of the defaults study), seed 0: score, and on the drone CPU seconds
+    **{
+        f"arx-start/{system}/0": Cell(
+            "Defaults study", _row(system=system, seed="0"), "3e-3, clip 1, ARX start"
+        )
+        for system in ("tank", "silverbox", "drone2d")
+    },
+    "arx-start/drone2d/0/cpu": Cell(
+        "Defaults study", _row(system="drone2d", seed="0"), "3e-3, clip 1, ARX start", pick=2
     ),
+    "epochs900/silverbox/0": Cell(
+        "Defaults study", _row(system="silverbox", seed="0"), "3e-3, 900 epochs"
+    ),
+    # the quick profile's rollouts and batches (round 2 of the defaults study): before, now
+    **{
+        f"budget/{slug}/{when}": Cell(
+            "Quick profile: rollout length and batch", _row(data=label), column
+        )
+        for slug, label in (
+            ("tank/0", "tank, test 100-step MSE vs y_clean, seed 0"),
+            ("tank/1", "tank, seed 1"),
+            ("tank/2", "tank, seed 2"),
+            ("drone2d", "planar drone (`drone2d-small`), best val MSE (norm.) / test 100-step MSE"),
+            ("silverbox", "Silverbox multisine test RMSE"),
+        )
+        for when, column in (
+            ("before", "H 100, batch 16, 240 sub-windows/epoch (before)"),
+            ("now", "H 50, batch 32, 480 sub-windows/epoch (now)"),
+        )
+    },
+    # bench_silverbox.py's variants under the profile before: the default, the ARX start
+    **{
+        f"silverbox-variants/{name}": Cell("Silverbox", _row(variant=variant), "test RMSE [mV]")
+        for name, variant in (
+            ("default", "**default** (`--variants default`)"),
+            ("linear", "`--linear` (`--variants linear`)"),
+        )
+    },
     "lr5e-3/tank/0": Cell("Defaults study", _row(system="tank", seed="0"), "5e-3"),
     "lr5e-3/tank/1": Cell("Defaults study", _row(system="tank", seed="1"), "5e-3"),
     "lr5e-3/tank/2": Cell("Defaults study", _row(system="tank", seed="2"), "5e-3"),
@@ -201,6 +283,117 @@ FIGURES: dict[str, Cell | Code] = {
         for who, model in (("ours", "Ours (MLP)"), ("subnet", "deepSI SUBNET"))
         for target in ("y", "y_clean")
     },
+    **{
+        f"deepsi/{system}/{who}/{what}": Cell(
+            "Identification versus deepSI", _row(model=model), column, nth=nth
+        )
+        for nth, system in enumerate(("tank", "drone2d"))
+        for who, model in (("ours", "Ours (MLP)"), ("subnet", "deepSI SUBNET"))
+        for what, column in (
+            ("rmse", "RMSE after n_init, y"),
+            ("best-val", "best val MSE (norm.)"),
+            ("steps", "optimiser steps"),
+        )
+    },
+    # the training CPU seconds each took to reach the validation MSE both reached
+    **{
+        f"deepsi/{system}/reach/{who}": Prose(
+            "Identification versus deepSI",
+            rf"### {system}:[\s\S]*?\(both reached\) \| (\d+) s \| (\d+) s \|",
+            group,
+        )
+        for system in ("tank", "drone2d")
+        for group, who in ((1, "ours"), (2, "subnet"))
+    },
+    # bench_training.py: accelerations of Ours (MLP) over its baseline; batched evaluation; the
+    # wall seconds of the quick tank run to within 2× of its best validation MSE, and to it
+    **{
+        f"training/{name}": Cell(
+            "Training throughput", _row(**{"variant (Ours (MLP))": variant}), "vs baseline"
+        )
+        for name, variant in (
+            ("batch256", "1 thread, batch 256"),
+            ("threads2", "2 threads, batch 16"),
+            ("compile", "torch.compile(regressor), batch 16"),
+        )
+    },
+    "training/batched-evaluation": Prose(
+        "Training throughput", r"\((\d+)× slower; `evaluate` batches them\)"
+    ),
+    **{
+        f"training/target/{factor}x": Prose(
+            "Training throughput", rf"≤ {factor} × final best \([\d.e-]+\) \| \d+ \| (\d+) \|"
+        )
+        for factor in (1, 2)
+    },
+    # bench_memory.py: peak RSS in MiB (the process's; with Dask, the process tree's)
+    **{
+        f"memory/{name}": Cell("Memory", _row(case=case), column)
+        for name, case, column in (
+            ("generate/54", "generate drone2d, 54 flights × 600, serial", "peak RSS, process MiB"),
+            (
+                "generate/540",
+                "generate drone2d, 540 flights × 600, serial",
+                "peak RSS, process MiB",
+            ),
+            (
+                "generate/540/dask",
+                "generate drone2d, 540 flights × 600, 2 Dask workers",
+                "peak RSS, tree MiB",
+            ),
+            *(
+                (
+                    f"train/{slug}/{n}",
+                    f"train Ours (MLP), paper profile, {n} epoch(s), {data}",
+                    "peak RSS, process MiB",
+                )
+                for slug, data in (("drone2d", "drone2d (540 flights)"), ("tank", "tank"))
+                for n in (1, 3)
+            ),
+        )
+    },
+    "memory/per-flight": Prose("Memory", r"each extra flight costs (\d+) KiB"),
+    "memory/per-flight-ratio": Prose("Memory", r"flights\), ([\d.]+)× the \d+ KiB"),
+    # the simulated quadrotor: Ours (MLP)'s 100-step MSE per window, and holding the last sample
+    **{
+        f"quadrotor/{ell}/{who}": Cell(
+            "Quadrotor Ours (MLP), simulated stand-in", _row(**{"ℓ": str(ell)}), column
+        )
+        for ell in (5, 10, 20, 30)
+        for who, column in (
+            ("mlp", "simulated stand-in, vs measured y (×1e-2)"),
+            ("hold", "hold-last baseline, same rollouts (×1e-2)"),
+        )
+    },
+    # bench_quadrotor.py: the NMPC against the cascade on the 13-state quadrotor
+    **{
+        f"quadrotor-stand-in/{name}": Cell(
+            "Quadrotor stand-in", _row(quantity=quantity), "value", pick=pick
+        )
+        for name, quantity, pick in (
+            (
+                "rmse/nmpc",
+                "position RMSE, NMPC / cascade (4 flights × 400 samples, no excitation)",
+                0,
+            ),
+            (
+                "rmse/cascade",
+                "position RMSE, NMPC / cascade (4 flights × 400 samples, no excitation)",
+                1,
+            ),
+            ("step/nmpc", "NMPC (fatrop-c, N = 20), median / p95 per step", 0),
+            ("step/cascade", "cascade on the same flights, median / p95 per step", 0),
+            ("dataset/serial", "176 flights × 1000 samples, serial (measured)", 0),
+            (
+                "dataset/dask",
+                "176 flights, 2 Dask worker processes incl. cluster start (measured)",
+                0,
+            ),
+        )
+    },
+    "quadrotor-stand-in/nmpc-dataset-min": Prose(
+        "Quadrotor stand-in", r"would need about (\d+) min of solver time"
+    ),
     # the published Silverbox baselines (Champneys et al. 2024)
     "silverbox/published-gru": Code(lambda: _published("silverbox", "multisine", "GRU")),
     # `canonid benchmark silverbox`: canonid's defaults and the published recurrent baselines
@@ -218,6 +411,14 @@ FIGURES: dict[str, Cell | Code] = {
             ("pnlss", "PNLSS"),
         )
     },
+    # that run's CPU minutes, and those of the earlier run with ℓ = 10 given (no window screen)
+    "benchmark/silverbox/cpu-min": Prose(
+        "Standard benchmarks", r"Wall [\d.]+ min, CPU ([\d.]+) min"
+    ),
+    "benchmark/silverbox/window-10/cpu-min": Prose(
+        "Standard benchmarks",
+        r"ℓ = 10 given \(before the window screen\): [^;]*? in ([\d.]+) CPU minutes",
+    ),
     # how long `make demo` takes, and what it runs
     "demo/wall": Cell("make demo", _row(run=DEMO_RUN), "wall time", whole=True),
     # the quick profile's training budget (canonid/profiles.py)
