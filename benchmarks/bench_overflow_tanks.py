@@ -249,8 +249,10 @@ def main() -> int:
     if args.deepsi_child is not None:
         return deepsi_child(DATA, args.deepsi_iterations, args.deepsi_child)
     if args.only is not None:
+        seconds = canonid_train(args.only, _extra(args.only), DATA)
+        # read after training: another --only may have written its time meanwhile
         cpu = json.loads((RUNS / CPU_FILE).read_text())
-        cpu[args.only] = canonid_train(args.only, _extra(args.only), DATA)
+        cpu[args.only] = seconds
         atomic_write_json(RUNS / CPU_FILE, cpu)
         return record(rewritten=True)
     if not args.record:

@@ -211,12 +211,13 @@ def deepsi_child(name: str, iterations: int) -> int:
 
 
 def canonid_scores(name: str) -> Scores:
-    """The official scores of canonid job ``name``'s model (computed once, then read from
-    ``RUNS/scores``)."""
+    """The official scores of canonid job ``name``'s model (computed once per training, then
+    read from ``RUNS/scores``; a run trained again after its scores were kept is scored again)."""
     from canonid.learning import Model
 
     path = RUNS / "scores" / f"{name}.json"
-    if not path.is_file():
+    weights = RUNS / name / "weights.pt"
+    if not path.is_file() or weights.stat().st_mtime > path.stat().st_mtime:
         run, samples = RUNS / name, jobs()[name].samples
         model, v = Model.load(run), validation(run)
         found = Scores(official(model, samples), model.window, f"{v.epoch} of {v.last}")
@@ -402,14 +403,13 @@ def record() -> int:
     if missing:
         lines += ["", f"Not run (yet): {', '.join(missing)}."]
     lines += ["", *diagnosis()]
-    ends = {j: (RUNS / "cpu" / f"{j}.json").stat().st_mtime for j in jobs() if done(j)}
-    first = min(end - cpu_of(j)["wall_s"] for j, end in ends.items())
+    ran = [j for j in jobs() if done(j)]
     lines += [
         "",
-        f"{len(ends)} jobs, two at a time (`--only`, two processes); the time below runs from "
-        "the first job's start to the last one's end.",
+        f"{len(ran)} jobs, two at a time (`--only`, two processes), some trained again later; "
+        "the time below is the sum of the jobs' wall times.",
     ]
-    return publish(SECTION, lines, (max(ends.values()) - first) / 60)
+    return publish(SECTION, lines, sum(cpu_of(j)["wall_s"] for j in ran) / 60)
 
 
 def losses(run: Path) -> list[tuple[str, str, str]]:
@@ -438,6 +438,29 @@ def same_training(ran: dict[str, str]) -> str:
     )
 
 
+def weight_decay_of(run: Path) -> float:
+    """The Adam weight decay a run trained with (recorded in its ``config.json``)."""
+    config = json.loads((run / "config.json").read_text())
+    return float(config["info"]["training"]["options"]["weight_decay"])
+
+
+def other_weight_decay(ran: dict[str, str]) -> str:
+    """A sentence when these runs trained with another weight decay than the defaults' run at
+    the diagnosis size (they predate the default they would get now)."""
+    name = f"n{DIAGNOSIS_SIZE}"
+    if not done(name):
+        return ""
+    now = weight_decay_of(RUNS / name)
+    then = sorted({weight_decay_of(RUNS / r) for r in ran.values()} - {now})
+    if not then:
+        return ""
+    return (
+        f" These runs trained with Adam weight decay {', '.join(f'{w:g}' for w in then)}, "
+        f"before the defaults' run above, which used {now:g} (section \"Weight decay on small "
+        'records"); they compare the changes with one another, not with that run.'
+    )
+
+
 def diagnosis() -> list[str]:
     """The validation-only look at 1,000 samples (the test score is read only for the run the
     validation loss picks, after it picked it)."""
@@ -460,7 +483,8 @@ def diagnosis() -> list[str]:
         "training loss (the epoch's rollouts), both normalised by the training output variance; "
         "each run keeps its best epoch on validation. (`canonid train` also writes its own test "
         "metrics into every run folder and its log; this script does not read them.)"
-        + same_training(ran),
+        + same_training(ran)
+        + other_weight_decay(ran),
         "",
         "| run | best validation loss | at epoch | training loss there | last epoch | validation "
         "loss, last | training loss, last | CPU s |",

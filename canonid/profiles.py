@@ -132,6 +132,8 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "lr_final": 1e-5,
             # bounds the rare large gradients of open-loop rollouts (docs: Identification)
             "grad_clip": 1.0,
+            # 1e-5 on records under 5,000 samples, else none (docs: Identification)
+            "weight_decay": "auto",
             "horizon": 50,
             "curriculum_epochs": 50,
             "windows_per_epoch": 480,

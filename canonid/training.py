@@ -65,6 +65,7 @@ WIDTH_CANDIDATES = ((64, 64, 64), (128, 128, 128), (256, 256, 256))
 TRAIN_OPTION_FIELDS = (
     "epochs",
     "lr",
+    "weight_decay",
     "batch_size",
     "horizon",
     "windows_per_epoch",
@@ -107,6 +108,7 @@ class TrainRequest:
     profile: str | None = None
     epochs: int | None = None
     lr: float | None = None
+    weight_decay: float | Literal["auto"] | None = None
     batch_size: int | None = None
     horizon: int | None = None
     windows_per_epoch: int | None = None

@@ -24,6 +24,8 @@ __all__ = [
     "MODEL_LABELS",
     "MODEL_NAMES",
     "PAPER_NET_OPTIONS",
+    "SMALL_RECORD_SAMPLES",
+    "SMALL_RECORD_WEIGHT_DECAY",
     "model_label",
     "net_options",
     "preset_word",
@@ -54,6 +56,12 @@ ACTIVATION_NAMES = ("relu", "silu", "tanh")
 #: network, like the linear bypass of deepSI's residual networks; or started at the
 #: least-squares ARX fit with the nonlinear part's output layer at zero
 LINEAR_PATHS = ("off", "skip", "arx")
+
+#: training's ``weight_decay="auto"``: Adam weight decay SMALL_RECORD_WEIGHT_DECAY when the
+#: training part holds fewer samples than SMALL_RECORD_SAMPLES, else none (chosen on validation
+#: over eight systems: benchmarks/RESULTS.md, "Weight decay on small records")
+SMALL_RECORD_SAMPLES = 5_000
+SMALL_RECORD_WEIGHT_DECAY = 1e-5
 
 DEFAULT_NET_OPTIONS: dict[str, dict[str, Any]] = {
     "mlp": {"residual": True, "feedthrough": "auto", "activation": "silu", "linear": "skip"},

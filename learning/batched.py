@@ -70,8 +70,10 @@ from canonid.learning.training import (
     _training_pair,
     _validation_starts,
     data_fingerprint,
+    flushed_subnormals,
     network_work,
     resolve_device,
+    resolve_weight_decay,
 )
 
 __all__ = [
@@ -498,7 +500,7 @@ class _Stack:
         ]
         ref = next(iter(self.params.values()))
         mask = _per_candidate([1.0 if s else 0.0 for s in stepping], ref)
-        decay = _per_candidate([o.weight_decay for o in opts], ref)
+        decay = _per_candidate([float(o.weight_decay) for o in opts], ref)  # resolved
         size, bc2 = _per_candidate(step_size, ref), _per_candidate(bc2_sqrt, ref)
         clip3 = clip.to(ref.dtype).view(-1, 1, 1)
         with torch.no_grad():
@@ -673,12 +675,16 @@ def fit_batched(
     if not candidates:
         raise OptionError("fit_batched: give at least one candidate")
     train, val = _training_pair(train, val)
+    base = resolve_weight_decay(base, train)
     windows = [int(c.get("window", window)) for c in candidates]
     shared: dict[int, TrainOptions] = {}
     for ell in dict.fromkeys(windows):
         _check_rollout_lengths(train, val, ell, base.horizon)
         shared[ell] = _fit_validation_horizon(base, ell, max(tr.T for tr in val))
-    opts = [c.train_options(shared[ell]) for c, ell in zip(candidates, windows, strict=True)]
+    opts = [
+        resolve_weight_decay(c.train_options(shared[ell]), train)
+        for c, ell in zip(candidates, windows, strict=True)
+    ]
     config = preset_net_options("mlp", net_options)
     resolve_device(base.device)  # "cuda" without a GPU fails before any work
     norm = Normalisation.fit(train)
@@ -748,20 +754,21 @@ def fit_batched(
         torch.save(payload, buf)
         atomic_write_bytes(checkpoint, buf.getvalue())
 
-    for epoch in range(first, base.epochs + 1):
-        live = [s for s in stacks if s.active]
-        if not live:
-            break
-        for stack in live:
-            stack.train_epoch(epoch)
-        if (
-            epoch % base.checkpoint_every == 0
-            or epoch == base.epochs
-            or not any(s.active for s in stacks)
-        ):
-            save(epoch)
-        if callback is not None:
-            callback(epoch)
+    with flushed_subnormals(device, max(float(o.weight_decay) for o in opts)):
+        for epoch in range(first, base.epochs + 1):
+            live = [s for s in stacks if s.active]
+            if not live:
+                break
+            for stack in live:
+                stack.train_epoch(epoch)
+            if (
+                epoch % base.checkpoint_every == 0
+                or epoch == base.epochs
+                or not any(s.active for s in stacks)
+            ):
+                save(epoch)
+            if callback is not None:
+                callback(epoch)
 
     runs: list[FitResult | None] = [None] * len(candidates)
     for stack in stacks:

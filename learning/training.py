@@ -52,6 +52,7 @@ uses it with the full model's normalisation and a per-epoch hook that freezes ``
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import dataclasses
 import hashlib
@@ -60,14 +61,15 @@ import logging
 import math
 import pickle
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import torch
 
+from canonid.kernel.catalog import SMALL_RECORD_SAMPLES, SMALL_RECORD_WEIGHT_DECAY
 from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
@@ -90,8 +92,10 @@ __all__ = [
     "auto_device",
     "fit",
     "fit_net",
+    "flushed_subnormals",
     "network_work",
     "resolve_device",
+    "resolve_weight_decay",
     "validation_loss",
 ]
 
@@ -114,7 +118,9 @@ class TrainOptions:
         batch_size: sub-windows per batch.
         lr: Adam learning rate (paper: 1e-4).
         lr_final: if set, the learning rate follows a cosine from ``lr`` to ``lr_final``.
-        weight_decay: Adam weight decay.
+        weight_decay: Adam weight decay; ``"auto"``: :data:`SMALL_RECORD_WEIGHT_DECAY` when the
+            training part holds fewer than :data:`SMALL_RECORD_SAMPLES` samples, else 0
+            (:func:`resolve_weight_decay`; the model records the value used).
         horizon: final rollout length ``H`` of the training sub-windows.
         curriculum_epochs: epochs over which ``H`` grows from 1 to ``horizon`` (0 or 1: none).
         windows_per_epoch: sub-windows drawn per epoch, over all training trajectories.
@@ -138,7 +144,7 @@ class TrainOptions:
     batch_size: int = 64
     lr: float = 1e-4
     lr_final: float | None = None
-    weight_decay: float = 0.0
+    weight_decay: float | Literal["auto"] = 0.0
     horizon: int = 100
     curriculum_epochs: int = 0
     windows_per_epoch: int = 256
@@ -186,8 +192,14 @@ class TrainOptions:
                 raise OptionError(f"training option {key} must be a positive number, got {value}")
         for key in ("weight_decay", "alpha_first"):
             value = getattr(self, key)
+            if key == "weight_decay" and value == "auto":
+                continue
             if not (_real(value) and math.isfinite(value) and value >= 0):
-                raise OptionError(f"training option {key} must be >= 0, got {value}")
+                raise OptionError(
+                    f"training option {key} must be >= 0"
+                    + (" or 'auto'" if key == "weight_decay" else "")
+                    + f", got {value!r}"
+                )
         if self.ema_decay is not None and not (_real(self.ema_decay) and 0 < self.ema_decay < 1):
             raise OptionError(
                 f"training option ema_decay must be None or in (0, 1), got {self.ema_decay}"
@@ -391,6 +403,34 @@ def _check_lengths(trajectories: Sequence[Trajectory], window: int, what: str) -
             )
 
 
+def resolve_weight_decay(opts: TrainOptions, train: Sequence[Trajectory]) -> TrainOptions:
+    """``opts`` with ``weight_decay="auto"`` replaced by the value it means for ``train``:
+    :data:`SMALL_RECORD_WEIGHT_DECAY` below :data:`SMALL_RECORD_SAMPLES` training samples, else
+    0 (a number is kept)."""
+    if opts.weight_decay != "auto":
+        return opts
+    samples = sum(tr.T for tr in train)
+    decay = SMALL_RECORD_WEIGHT_DECAY if samples < SMALL_RECORD_SAMPLES else 0.0
+    return dataclasses.replace(opts, weight_decay=decay)
+
+
+@contextlib.contextmanager
+def flushed_subnormals(device: torch.device, weight_decay: float) -> Iterator[None]:
+    """Flush float32 subnormals to zero in CPU arithmetic while a run with weight decay trains.
+
+    Weight decay pulls many weights into the subnormal range, where a CPU computes several times
+    slower (benchmarks/studies/defaults_study_notes.md); without it the defaults' runs hold none,
+    so they are left exactly as they were. Afterwards flushing is off again (torch's default).
+    """
+    if device.type != "cpu" or not weight_decay or not torch.set_flush_denormal(True):
+        yield
+        return
+    try:
+        yield
+    finally:
+        torch.set_flush_denormal(False)
+
+
 def _fit_validation_horizon(opts: TrainOptions, window: int, longest: int) -> TrainOptions:
     """``opts`` with the validation rollout cut to what the longest validation trajectory holds
     after its ℓ-sample burn-in, with a warning; the model's recorded options keep the cut."""
@@ -447,7 +487,7 @@ class _Run:
         self.val_horizon = opts.rollout_horizon
         self.val_starts = _validation_starts(val_bank, net.window + self.val_horizon, opts)
         self.optimiser = torch.optim.Adam(
-            net.parameters(), lr=opts.lr, weight_decay=opts.weight_decay
+            net.parameters(), lr=opts.lr, weight_decay=float(opts.weight_decay)
         )
         self.rng = np.random.default_rng(opts.seed)
         self.history: list[dict[str, Any]] = []
@@ -766,6 +806,7 @@ def fit_net(
         )
     _check_rollout_lengths(train, val, window, opts.horizon)
     opts = _fit_validation_horizon(opts, window, max(tr.T for tr in val))
+    opts = resolve_weight_decay(opts, train)
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:
         raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")
@@ -806,29 +847,30 @@ def fit_net(
                 state.save(run_path / CHECKPOINT_FILE)
         stopped = "completed" if net.iterative else "least_squares"
         try:
-            for epoch in range(state.epoch + 1, opts.epochs + 1 if net.iterative else 1):
-                row = state.train_epoch(epoch)
-                if row is None:
-                    stopped = "diverged"
-                    log.warning(
-                        "epoch %d: the training loss is not finite; stopping and keeping the "
-                        "best model (epoch %d)",
-                        epoch,
-                        state.best_epoch,
-                    )
-                    break
-                if callback is not None:
-                    callback(state.report(row))
-                if state.should_stop_early():
-                    stopped = "early_stopping"
-                if run_path is not None and (
-                    stopped != "completed"
-                    or epoch % opts.checkpoint_every == 0
-                    or epoch == opts.epochs
-                ):
-                    state.save(run_path / CHECKPOINT_FILE)
-                if stopped != "completed":
-                    break
+            with flushed_subnormals(device, float(opts.weight_decay)):  # resolved above
+                for epoch in range(state.epoch + 1, opts.epochs + 1 if net.iterative else 1):
+                    row = state.train_epoch(epoch)
+                    if row is None:
+                        stopped = "diverged"
+                        log.warning(
+                            "epoch %d: the training loss is not finite; stopping and keeping "
+                            "the best model (epoch %d)",
+                            epoch,
+                            state.best_epoch,
+                        )
+                        break
+                    if callback is not None:
+                        callback(state.report(row))
+                    if state.should_stop_early():
+                        stopped = "early_stopping"
+                    if run_path is not None and (
+                        stopped != "completed"
+                        or epoch % opts.checkpoint_every == 0
+                        or epoch == opts.epochs
+                    ):
+                        state.save(run_path / CHECKPOINT_FILE)
+                    if stopped != "completed":
+                        break
         finally:
             # interrupted or not, the model kept is the best one seen
             load_state(net, state.best, where="best weights")

@@ -49,3 +49,13 @@ def siso_dataset_file(folder, T: int = 110):
         output_names=("y",),
     )
     return ds.save(folder / "dataset.npz")
+
+
+def damped_split(n_train: int = 6, n_val: int = 2, T: int = 40):
+    """Training and validation trajectories of :func:`damped_siso` (seeds 10 and 11, noise
+    0.01): the small data most learning tests train on."""
+    system = damped_siso()
+    return (
+        trajectories(system, n_train, T, noise=0.01, seed=10),
+        trajectories(system, n_val, T, noise=0.01, seed=11),
+    )

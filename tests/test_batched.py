@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
-from learning_helpers import damped_siso, trajectories
+from learning_helpers import damped_split
 
 from canonid.kernel.errors import CheckpointError, OptionError
 from canonid.learning import TrainOptions, fit
@@ -39,11 +39,7 @@ TINY = {
 
 @pytest.fixture(scope="module")
 def data():
-    system = damped_siso()
-    return (
-        trajectories(system, 4, 60, noise=0.01, seed=10),
-        trajectories(system, 2, 60, noise=0.01, seed=11),
-    )
+    return damped_split(4, 2, 60)
 
 
 def options(**kw) -> TrainOptions:

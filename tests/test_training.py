@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 import torch
-from learning_helpers import damped_siso, trajectories
+from learning_helpers import damped_siso, damped_split, trajectories
 
 from canonid.kernel.errors import CheckpointError, DataError, ShapeError
 from canonid.learning import Model, TrainOptions, evaluate, fit
@@ -26,11 +26,7 @@ TINY = {
 
 @pytest.fixture(scope="module")
 def data():
-    system = damped_siso()
-    return (
-        trajectories(system, 6, 40, noise=0.01, seed=10),
-        trajectories(system, 2, 40, noise=0.01, seed=11),
-    )
+    return damped_split()
 
 
 def tiny_options(**kw) -> TrainOptions:

@@ -12,6 +12,8 @@ from canonid.kernel.catalog import (
     LINEAR_PATHS,
     MODEL_NAMES,
     PAPER_NET_OPTIONS,
+    SMALL_RECORD_SAMPLES,
+    SMALL_RECORD_WEIGHT_DECAY,
     preset_word,
 )
 from canonid.profiles import DEFAULT_PROFILE, profile_names
@@ -57,6 +59,14 @@ def register(sub: Any) -> None:
     )
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
     p.add_argument("--lr", type=float, help="override the profile's learning rate")
+    p.add_argument(
+        "--weight-decay",
+        type=_weight_decay,
+        metavar="W",
+        help="Adam weight decay, a number >= 0 or auto (the quick profile's default: "
+        f"{SMALL_RECORD_WEIGHT_DECAY:g} when the training part holds fewer than "
+        f"{SMALL_RECORD_SAMPLES:,} samples, else 0)",
+    )
     p.add_argument("--batch-size", type=int, metavar="B", help="override the profile's batch")
     p.add_argument(
         "--train-horizon",
@@ -165,6 +175,15 @@ def register(sub: Any) -> None:
     _options.add_no_progress(p)
     _options.add_data_options(p)
     p.set_defaults(func=run)
+
+
+def _weight_decay(text: str) -> float | str:
+    if text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number >= 0 or auto, got {text!r}") from None
 
 
 def request(args: argparse.Namespace) -> TrainRequest:

@@ -31,6 +31,13 @@ MARKER = re.compile(r"<!-- figure: (?P<key>[\w./-]+) -->")
 log = logging.getLogger("mkdocs.plugins.figures")
 
 
+def _catalog() -> Any:
+    """The plain-data defaults (``weight_decay="auto"``'s threshold and value)."""
+    from canonid.kernel import catalog
+
+    return catalog
+
+
 def _followup_share() -> str:
     """The share of the budget within which full runs leave room for a near-tied window."""
     from canonid.learning.window_screen import FOLLOWUP_SHARE
@@ -430,6 +437,8 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/screen-fraction": Code(lambda: _screen_fraction()),
     "code/screen-tolerance": Code(lambda: f"{_screen_tolerance():g}"),
     "code/followup-share": Code(lambda: _followup_share()),
+    "code/small-record-samples": Code(lambda: f"{_catalog().SMALL_RECORD_SAMPLES:,}"),
+    "code/small-record-weight-decay": Code(lambda: _catalog().SMALL_RECORD_WEIGHT_DECAY),
     **{
         f"window/{system}/chosen": Cell(
             "Window on validation",
