@@ -11,8 +11,9 @@ Writes the section "Overflow tanks" of benchmarks/RESULTS.md.
 * Contestants, each in its own child process with one torch thread, CPU time of the child
   (user + system, from ``getrusage``) recorded:
 
-  - ``canonid train DATA --threads 1``: canonid's defaults (Ours (MLP), the quick profile, the
-    window chosen on validation by the screen);
+  - ``canonid train DATA --max-window 50 --threads 1``: canonid's defaults (Ours (MLP), the
+    quick profile, the window chosen on validation by the screen among those the scoring rule
+    can feed, ℓ ≤ n_init = 50, as ``canonid benchmark`` caps it);
   - ``canonid train DATA --window 10 --threads 1``: the same at ℓ = 10, and at ℓ = 10 with
     ``--model classic-gru`` and ``--model arx``;
   - deepSI 0.4.4 with its defaults: ``deepSI.SUBNET(n_u, n_y, norm)`` (state dimension 10,
@@ -78,7 +79,7 @@ DEEPSI_ITERATIONS = 5000
 DEFAULTS_LABEL = "canonid defaults (Ours (MLP))"
 FIXED_LABEL = "Ours (MLP), ℓ = 10"
 CANONID = {
-    DEFAULTS_LABEL: ("mlp-default", []),
+    DEFAULTS_LABEL: ("mlp-default", ["--max-window", str(N_INIT)]),
     FIXED_LABEL: ("mlp", ["--window", str(WINDOW)]),
     "Classic GRU": ("classic-gru", ["--window", str(WINDOW), "--model", "classic-gru"]),
     "ARX (linear)": ("arx", ["--window", str(WINDOW), "--model", "arx"]),

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from canonid.kernel.errors import DataError
+from canonid.kernel.errors import DataError, OptionError
 from canonid.profiles import DEFAULT_PROFILE, train_options
 
 if TYPE_CHECKING:
@@ -29,6 +29,7 @@ def fit(
     *,
     model: str = "mlp",
     window: int | Literal["auto"] = "auto",
+    max_window: int | None = None,
     options: TrainOptions | None = None,
     profile: str = DEFAULT_PROFILE,
     **kwargs: Any,
@@ -38,7 +39,8 @@ def fit(
     ``window="auto"`` (the default, as ``canonid train`` without ``--window``) screens the
     windows :data:`~canonid.learning.screen.SCREEN_WINDOWS` that the records allow on the
     validation trajectories (:func:`~canonid.learning.screen.screen_windows`: a short training
-    each) and trains the chosen one fully; while the full runs stop early within
+    each; ``max_window``: only those up to it, as ``--max-window``) and trains the chosen one
+    fully; while the full runs stop early within
     :data:`~canonid.learning.window_screen.FOLLOWUP_SHARE` of the epochs, the screen's next
     near-tied window is trained fully too and the lowest full-run validation loss chooses.
     The result carries the screen's table as ``result.screen``; with ``run_dir`` the table is
@@ -66,17 +68,20 @@ def fit(
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.learning.training import fit as fit_library  # torch, only when training
     from canonid.selection import adopt
+    from canonid.training import windows_up_to
 
     if options is None:
         options = train_options(profile)
     if window != "auto":
+        if max_window is not None:
+            raise OptionError("max_window caps the screen's windows: give it with window='auto'")
         return fit_library(train, val, model=model, window=window, options=options, **kwargs)
     run_dir = None if kwargs.get("run_dir") is None else Path(kwargs["run_dir"])
     if kwargs.get("resume") and run_dir is not None:  # the window the interrupted run chose
         screen = WindowScreen.read(run_dir)
     else:
         train, val = [Record.of(t) for t in train], [Record.of(t) for t in val]
-        windows = fitting_windows(train, val, SCREEN_WINDOWS, options)
+        windows = fitting_windows(train, val, windows_up_to(max_window, "max_window"), options)
         if not windows:
             raise DataError(
                 f"window='auto': none of the windows {list(SCREEN_WINDOWS)} fits the records "

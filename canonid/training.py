@@ -54,6 +54,7 @@ __all__ = [
     "parse_window",
     "same_run",
     "train",
+    "windows_up_to",
 ]
 
 AUTO = "auto"
@@ -370,6 +371,20 @@ def _mode(request: TrainRequest) -> Literal["run", "screen", "select"]:
     if request.window == AUTO or (request.window is None and request.resume is None):
         return "screen"
     return "run"
+
+
+def windows_up_to(limit: int | None, what: str = "--max-window") -> tuple[int, ...]:
+    """The windows the screen tries that are no longer than ``limit`` (all for ``None``): a
+    scoring rule that feeds the model ``n_init`` measured samples caps the window at it."""
+    if limit is None:
+        return WINDOW_CANDIDATES
+    kept = tuple(w for w in WINDOW_CANDIDATES if w <= limit)
+    if not kept:
+        raise OptionError(
+            f"{what} {limit} is below every window the screen tries "
+            f"({', '.join(map(str, WINDOW_CANDIDATES))}); give one window ≤ {limit} instead"
+        )
+    return kept
 
 
 def _candidates_base(request: TrainRequest) -> RunRecipe:

@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
+import canonid
 from canonid.cli import main
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, OptionError
@@ -228,6 +229,29 @@ def test_candidates_longer_than_the_records_allow_are_not_tried(tmp_path):
     screen = WindowScreen.read(run)
     assert [c.window for c in screen.candidates] == [10, 20]
     assert screen.options["val_horizon"] == 15
+
+
+def test_max_window_caps_the_screen_as_a_scoring_rule_would(data, tmp_path, capsys):
+    """``--max-window 20`` (a rule with n_init = 20) screens ℓ = 10 and 20 only; canonid.fit's
+    ``max_window`` the same; the cap outside a screen, or below every window, is one line."""
+    run = tmp_path / "run"
+    assert main(["train", str(data), "--max-window", "20", "--out", str(run), *FAST]) == 0
+    assert [c.window for c in WindowScreen.read(run).candidates] == [10, 20]
+    ds = Dataset.load(data)
+    options = canonid.train_options("tiny", epochs=3, device="cpu")
+    found = canonid.fit(ds.split("train"), ds.split("val"), max_window=20, options=options)
+    assert [c.window for c in found.screen.candidates] == [10, 20]
+    with pytest.raises(OptionError, match="max_window caps the screen"):
+        canonid.fit(ds.split("train"), ds.split("val"), window=10, max_window=20)
+    for extra, message in (
+        (["--max-window", "5"], "--max-window 5 is below every window the screen tries"),
+        (["--max-window", "20", "--window", "10"], "--max-window caps the screen's windows"),
+    ):
+        code = main(["train", str(data), *extra, "--out", str(tmp_path / "r"), *FAST])
+        one_line_error(capsys, code, message)
+    code = main(["train", "--resume", str(run), "--max-window", "20", *FAST[:-2]])
+    one_line_error(capsys, code, "--max-window caps the screen's windows")
+    assert not (tmp_path / "r").exists()
 
 
 def test_no_window_that_fits_is_one_line_naming_the_data(tmp_path, capsys):

@@ -16,8 +16,10 @@ from canonid.kernel.catalog import (
     SMALL_RECORD_WEIGHT_DECAY,
     preset_word,
 )
+from canonid.kernel.errors import OptionError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
+    AUTO,
     SCREEN_FRACTION,
     SCREEN_TOLERANCE,
     WIDTH_CANDIDATES,
@@ -26,6 +28,7 @@ from canonid.training import (
     parse_widths,
     parse_window,
     train,
+    windows_up_to,
 )
 
 
@@ -53,6 +56,14 @@ def register(sub: Any) -> None:
         f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the shortest whose "
         f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest (while early stopping "
         "leaves half the epochs unspent, the others within it too, keeping the lowest)",
+    )
+    p.add_argument(
+        "--max-window",
+        type=int,
+        metavar="L",
+        help="the screen tries only windows up to L, e.g. the n_init of the scoring rule you "
+        "will use (a model needs ℓ measured samples before it simulates); default: every "
+        "window the data allow",
     )
     _options.add_profile(
         p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
@@ -188,12 +199,18 @@ def _weight_decay(text: str) -> float | str:
 
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
+    window, resumed = parse_window(args.window), _options.resumed(args)
+    if args.max_window is not None and (window not in (None, AUTO) or resumed["resume"]):
+        raise OptionError(
+            "--max-window caps the screen's windows: give it without --window L and --resume"
+        )
     return _options.request(
         TrainRequest,
         args,
         hidden=parse_widths(args.hidden),
-        window=parse_window(args.window),
-        **_options.resumed(args),
+        window=window,
+        window_candidates=windows_up_to(args.max_window),
+        **resumed,
     )
 
 
