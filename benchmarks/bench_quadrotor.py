@@ -165,8 +165,8 @@ def main() -> int:
     full = args.size == "full"
     load = os.getloadavg()[0]
     fig = controller_figures(flights=20 if full else 5, seed=1)
-    # the compiled solver (fatrop-c) takes minutes to build on first use (then it is cached);
-    # the quick run uses the CasADi plugin
+    # the compiled solver (fatrop-c) is generated and compiled with gcc on first use, then loaded
+    # from the cache; the quick run uses the CasADi plugin
     cmp = compare_nmpc(
         "fatrop-c" if full else "fatrop", flights=4 if full else 2, steps=400, horizon=20, seed=2
     )

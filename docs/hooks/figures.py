@@ -137,6 +137,9 @@ _NO_SKIP = "3e-3, clip 1"
 #: the overflow tanks' full run at ℓ = 10 in the screen lines: the epoch it ended at, of how many
 _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of (\d+)"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
+#: the data engine's default controller, a row of the "Data engine" section
+_DATAGEN_DEFAULT = "NMPC, fatrop-c (default)"
+_CANONID_CLUSTER = "canonid (LOCAL_CLUSTER_CONFIG)"
 _LEARNED_MPC_RUNS = (  # key slug, the model and data cells of the section's goals table
     ("drone2d-id/mlp", "mlp", "drone2d-id"),
     ("drone2d-id/mlp-h10", "mlp, horizon 10", "drone2d-id"),
@@ -426,6 +429,76 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         "Standard benchmarks",
         r"ℓ = 10 given \(before the window screen\): [^;]*? in ([\d.]+) CPU minutes",
     ),
+    # bench_datagen.py: the drone NMPC's step per controller, first use of the compiled solver,
+    # CPU per flight of both loops and of the solver alone, start-up, the paper-size dataset on
+    # 2 workers, the targets, and how the record reads the day (the machine, an A/B in it)
+    **{
+        f"datagen/step/{name}": Cell("Data engine", _row(controller=controller), column)
+        for name, controller, column in (
+            ("median", _DATAGEN_DEFAULT, "median ms/step"),
+            ("p95", _DATAGEN_DEFAULT, "p95 ms/step"),
+            ("plugin", "NMPC, fatrop plugin (no compiler)", "median ms/step"),
+            ("opti", "baseline: Opti + IPOPT (defaults, warm start)", "median ms/step"),
+        )
+    },
+    "datagen/speed-up": Cell(
+        "Data engine", _row(controller=_DATAGEN_DEFAULT), "speed-up vs Opti (median)"
+    ),
+    "datagen/rmse": Cell("Data engine", _row(controller=_DATAGEN_DEFAULT), "RMSE position [m]"),
+    **{
+        f"datagen/cpu/{name}/{what}": Cell("Data engine", _row(loop=loop), column)
+        for name, loop in (
+            ("step", "step loop (one Python call into CasADi per solve and per f)"),
+            ("compiled", "compiled loop (chunks of 50 steps, one CasADi call each; default)"),
+            ("solver", "solver alone (the flight's 600 solves replayed in one mapped call)"),
+        )
+        for what, column in (("ms", "ms per flight"), ("ratio", "× solver alone"))
+    },
+    **{
+        f"datagen/{name}": Prose("Data engine", pattern, group)
+        for name, pattern, group in (
+            ("date", r"— (\d{4}-\d\d-\d\d) \d\d:\d\d UTC", 1),
+            ("load/start", r"at the start and after each part: ([\d.]+) /", 1),
+            ("load/end", r"/ ([\d.]+) \(this benchmark's own", 1),
+            ("first-use/wall", r"First use of the default solver [^:]*: ([\d.]+) s wall", 1),
+            ("first-use/gcc", r"s wall \(([\d.]+) s CPU in gcc\)", 1),
+            ("outside-solver/step", r"Outside the solver: (\d+)% of the step loop's", 1),
+            ("outside-solver/compiled", r"step loop's CPU, (\d+)% of the compiled", 1),
+            ("startup/cluster", r"closed, ([\d.]+) s wall", 1),
+            ("startup/import", r"importing the data engine [\d.]+ s wall \(([\d.]+) s CPU\)", 1),
+            ("startup/nmpc", r"from the cached library [\d.]+ s wall \(([\d.]+) s CPU\)", 1),
+            ("startup/python-control", r"python-control import [^.]*? took ([\d.]+) s", 1),
+            ("dataset/wall", r"measured: ([\d.]+) s for 540 flights", 1),
+            ("dataset/workers", r"CPU: workers [\d.]+ s \((\d+) ms per flight", 1),
+            ("dataset/main", r"dataset file\) [\d.]+ s \(([\d.]+) ms per flight\)", 1),
+            ("dataset/bound", r"2 cores = (\d+) s", 1),
+            ("dataset/bound-ratio", r"the run took ([\d.]+)× that", 1),
+            ("target/step", r"median step ≤ ([\d.]+) ms", 1),
+            ("target/dataset", r"paper-size dataset ≤ (\d+) s", 1),
+            ("solver-before", r"against (\d+) ms in the previous\s+record", 1),
+            ("ab/nmpc", r"NMPC call ([\d.]+) ms \(base ([\d.]+)\)", 1),
+            ("ab/nmpc-base", r"NMPC call ([\d.]+) ms \(base ([\d.]+)\)", 2),
+            ("took", r"This benchmark took ([\d.]+) min", 1),
+        )
+    },
+    # bench_dask_overhead.py: an idle cluster's CPU ms per second, and CPU ms per drone flight,
+    # under Dask's defaults and canonid's settings
+    **{
+        f"dask/{what}/{name}": Cell("Dask overhead", _row(settings=settings), column)
+        for name, settings in (("defaults", "Dask defaults"), ("canonid", _CANONID_CLUSTER))
+        for what, column in (("idle", "total"), ("per-flight", "CPU ms per flight"))
+    },
+    # bench_analysis.py: seconds of the certified γ_f to 5 %, of α_2 and α_3 (200,000 boxes)
+    # and of 10⁴ Monte-Carlo trials with one start; the re-run's wall times over the run before
+    "analysis/gamma-5pct": Cell("Analysis cost", _row(tolerance="0.05"), "seconds"),
+    **{
+        f"analysis/alpha{ell}": Cell(
+            "Analysis cost", _row(**{"ℓ": str(ell), "box budget": "200000"}), "seconds", nth=1
+        )
+        for ell in (2, 3)
+    },
+    "analysis/monte-carlo": Cell("Analysis cost", _row(**{"argmin starts": "1"}), "seconds", nth=2),
+    "analysis/slower": Prose("Analysis cost", r"Wall times are about ([\d.]+)× the old ones"),
     # how long `make demo` takes, and what it runs
     "demo/wall": Cell("make demo", _row(run=DEMO_RUN), "wall time", whole=True),
     # the quick profile's training budget (canonid/profiles.py)
