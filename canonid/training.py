@@ -50,6 +50,7 @@ __all__ = [
     "TrainRequest",
     "check_new_run",
     "check_request",
+    "parse_weight_decay",
     "parse_widths",
     "parse_window",
     "same_run",
@@ -191,6 +192,17 @@ def parse_widths(text: str | None) -> tuple[int, ...] | Literal["auto"] | None:
             f"got {text!r}"
         )
     return widths
+
+
+def parse_weight_decay(text: str | None) -> float | Literal["auto"] | None:
+    """``--weight-decay``: a number, ``"auto"`` or ``None`` (not given); else an
+    :class:`OptionError` naming the option (its range is checked with the other options)."""
+    if text is None or text == AUTO:
+        return text  # type: ignore[return-value]
+    try:
+        return float(text)
+    except ValueError:
+        raise OptionError(f"--weight-decay: expected a number >= 0 or auto, got {text!r}") from None
 
 
 def parse_window(text: str | None) -> int | Literal["auto"] | tuple[int, ...] | None:
@@ -373,11 +385,18 @@ def _mode(request: TrainRequest) -> Literal["run", "screen", "select"]:
     return "run"
 
 
-def windows_up_to(limit: int | None, what: str = "--max-window") -> tuple[int, ...]:
+def windows_up_to(
+    limit: int | None, what: str = "--max-window", *, screened: bool = True
+) -> tuple[int, ...]:
     """The windows the screen tries that are no longer than ``limit`` (all for ``None``): a
-    scoring rule that feeds the model ``n_init`` measured samples caps the window at it."""
+    scoring rule that feeds the model ``n_init`` measured samples caps the window at it.
+    ``screened``: whether the run screens at all (a cap without a screen is refused)."""
     if limit is None:
         return WINDOW_CANDIDATES
+    if not screened:
+        raise OptionError(
+            f"{what} caps the screen's windows: give it without --window L and --resume"
+        )
     kept = tuple(w for w in WINDOW_CANDIDATES if w <= limit)
     if not kept:
         raise OptionError(

@@ -4,6 +4,7 @@ weight decay flushes subnormals without leaving the process flushing."""
 from __future__ import annotations
 
 import dataclasses
+import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -153,3 +154,29 @@ def test_stacked_candidates_resolve_auto_as_fit_does(data):
         net_options=TINY,
     )
     assert auto.best_val_loss == pytest.approx(alone.best_val_loss, rel=1e-4)
+
+
+def test_the_command_line_takes_a_weight_decay_or_auto_and_records_the_value_used(
+    data, tmp_path, capsys
+):
+    from cli_helpers import one_line_error
+
+    from canonid.cli import main
+    from canonid.kernel.dataset import Dataset, Trajectory
+
+    train, val = data
+    records = {
+        part: tuple(Trajectory(u=t.u, y=t.y) for t in found)
+        for part, found in (("train", train), ("val", val), ("test", val))
+    }
+    found = Dataset(splits=records, dt=1.0, input_names=("u",), output_names=("y",))
+    path = found.save(tmp_path / "d" / "dataset.npz")
+    fast = ["--window", "3", "--profile", "tiny", "--no-progress", "--device", "cpu"]
+    for text, used in (("auto", SMALL_RECORD_WEIGHT_DECAY), ("0", 0.0), ("2e-4", 2e-4)):
+        run = tmp_path / f"run-{text}"
+        assert main(["train", str(path), "--weight-decay", text, "--out", str(run), *fast]) == 0
+        config = json.loads((run / "config.json").read_text())
+        assert config["info"]["training"]["options"]["weight_decay"] == used
+    code = main(["train", str(path), "--weight-decay", "abc", "--out", str(tmp_path / "r"), *fast])
+    one_line_error(capsys, code, "--weight-decay: expected a number >= 0 or auto, got 'abc'")
+    assert not (tmp_path / "r").exists()

@@ -16,7 +16,6 @@ from canonid.kernel.catalog import (
     SMALL_RECORD_WEIGHT_DECAY,
     preset_word,
 )
-from canonid.kernel.errors import OptionError
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
     AUTO,
@@ -25,6 +24,7 @@ from canonid.training import (
     WIDTH_CANDIDATES,
     WINDOW_CANDIDATES,
     TrainRequest,
+    parse_weight_decay,
     parse_widths,
     parse_window,
     train,
@@ -72,7 +72,6 @@ def register(sub: Any) -> None:
     p.add_argument("--lr", type=float, help="override the profile's learning rate")
     p.add_argument(
         "--weight-decay",
-        type=_weight_decay,
         metavar="W",
         help="Adam weight decay, a number >= 0 or auto (the quick profile's default: "
         f"{SMALL_RECORD_WEIGHT_DECAY:g} when the training part holds fewer than "
@@ -188,28 +187,17 @@ def register(sub: Any) -> None:
     p.set_defaults(func=run)
 
 
-def _weight_decay(text: str) -> float | str:
-    if text == "auto":
-        return text
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number >= 0 or auto, got {text!r}") from None
-
-
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
     window, resumed = parse_window(args.window), _options.resumed(args)
-    if args.max_window is not None and (window not in (None, AUTO) or resumed["resume"]):
-        raise OptionError(
-            "--max-window caps the screen's windows: give it without --window L and --resume"
-        )
+    screened = window in (None, AUTO) and not resumed["resume"]
     return _options.request(
         TrainRequest,
         args,
         hidden=parse_widths(args.hidden),
         window=window,
-        window_candidates=windows_up_to(args.max_window),
+        weight_decay=parse_weight_decay(args.weight_decay),
+        window_candidates=windows_up_to(args.max_window, screened=screened),
         **resumed,
     )
 
