@@ -13,15 +13,19 @@ validation losses only: ``prepare`` drops every test part before anything trains
    system at once, one process each (one CPU thread each), and stops them after ``S`` seconds;
    ``run NAME`` trains one. Checkpoints land every 25 epochs in ``DIR/NAME``.
 3. ``python weight_decay_study.py collect DIR --out FILE`` reads each system's result, or the
-   histories in the checkpoint of a run the deadline stopped, into one JSON file
-   (``benchmarks/studies/weight_decay_study.json``); ``render FILE`` prints the table of
-   ``benchmarks/studies/defaults_study_notes.md``: best validation loss by the last epoch every
-   system reached, per weight decay (the lowest of its seeds and their median).
+   histories in the checkpoint of a run the deadline stopped, into one JSON file with the
+   device's facts; ``--resume`` on ``run``/``all`` goes on from the checkpoints.
+4. ``python weight_decay_study.py record FILE...`` (here, where ``runs/wd-study/data`` is)
+   merges collections — per system the one that reached the most epochs — into
+   ``benchmarks/studies/weight_decay_study.json`` and writes the section "Weight decay on small
+   records" of RESULTS.md: best validation loss by the last epoch each system reached, per
+   weight decay (the lowest of its seeds and their median). ``render FILE`` prints it.
 
 Usage: python weight_decay_study.py prepare [--dir ../shared/data/silverbox]
-       python weight_decay_study.py all --out DIR [--device cuda] [--deadline S]
-       python weight_decay_study.py run NAME --out DIR [--device cuda]
+       python weight_decay_study.py all --out DIR [--device cuda] [--deadline S] [--resume]
+       python weight_decay_study.py run NAME --out DIR [--device cuda] [--resume]
        python weight_decay_study.py collect DIR --out FILE
+       python weight_decay_study.py record FILE [FILE ...]
        python weight_decay_study.py render FILE
 """
 
@@ -131,12 +135,15 @@ def _losses(history: list[dict]) -> list[list[float]]:
     return [[h["epoch"], h["val_loss"]] for h in history if h.get("val_loss") is not None]
 
 
-def run_all(out: Path, device: str, deadline: float, epochs: int | None = None) -> None:
+def run_all(
+    out: Path, device: str, deadline: float, epochs: int | None = None, resume: bool = False
+) -> None:
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
     procs = {
         name: subprocess.Popen(
             [sys.executable, __file__, "run", name, "--out", str(out), "--device", device]
-            + ([] if epochs is None else ["--epochs", str(epochs)]),
+            + ([] if epochs is None else ["--epochs", str(epochs)])
+            + (["--resume"] if resume else []),
             env=env,
         )
         for name in SYSTEMS
@@ -207,12 +214,7 @@ def record(files: list[Path]) -> int:
     study = {**{k: v for k, v in found[0].items() if k != "records"}}
     study["records"] = [best[name] for name in SYSTEMS if name in best]
     STUDY_FILE.write_text(json.dumps(study, indent=1) + "\n")
-    command = (
-        "python weight_decay_study.py all --out DIR --deadline 465` on the GPU machine (a "
-        "second call: `run NAME --out DIR --resume` for the three smallest), `collect DIR "
-        "--out FILE` there, then `record FILE…` here: `" + " ".join(["record", *map(str, files)])
-    )
-    write_section(SECTION, render(study), command=command)
+    write_section(SECTION, render(study))
     print(render(study))
     return 0
 
@@ -237,28 +239,50 @@ def _wd(value: float) -> str:
     return "0" if value == 0 else f"{value:.0e}".replace("e-0", "e-")
 
 
-def _verdicts(records: list[dict], threshold: int) -> list[str]:
+def _ratios(rec: dict) -> tuple[float, float]:
+    """1e-5's lowest and median best validation loss over no decay's."""
+    cells = _cells(rec, _reached(rec))
+    low, mid = (f(cells[1e-5]) / f(cells[0.0]) for f in (min, statistics.median))
+    return low, mid
+
+
+def _verdicts(records: list[dict], threshold: int) -> str:
     """What 1e-5 did to the lowest and the median loss against no decay, below and from
     ``threshold`` training samples, in words: which systems it lowered both on, raised both on,
-    or moved each way."""
-    said = []
+    or moved each way; then what holds of the helped larger systems and of larger decays."""
+    said, helped = [], {True: [], False: []}
     for below in (True, False):
         tally: dict[str, list[str]] = {"lowered both": [], "raised both": [], "split": []}
         for rec in records:
             if (rec.get("train_samples", 0) < threshold) != below:
                 continue
-            cells = _cells(rec, _reached(rec))
-            lower = [f(cells[1e-5]) < f(cells[0.0]) for f in (min, statistics.median)]
+            lower = [r < 1 for r in _ratios(rec)]
             key = "lowered both" if all(lower) else "split" if any(lower) else "raised both"
             tally[key].append(rec["system"])
+            if all(lower):
+                helped[below].append(rec)
         parts = [
             ("one lower, one higher on " if k == "split" else f"{k} on ") + ", ".join(v)
             for k, v in tally.items()
             if v
         ]
-        where = "Below" if below else "From"
-        said.append(f"{where} {threshold:,} training samples it " + "; ".join(parts) + ".")
-    return said
+        if parts:
+            where = "Below" if below else "From"
+            said.append(f"{where} {threshold:,} training samples it " + "; ".join(parts) + ".")
+    small = [r for r in records if r.get("train_samples", 0) < threshold]
+    if (
+        helped[False]
+        and small
+        and all(min(_ratios(big)) > max(max(_ratios(r)) for r in small) for big in helped[False])
+    ):
+        said.append("Where it helped a larger record, it helped less than on every small one.")
+    if small and all(
+        min(_cells(r, _reached(r))[1e-5])
+        <= min(min(_cells(r, _reached(r))[w]) for w in (1e-4, 1e-3))
+        for r in small
+    ):
+        said.append("No larger decay had a lower lowest loss than 1e-5 on a small record.")
+    return " ".join(said)
 
 
 def render(study: dict) -> str:
@@ -273,13 +297,16 @@ def render(study: dict) -> str:
         f"{', '.join(map(_wd, WEIGHT_DECAYS))} × seeds "
         f"{', '.join(map(str, SEEDS))} — trained as one stack "
         "(`canonid.learning.batched.fit_batched`, the quick profile's options, the window the "
-        "defaults chose there, the same sub-windows for all), on one "
+        "defaults chose there before this study, the same sub-windows for all), on one "
         f"{study.get('card', '?')} (torch {study.get('torch', '?')}, {study.get('cores', '?')} "
-        "CPU cores), all systems at once, one process each. The test parts were dropped "
-        "before anything trained. The device's time ran out before the 600 epochs: the "
-        "columns compare the candidates of one system at the same epoch (the learning rate "
-        "still on its cosine's way down), the smallest three systems after a second call "
-        "resumed them from their checkpoints.",
+        "CPU cores), all systems at once, one process each: `python weight_decay_study.py "
+        "all --out DIR --deadline 465` and `collect DIR --out FILE` there, the three smallest "
+        "systems then resumed by a second call (`run NAME --out DIR --resume`); `record FILE "
+        "FILE` here merged the two collections into the record above (running `record` on "
+        "the record writes this section again). The test parts were dropped before anything "
+        "trained. The device's time ran out before the 600 epochs: the columns compare the "
+        "candidates of one system at the same epoch (the learning rate still on its cosine's "
+        "way down).",
         "",
         "Cell: the lowest best validation loss of the four seeds by that epoch (their median).",
         "",
@@ -297,16 +324,13 @@ def render(study: dict) -> str:
             + " | ".join(f"{min(v):.3g} ({statistics.median(v):.3g})" for v in cells.values())
             + f" | {ratio[0]}, {ratio[1]} |"
         )
-    small, large = _verdicts(study["records"], SMALL_RECORD_SAMPLES)
     lines += [
         "",
         f"Chosen: the quick profile's `weight_decay` is `auto`, {_wd(SMALL_RECORD_WEIGHT_DECAY)} "
         f"when the training part holds fewer than {SMALL_RECORD_SAMPLES:,} samples, else 0 "
         "(`canonid.kernel.catalog`). Against no decay, on the lowest and the median loss of "
-        f"the four seeds: {small} {large} The one larger system it helped, it helped less "
-        "than any small one (the last column), and no larger decay did better than 1e-5 on "
-        "a small record's lowest loss. Test scores were read once, after this choice "
-        '(sections "Small data" and "Overflow tanks").',
+        f"the four seeds: {_verdicts(study['records'], SMALL_RECORD_SAMPLES)} Test scores were "
+        'read once, after this choice (sections "Small data" and "Overflow tanks").',
     ]
     return "\n".join(lines)
 
@@ -338,7 +362,7 @@ def main(argv: list[str] | None = None) -> int:
     elif args.step == "run":
         run(args.name, args.out, args.device, args.epochs, args.resume)
     elif args.step == "all":
-        run_all(args.out, args.device, args.deadline, args.epochs)
+        run_all(args.out, args.device, args.deadline, args.epochs, args.resume)
     elif args.step == "collect":
         args.out.write_text(json.dumps(collect(args.directory), indent=1))
         print(render(json.loads(args.out.read_text())))
