@@ -200,9 +200,7 @@ def best_by(history: list[list[float]], epoch: int) -> float:
 def record(files: list[Path]) -> int:
     """Merge collections (per system the one that reached the most epochs), add each system's
     training samples from :data:`DATA`, keep it as :data:`STUDY_FILE` and write the section."""
-    from _results import write_section
-
-    from canonid.kernel.dataset import Dataset
+    from canonid.kernel.io import atomic_write_text
 
     found = [json.loads(f.read_text()) for f in files]
     best: dict[str, dict] = {}
@@ -210,13 +208,25 @@ def record(files: list[Path]) -> int:
         if rec["system"] not in best or _reached(rec) > _reached(best[rec["system"]]):
             best[rec["system"]] = rec
     for name, rec in best.items():
-        rec["train_samples"] = sum(t.T for t in Dataset.load(DATA / name).split("train"))
+        rec["train_samples"] = _train_samples(name)
     study = {**{k: v for k, v in found[0].items() if k != "records"}}
     study["records"] = [best[name] for name in SYSTEMS if name in best]
-    STUDY_FILE.write_text(json.dumps(study, indent=1) + "\n")
-    write_section(SECTION, render(study))
+    atomic_write_text(STUDY_FILE, json.dumps(study, indent=1) + "\n")
+    _write_section(render(study))
     print(render(study))
     return 0
+
+
+def _train_samples(name: str) -> int:
+    from canonid.kernel.dataset import Dataset
+
+    return sum(t.T for t in Dataset.load(DATA / name).split("train"))
+
+
+def _write_section(body: str) -> None:
+    from _results import write_section
+
+    write_section(SECTION, body)
 
 
 def _reached(rec: dict) -> int:
