@@ -32,6 +32,7 @@ from canonid.learning.screen import (
     SCREEN_WINDOWS,
     WindowScreen,
 )
+from canonid.learning.window_screen import FOLLOWUP_SHARE
 
 if TYPE_CHECKING:
     from canonid.learning import EpochReport
@@ -41,6 +42,7 @@ if TYPE_CHECKING:
 __all__ = [
     "AUTO",
     "FOLLOWUPS_DIR",
+    "FOLLOWUP_SHARE",
     "SCREEN_FRACTION",
     "SCREEN_TOLERANCE",
     "TRAIN_OPTION_FIELDS",

@@ -19,6 +19,7 @@ from canonid.kernel.catalog import (
 from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
     AUTO,
+    FOLLOWUP_SHARE,
     SCREEN_FRACTION,
     SCREEN_TOLERANCE,
     WIDTH_CANDIDATES,
@@ -54,8 +55,9 @@ def register(sub: Any) -> None:
         "the best on validation; default auto (a resumed run keeps its own): screen ℓ = "
         f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) for "
         f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the shortest whose "
-        f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest (while early stopping "
-        "leaves half the epochs unspent, the others within it too, keeping the lowest)",
+        f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest (while the full runs "
+        f"stop early within {FOLLOWUP_SHARE * 100:g} %% of the epochs, the others within it too, "
+        "keeping the lowest)",
     )
     p.add_argument(
         "--max-window",
