@@ -88,12 +88,15 @@ def run(name: str, out: Path, device: str, epochs: int | None = None, resume: bo
     import torch
 
     from canonid.kernel.dataset import Dataset
+    from canonid.kernel.io import atomic_write_text
     from canonid.learning.batched import candidate_grid, fit_batched
     from canonid.profiles import train_options
 
     torch.set_num_threads(1)
     data = Dataset.load(DATA / name / "dataset.npz")
     folder = out / name
+    if (folder / "checkpoint.pt").exists() and not resume:
+        raise SystemExit(f"{folder} holds a run already: give --resume, or another --out")
     folder.mkdir(parents=True, exist_ok=True)
     stamps: list[float] = []
     start = time.perf_counter()
@@ -127,7 +130,7 @@ def run(name: str, out: Path, device: str, epochs: int | None = None, resume: bo
             for c, r in zip(result.candidates, result.runs, strict=True)
         ],
     }
-    (folder / "result.json").write_text(json.dumps(record))
+    atomic_write_text(folder / "result.json", json.dumps(record))
 
 
 def _losses(history: list[dict]) -> list[list[float]]:
@@ -374,8 +377,11 @@ def main(argv: list[str] | None = None) -> int:
     elif args.step == "all":
         run_all(args.out, args.device, args.deadline, args.epochs, args.resume)
     elif args.step == "collect":
-        args.out.write_text(json.dumps(collect(args.directory), indent=1))
-        print(render(json.loads(args.out.read_text())))
+        from canonid.kernel.io import atomic_write_text
+
+        found = collect(args.directory)
+        atomic_write_text(args.out, json.dumps(found, indent=1))
+        print(render(found))
     elif args.step == "record":
         return record(args.files)
     else:

@@ -368,7 +368,7 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     from canonid.jobs import check_run_folder, run_folder_lock
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.selection import CANDIDATES_DIR
-    from canonid.training import WINDOW_CANDIDATES, check_request, windows_up_to
+    from canonid.training import check_request, windows_up_to
 
     if request.resume is not None:
         return _resume(request)
@@ -379,11 +379,11 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     listed = (window,) if isinstance(window, int) else () if window == "auto" else window
     for ell in listed:
         check_window(ell, bench)
-    # the screen tries only the windows the official rule can feed
+    # the screen tries only the windows the official rule can feed (read by a screen only)
     candidates = (
         windows_up_to(bench.n_init, f"{bench.name}'s n_init =")
         if window == "auto"
-        else tuple(w for w in WINDOW_CANDIDATES if w <= bench.n_init)
+        else request.train.window_candidates
     )
     run_dir = request.out or Path("runs") / f"{bench.name}-{model}"
     wanted = dataclasses.replace(

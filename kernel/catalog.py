@@ -9,6 +9,7 @@ systems (docs, "Identification": the table and the commands behind it); a model 
 its constructor's defaults. ``PAPER_NET_OPTIONS`` are the authors' published code's
 configuration, which produced the paper's numbers (the paper's text writes ``Ĥ(z_t, u_t)``, its
 code predicts the increment of ``y`` from ``z_t`` alone); ``canonid reproduce`` trains it.
+``SMALL_RECORD_*`` say what training's ``weight_decay="auto"`` means, so that ``--help`` can too.
 """
 
 from __future__ import annotations
