@@ -70,6 +70,7 @@ from canonid.learning.training import (
     _training_pair,
     _validation_starts,
     data_fingerprint,
+    flush_subnormal_tensors,
     flushed_subnormals,
     network_work,
     resolve_device,
@@ -516,6 +517,8 @@ class _Stack:
                 self.v[name] = torch.where(on > 0, v_new, self.v[name])
                 denom = (self.v[name].sqrt() / _expand(bc2, p)).add_(_ADAM_EPS)
                 p.sub_(_expand(size, p) * self.m[name] / denom)
+                if p.device.type == "cpu" and bool(decay.any()):
+                    flush_subnormal_tensors((p, self.m[name], self.v[name]))
             if self.ema is not None:
                 self.update_average(rows)
         return diverged, out

@@ -61,7 +61,7 @@ import logging
 import math
 import pickle
 import time
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -92,6 +92,7 @@ __all__ = [
     "auto_device",
     "fit",
     "fit_net",
+    "flush_subnormal_tensors",
     "flushed_subnormals",
     "network_work",
     "resolve_device",
@@ -105,6 +106,8 @@ CHECKPOINT_FILE = "checkpoint.pt"
 CHECKPOINT_VERSION = 1
 #: options that may change when a run is resumed (the others must match the checkpoint)
 RESUMABLE_CHANGES = frozenset({"epochs", "patience", "checkpoint_every", "device"})
+#: the smallest positive normal float32: anything nearer zero is subnormal
+_FLOAT32_TINY = float(torch.finfo(torch.float32).tiny)
 #: non-finite batches recovered from (best weights back, learning rate halved) before a run stops
 MAX_RECOVERIES = 5
 
@@ -431,6 +434,16 @@ def flushed_subnormals(device: torch.device, weight_decay: float) -> Iterator[No
         torch.set_flush_denormal(False)
 
 
+def flush_subnormal_tensors(tensors: Iterable[Any]) -> None:
+    """Zero the float32 subnormal entries of ``tensors`` in place. :func:`flushed_subnormals`
+    flushes the arithmetic of the calling thread only (the CPU's flag is per thread), so what
+    torch's other CPU threads computed is flushed here, after each optimiser step."""
+    with torch.no_grad():
+        for t in tensors:
+            if isinstance(t, torch.Tensor) and t.is_floating_point():
+                t.masked_fill_(t.abs() < _FLOAT32_TINY, 0.0)
+
+
 def _fit_validation_horizon(opts: TrainOptions, window: int, longest: int) -> TrainOptions:
     """``opts`` with the validation rollout cut to what the longest validation trajectory holds
     after its ℓ-sample burn-in, with a warning; the model's recorded options keep the cut."""
@@ -488,6 +501,10 @@ class _Run:
         self.val_starts = _validation_starts(val_bank, net.window + self.val_horizon, opts)
         self.optimiser = torch.optim.Adam(
             net.parameters(), lr=opts.lr, weight_decay=float(opts.weight_decay)
+        )
+        # weight decay on a CPU: subnormal weights and moments are zeroed after every step
+        self.flush = bool(float(opts.weight_decay)) and all(
+            p.device.type == "cpu" for p in net.parameters()
         )
         self.rng = np.random.default_rng(opts.seed)
         self.history: list[dict[str, Any]] = []
@@ -644,6 +661,11 @@ class _Run:
             if opts.grad_clip is not None:
                 torch.nn.utils.clip_grad_norm_(net.parameters(), opts.grad_clip)
             self.optimiser.step()
+            if self.flush:
+                state = self.optimiser.state.values()
+                flush_subnormal_tensors(
+                    [*net.parameters(), *(t for st in state for t in st.values())]
+                )
             self.update_average()
             losses.append(float(loss.detach()))
             for key, value in parts.items():

@@ -180,3 +180,30 @@ def test_the_command_line_takes_a_weight_decay_or_auto_and_records_the_value_use
     code = main(["train", str(path), "--weight-decay", "abc", "--out", str(tmp_path / "r"), *fast])
     one_line_error(capsys, code, "--weight-decay: expected a number >= 0 or auto, got 'abc'")
     assert not (tmp_path / "r").exists()
+
+
+def test_subnormals_other_threads_computed_are_zeroed_after_every_step(data, monkeypatch):
+    """The CPU's flush flag is per thread: entries another torch thread left subnormal are
+    zeroed after each optimiser step, in weights and Adam's moments; nothing else changes."""
+    import canonid.learning.training as training
+    from canonid.learning.training import flush_subnormal_tensors
+
+    values = torch.tensor([TINY_NORMAL * 1e-3, -TINY_NORMAL * 1e-2, TINY_NORMAL, 0.5, -2.0])
+    flush_subnormal_tensors([values, torch.tensor([3]), "not a tensor"])
+    assert values.tolist() == [0.0, 0.0, TINY_NORMAL, 0.5, -2.0]
+    calls = []
+    original = training.flush_subnormal_tensors
+
+    def counted(tensors):
+        tensors = list(tensors)
+        calls.append(len(tensors))
+        original(tensors)
+
+    monkeypatch.setattr(training, "flush_subnormal_tensors", counted)
+    train, val = data
+    fit(train, val, model="mlp", window=3, options=options(weight_decay=1e-4), net_options=TINY)
+    n_params = 6  # three layers' weights and biases
+    assert calls and all(n >= 3 * n_params for n in calls)  # weights, both moments (and step)
+    calls.clear()
+    fit(train, val, model="mlp", window=3, options=options(), net_options=TINY)
+    assert calls == []
