@@ -677,6 +677,9 @@ def fit_batched(
     base = options or TrainOptions()
     if not candidates:
         raise OptionError("fit_batched: give at least one candidate")
+    config = preset_net_options("mlp", net_options)
+    if config.get("cubic"):
+        raise OptionError("stacked candidates have no cubic branch: train it with fit")
     train, val = _training_pair(train, val)
     base = resolve_weight_decay(base, train)
     windows = [int(c.get("window", window)) for c in candidates]
@@ -688,7 +691,6 @@ def fit_batched(
         resolve_weight_decay(c.train_options(shared[ell]), train)
         for c, ell in zip(candidates, windows, strict=True)
     ]
-    config = preset_net_options("mlp", net_options)
     resolve_device(base.device)  # "cuda" without a GPU fails before any work
     norm = Normalisation.fit(train)
     fingerprint = data_fingerprint(train, val)

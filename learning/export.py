@@ -202,6 +202,10 @@ class NumpyModel:
 
     def _regressor(self, net: Any) -> plain.CanonicalNet:
         recurrent: tuple[plain.GRULayer, ...]
+        if isinstance(net, OursMLP) and net.cubic:
+            raise NotExportableError(
+                "Ours (MLP) with a cubic branch does not export to plain numpy or CasADi yet"
+            )
         if isinstance(net, OursMLP):
             layers, recurrent, affine = _layers(net.net, net.activation), (), _affine_path(net)
         elif isinstance(net, OursGRU):

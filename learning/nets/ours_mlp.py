@@ -8,19 +8,27 @@ from typing import Any
 import torch
 from torch import nn
 
+from canonid.kernel.errors import ShapeError
 from canonid.learning.nets.base import CanonicalModel, mlp
 
 __all__ = ["OursMLP"]
 
 
 class OursMLP(CanonicalModel):
-    """``Ĥ`` = MLP on ``[z_t; u_t]`` (``z_t`` alone without feedthrough).
+    """``Ĥ`` = MLP on ``[z_t; u_t]`` (``z_t`` alone without feedthrough), plus an optional cubic
+    branch ``C (W x + b)³`` on the same input ``x`` (elementwise cube).
+
+    The cubic branch is a low-rank polynomial path: a sum of cubes of ``cubic`` linear forms of
+    the regression vector, the kind of term polynomial state-space models add. Unlike the MLP's
+    SiLU units, which grow linearly beyond the training range, it keeps a cubic growth there,
+    which extrapolates a hardening spring; ``C`` starts at zero, so training starts from the MLP.
 
     Args:
         hidden: hidden layer widths; the paper uses 3 × 256 on the simulated systems and
             2 × 2048 on the quadrotor.
         activation: the hidden layers' nonlinearity, ``"relu"`` (the paper's), ``"tanh"`` or
             ``"silu"``.
+        cubic: units of the cubic branch (0: none).
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``, ``linear`` (see
             :class:`canonid.learning.nets.base.SequenceModel` and
             :class:`canonid.learning.nets.base.CanonicalModel`).
@@ -35,17 +43,26 @@ class OursMLP(CanonicalModel):
         *,
         hidden: Sequence[int] = (256, 256, 256),
         activation: str = "relu",
+        cubic: int = 0,
         **common: Any,
     ) -> None:
         super().__init__(**common)
         self.hidden = tuple(int(h) for h in hidden)
         self.activation = activation
-        self.net = mlp(
-            self._head_width(self.state_dim), self.hidden, self.n_y, activation=activation
-        )
+        if int(cubic) != cubic or cubic < 0:
+            raise ShapeError(f"cubic must be a number of units ≥ 0, got {cubic!r}")
+        self.cubic = int(cubic)
+        width = self._head_width(self.state_dim)
+        self.net = mlp(width, self.hidden, self.n_y, activation=activation)
+        # built after the MLP, so that a network without it draws the same initial weights
+        self.cubic_in = nn.Linear(width, self.cubic) if self.cubic else None
+        self.cubic_out = nn.Linear(self.cubic, self.n_y, bias=False) if self.cubic else None
+        if self.cubic_out is not None:
+            nn.init.zeros_(self.cubic_out.weight)
 
     def options(self) -> dict[str, Any]:
-        return {"hidden": list(self.hidden), "activation": self.activation}
+        extra = {"cubic": self.cubic} if self.cubic else {}  # saved models without it load
+        return {"hidden": list(self.hidden), "activation": self.activation, **extra}
 
     def output_layer(self) -> nn.Linear:
         last = self.net[-1]
@@ -53,4 +70,7 @@ class OursMLP(CanonicalModel):
         return last
 
     def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
-        return self.net(self._head_input(z, u))
+        x = self._head_input(z, u)
+        if self.cubic_in is None or self.cubic_out is None:
+            return self.net(x)
+        return self.net(x) + self.cubic_out(self.cubic_in(x) ** 3)

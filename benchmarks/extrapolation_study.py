@@ -1,0 +1,358 @@
+"""Which variant of Ours (MLP) extrapolates beyond the training amplitude, judged on validation.
+
+Silverbox's "arrow full" test part drives the system to outputs 1.4× the largest of the training
+part, and there the defaults' errors concentrate at the highest peaks. To judge extrapolation
+without a test part, this study holds out the *largest* excursions of the training part itself:
+
+* the deviation of a sample is its largest ``|y − mean| / std`` over the outputs (training
+  statistics); the samples above :data:`HOLD_OUT` × the largest deviation are *held out*;
+* each cluster of held-out samples becomes one validation trajectory, from ``ℓ +``
+  :data:`BEFORE` samples before its first to :data:`AFTER` samples after its last (clusters whose
+  trajectories overlap merge), so every 100-step validation rollout of the quick profile passes
+  a peak that lies up to ``1 / HOLD_OUT`` above everything that trains;
+* what lies between them trains (pieces shorter than ℓ + the rollout horizon are dropped).
+
+Each variant trains with the quick profile's options on that split ("``NAME-x``" systems) and
+its best validation loss on the held-out peaks is the study's score; on the usual split
+(``NAME``: the last 20 % of the training part validates) the same variants show what they cost
+inside the training range. The official test parts are never loaded.
+
+The variants (:data:`VARIANTS`) are the defaults with one change each: another seed, the
+activation, the width, weight decay, no linear path, and a *cubic branch* — ``Ĥ`` plus
+``C (W x + b)³`` (elementwise cube, ``k`` units, ``C`` started at zero; ``x`` the head's input),
+a low-rank polynomial path of the kind polynomial state-space models (PNLSS) add, defined here
+only (``CubicMLP``); it is not a canonid option.
+
+Usage: python extrapolation_study.py prepare [--dir ../shared/data/silverbox]
+       python extrapolation_study.py all --out DIR [--jobs N] [--deadline S]
+       python extrapolation_study.py run SYSTEM VARIANT --out DIR [--deadline S]
+       python extrapolation_study.py collect DIR --out FILE
+       python extrapolation_study.py render FILE
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+DATA = ROOT / "runs" / "extrapolation-study" / "data"
+HOLD_OUT = 0.7  # samples above 0.7 × the largest deviation validate: peaks up to 1.43× above
+BEFORE, AFTER = 60, 50  # validation context around a held-out cluster (plus ℓ before)
+#: system → (source, window the defaults chose there: RESULTS.md's sections)
+SOURCES = {
+    "silverbox": ("silverbox", 10),
+    "tank": ("runs/data/tank-s0", 10),
+    "drone2d": ("runs/data/drone2d-small", 10),
+    "masses": ("runs/data/masses-id", 40),
+    "silverbox-3k": ("runs/small-data/data/n3000", 10),
+    "silverbox-10k": ("runs/small-data/data/n10000", 10),
+}
+#: variant → (network options over the defaults, training options over the quick profile,
+#: cubic units (0: none))
+VARIANTS: dict[str, tuple[dict[str, Any], dict[str, Any], int]] = {
+    "default": ({}, {}, 0),
+    "default-seed1": ({}, {"seed": 1}, 0),
+    "cubic16": ({}, {}, 16),
+    "cubic16-seed1": ({}, {"seed": 1}, 16),
+    "cubic64": ({}, {}, 64),
+    "relu": ({"activation": "relu"}, {}, 0),
+    "tanh": ({"activation": "tanh"}, {}, 0),
+    "hidden64": ({"hidden": [64, 64, 64]}, {}, 0),
+    "wd1e-4": ({}, {"weight_decay": 1e-4}, 0),
+    "linear-off": ({"linear": "off"}, {}, 0),
+}
+#: (system, variant) pairs that ``all`` trains, the extrapolation split first
+JOBS = [("silverbox-x", v) for v in VARIANTS] + [
+    ("silverbox", "default"),
+    ("silverbox", "cubic16"),
+    ("tank-x", "default"),
+    ("tank-x", "cubic16"),
+    ("tank", "cubic16"),
+]
+#: the second set: the defaults against the cubic branch on the other systems' held-out peaks
+MORE_JOBS = [
+    (f"{system}-x", variant)
+    for system in ("drone2d", "masses", "silverbox-3k", "silverbox-10k")
+    for variant in ("default", "cubic16")
+]
+
+
+def held_out_split(trajectories: list, window: int, horizon: int) -> tuple[list, list, dict]:
+    """The training trajectories cut into (train, val) around their largest excursions."""
+    from canonid.kernel.dataset import Trajectory
+
+    y = np.concatenate([t.y for t in trajectories])
+    mean, std = y.mean(axis=0), y.std(axis=0)
+    devs = [np.max(np.abs(t.y - mean) / std, axis=1) for t in trajectories]
+    threshold = HOLD_OUT * max(float(d.max()) for d in devs)
+    train, val = [], []
+    for traj, dev in zip(trajectories, devs, strict=True):
+        segments: list[list[int]] = []
+        for i in np.flatnonzero(dev > threshold):
+            lo, hi = max(int(i) - window - BEFORE, 0), min(int(i) + AFTER + 1, traj.T)
+            if segments and lo <= segments[-1][1]:
+                segments[-1][1] = hi
+            else:
+                segments.append([lo, hi])
+        edges = [0, *(e for s in segments for e in s), traj.T]
+        for lo, hi in segments:
+            if hi - lo >= window + horizon:
+                val.append(Trajectory(u=traj.u[lo:hi], y=traj.y[lo:hi]))
+        for lo, hi in zip(edges[::2], edges[1::2], strict=True):
+            if hi - lo >= window + horizon + 1:
+                train.append(Trajectory(u=traj.u[lo:hi], y=traj.y[lo:hi]))
+    facts = {
+        "threshold_std": threshold,
+        "largest_train_std": max(float(np.max(np.abs(t.y - mean) / std)) for t in train),
+        "largest_val_std": max(float(np.max(np.abs(t.y - mean) / std)) for t in val),
+    }
+    return train, val, facts
+
+
+def prepare(directory: Path) -> None:
+    from canonid.datagen.benchmarks import load_benchmark
+    from canonid.datagen.loaders import split_train_val
+    from canonid.kernel.dataset import Dataset
+    from canonid.profiles import train_options
+
+    opts = train_options("quick")
+    for name, (source, window) in SOURCES.items():
+        if source == "silverbox":
+            full = split_train_val(
+                load_benchmark("silverbox", directory), val_fraction=0.2, record_tails=True
+            )
+        else:
+            full = Dataset.load(ROOT / source)
+        usual = {part: full.split(part) for part in ("train", "val")}
+        train, val, facts = held_out_split(
+            list(full.split("train")), window, max(opts.horizon, opts.val_horizon or 0)
+        )
+        for label, splits, extra in (
+            (name, usual, {}),
+            (f"{name}-x", {"train": train, "val": val}, facts),
+        ):
+            kept = Dataset(
+                splits=splits,
+                dt=full.dt,
+                input_names=full.input_names,
+                output_names=full.output_names,
+                metadata={"study": f"from {source}'s training part; test parts dropped", **extra},
+            )
+            kept.save(DATA / label / "dataset.npz")
+            sizes = {p: (len(kept.split(p)), sum(t.T for t in kept.split(p))) for p in splits}
+            print(f"{label}: (trajectories, samples) {sizes} {extra}")
+
+
+def _cubic_net(window: int, norm: Any, options: dict[str, Any], units: int) -> Any:
+    import torch
+    from torch import nn
+
+    from canonid.learning.nets import OursMLP
+
+    class CubicMLP(OursMLP):
+        """Ours (MLP) plus ``C (W x + b)³`` on the head's input ``x`` (``C`` starts at zero)."""
+
+        def __init__(self, **kwargs: Any) -> None:
+            super().__init__(**kwargs)
+            width = self._head_width(self.state_dim)
+            self.cubic_in = nn.Linear(width, units)
+            self.cubic_out = nn.Linear(units, self.n_y, bias=False)
+            nn.init.zeros_(self.cubic_out.weight)
+
+        def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
+            x = self._head_input(z, u)
+            return self.net(x) + self.cubic_out(self.cubic_in(x) ** 3)
+
+    return CubicMLP(window=window, n_u=norm.n_u, n_y=norm.n_y, **options)
+
+
+def run(system: str, variant: str, out: Path, deadline: float | None) -> None:
+    import dataclasses
+
+    import torch
+
+    from canonid.kernel.dataset import Dataset
+    from canonid.kernel.io import atomic_write_text
+    from canonid.learning.data import Normalisation
+    from canonid.learning.linear import feedthrough_test
+    from canonid.learning.nets import build_net
+    from canonid.learning.presets import net_options
+    from canonid.learning.training import fit_net
+    from canonid.profiles import train_options
+
+    torch.set_num_threads(1)
+    usual = Dataset.load(DATA / system.removesuffix("-x") / "dataset.npz")
+    data = Dataset.load(DATA / system / "dataset.npz")
+    window = SOURCES[system.removesuffix("-x")][1]
+    net_changes, train_changes, cubic = VARIANTS[variant]
+    options = net_options("mlp", net_changes)
+    # feedthrough as the defaults decide it on the usual split, the same for every variant
+    test = feedthrough_test(
+        usual.split("train"),
+        usual.split("val"),
+        Normalisation.fit(usual.split("train")),
+        window=window,
+    )
+    options["feedthrough"] = test.feedthrough
+    opts = dataclasses.replace(train_options("quick", device="cpu"), **train_changes)
+    start = time.perf_counter()
+    history: list[list[float]] = []
+    target = out / f"{system}--{variant}.json"
+
+    def write(finished: bool) -> None:
+        record = {
+            "system": system,
+            "variant": variant,
+            "window": window,
+            "feedthrough": test.feedthrough,
+            "finished": finished,
+            "seconds": time.perf_counter() - start,
+            "history": history,
+        }
+        atomic_write_text(target, json.dumps(record) + "\n")
+
+    def build(norm: Normalisation) -> Any:
+        if cubic:
+            net = _cubic_net(window, norm, options, cubic)
+        else:
+            net = build_net("mlp", window=window, n_u=norm.n_u, n_y=norm.n_y, **options)
+        net.residual_scale.copy_(torch.as_tensor(norm.dy_std / norm.y_std))
+        return net
+
+    class Deadline(Exception):
+        pass
+
+    def progress(report: Any) -> None:
+        if report.val_loss is not None:
+            history.append([report.epoch, report.val_loss, report.train_loss])
+            if report.epoch % 50 == 0:
+                write(False)
+                print(
+                    f"{system} {variant}: epoch {report.epoch}, {report.val_loss:.3g}", flush=True
+                )
+        if deadline is not None and time.perf_counter() - start > deadline:
+            raise Deadline
+
+    try:
+        fit_net(
+            build,
+            data.split("train"),
+            data.split("val"),
+            window=window,
+            options=opts,
+            callback=progress,
+        )
+    except Deadline:
+        write(False)
+        return
+    write(True)
+
+
+def run_all(out: Path, jobs: int, deadline: float, todo: list[tuple[str, str]]) -> None:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONUNBUFFERED": "1"}
+    out.mkdir(parents=True, exist_ok=True)
+    pending, running = list(todo), []
+    end = time.monotonic() + deadline
+    while pending or running:
+        running = [p for p in running if p.poll() is None]
+        while pending and len(running) < jobs:
+            system, variant = pending.pop(0)
+            left = end - time.monotonic()
+            running.append(
+                subprocess.Popen(
+                    [
+                        sys.executable,
+                        __file__,
+                        "run",
+                        system,
+                        variant,
+                        "--out",
+                        str(out),
+                        "--deadline",
+                        str(max(left, 1.0)),
+                    ],
+                    env=env,
+                )
+            )
+        time.sleep(1.0)
+
+
+def collect(directory: Path) -> dict:
+    import torch
+
+    records = [json.loads(f.read_text()) for f in sorted(directory.glob("*--*.json"))]
+    card = torch.cuda.get_device_name() if torch.cuda.is_available() else "none"
+    return {
+        "card": card,
+        "torch": torch.__version__,
+        "python": platform.python_version(),
+        "cores": os.cpu_count(),
+        "records": records,
+    }
+
+
+def render(study: dict) -> str:
+    rows = [
+        "| system | variant | best validation loss | at epoch | last epoch | finished | s |",
+        "|---|---|---:|---:|---:|---|---:|",
+    ]
+    for rec in study["records"]:
+        hist = rec["history"]
+        if not hist:
+            continue
+        best = min(hist, key=lambda h: h[1])
+        rows.append(
+            f"| {rec['system']} | {rec['variant']} | {best[1]:.3g} | {best[0]} | {hist[-1][0]} | "
+            f"{rec['finished']} | {rec['seconds']:.0f} |"
+        )
+    return "\n".join(rows)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    sub = parser.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("prepare")
+    p.add_argument("--dir", type=Path, default=ROOT.parent / "shared" / "data" / "silverbox")
+    p = sub.add_parser("all")
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--deadline", type=float, default=3600.0)
+    p.add_argument("--set", choices=("first", "more"), default="first")
+    p = sub.add_parser("run")
+    p.add_argument("system")
+    p.add_argument("variant", choices=list(VARIANTS))
+    p.add_argument("--out", type=Path, required=True)
+    p.add_argument("--deadline", type=float)
+    p = sub.add_parser("collect")
+    p.add_argument("directory", type=Path)
+    p.add_argument("--out", type=Path, required=True)
+    p = sub.add_parser("render")
+    p.add_argument("file", type=Path)
+    args = parser.parse_args(argv)
+    if args.command == "prepare":
+        prepare(args.dir)
+    elif args.command == "all":
+        run_all(args.out, args.jobs, args.deadline, JOBS if args.set == "first" else MORE_JOBS)
+    elif args.command == "run":
+        args.out.mkdir(parents=True, exist_ok=True)
+        run(args.system, args.variant, args.out, args.deadline)
+    elif args.command == "collect":
+        args.out.write_text(json.dumps(collect(args.directory), indent=1) + "\n")
+    else:
+        print(render(json.loads(args.file.read_text())))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
