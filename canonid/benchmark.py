@@ -61,6 +61,7 @@ __all__ = [
     "BenchmarkRequest",
     "PartScore",
     "benchmark_list",
+    "benchmark_summary",
     "check_window",
     "parse_window",
     "plot_part",
@@ -241,6 +242,11 @@ def report_table(report: BenchmarkReport) -> str:
     return "\n".join([head, *lines, *tail])
 
 
+def benchmark_summary(report: BenchmarkReport, run_dir: Path) -> str:
+    """What ``canonid benchmark`` prints: :func:`report_table` and where the scores are."""
+    return f"{report_table(report)}\nscores written to {run_dir / REPORT_FILE}"
+
+
 #: canonid train options that the benchmark sets itself (and help, which would exit)
 RESERVED_TRAIN_OPTIONS = (
     "--model",
@@ -257,10 +263,11 @@ RESERVED_TRAIN_OPTIONS = (
 )
 
 
-def train_args(text: str) -> list[str]:
+def train_args(text: str, *, progress: bool = True) -> list[str]:
     """``--train-args``: further ``canonid train`` options, split like a shell; the options the
     benchmark sets (:data:`RESERVED_TRAIN_OPTIONS`) are refused, also when abbreviated
-    (``--mod``) or joined to their value (``--model=gru``, ``-hx``)."""
+    (``--mod``) or joined to their value (``--model=gru``, ``-hx``). Without ``progress``
+    (the benchmark's ``--no-progress``) training shows no progress bar either."""
     try:
         extra = shlex.split(text)
     except ValueError as exc:
@@ -271,7 +278,7 @@ def train_args(text: str) -> list[str]:
             f"--train-args: {', '.join(taken)} set by canonid benchmark itself; give them as "
             "its own options"
         )
-    return extra
+    return extra if progress else [*extra, "--no-progress"]
 
 
 def _reserved(arg: str) -> bool:

@@ -1,12 +1,13 @@
 """The ``canonid`` command line.
 
 Each subcommand lives in its own module under :mod:`canonid.commands` and exposes
-``register(subparsers)``, which adds its parser and sets ``func(args) -> int``. Only the module of
-the command being run is imported: ``canonid --help`` and ``canonid systems`` load neither torch
-nor CasADi. Errors raised on purpose (:class:`canonid.kernel.errors.CanonidError`) and errors of the
-file system (``OSError``: a full disk, a read-only folder) print as one line on stderr with a
-non-zero exit; ``--debug`` shows the traceback instead. A reader that closes the pipe (``canonid
-systems | head -1``) ends the command quietly. Any other exception is a bug and keeps its traceback.
+``register(parser)``, which gives the command's parser its description and arguments, and
+``run(args) -> int``. Only the module of the command being run is imported: ``canonid --help``
+and ``canonid systems`` load neither torch nor CasADi. Errors raised on purpose
+(:class:`canonid.kernel.errors.CanonidError`) and errors of the file system (``OSError``: a full
+disk, a read-only folder) print as one line on stderr with a non-zero exit; ``--debug`` shows the
+traceback instead. A reader that closes the pipe (``canonid systems | head -1``) ends the command
+quietly. Any other exception is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -47,10 +48,11 @@ def build_parser(command: str | None = None, *, every: bool = False) -> argparse
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for cmd in COMMANDS:
+        command_parser = sub.add_parser(cmd.name, help=cmd.help)
         if every or cmd.name == command:
-            cmd.load().register(sub)
-        else:
-            sub.add_parser(cmd.name, help=cmd.help)
+            module = cmd.load()
+            module.register(command_parser)
+            command_parser.set_defaults(func=module.run)
     return parser
 
 

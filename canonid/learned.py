@@ -36,7 +36,14 @@ from canonid.runfolder import (
 if TYPE_CHECKING:
     from canonid.analysis.report import AnalysisReport, LearnedChecks
 
-__all__ = ["LearnedRun", "encoder_path", "export_casadi", "learned_checks", "learned_system"]
+__all__ = [
+    "Exported",
+    "LearnedRun",
+    "encoder_path",
+    "export_casadi",
+    "learned_checks",
+    "learned_system",
+]
 
 
 @dataclass(frozen=True)
@@ -141,16 +148,27 @@ def _check_output(*paths: Path) -> None:
                 break
 
 
-def export_casadi(
-    run_dir: Path, target: Path, *, data: Path | None = None
-) -> tuple[str, list[Path]]:
+@dataclass(frozen=True)
+class Exported:
+    """What :func:`export_casadi` wrote: ``headline``, a one-line description of the model, and
+    ``files``."""
+
+    headline: str
+    files: tuple[Path, ...]
+
+    def summary(self) -> str:
+        """What ``canonid export`` prints: the model, then each file written."""
+        return "\n".join([self.headline, *(f"  wrote {path}" for path in self.files)])
+
+
+def export_casadi(run_dir: Path, target: Path, *, data: Path | None = None) -> Exported:
     """Write the canonical model of ``run_dir`` as the ``casadi.Function`` ``target``,
     ``learned_model(x, u) -> (x_next, y)`` (load it with ``casadi.Function.load``), and its
     description ``target.json`` (dimensions, names, units, ``dt``, the sets X, U, W, how the
     state is filled from measured data); a reduced model also gets its encoder
     ``encode(z) -> x`` beside it (suffix ``.encoder.casadi``). The sets come from ``data``
     (default: the run's training data). Only canonical models export (Ours (MLP), Ours (GRU) and
-    their reduced models). Returns a one-line description of the model and the files written."""
+    their reduced models). Returns :class:`Exported`: the model in one line, the files written."""
     from canonid.models.learned import model_function, save_function
 
     if target.suffix != ".casadi":
@@ -189,8 +207,8 @@ def export_casadi(
         for path in files:  # the files belong together: none is left without the others
             path.unlink(missing_ok=True)
         raise
-    summary = (
+    headline = (
         f"{learned.model.name} model of {run_dir}: {system.n_x} states, {system.n_u} "
         f"input(s), {system.n_y} output(s), dt = {system.dt:g} s"
     )
-    return summary, files
+    return Exported(headline, tuple(files))

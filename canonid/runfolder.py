@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, TypeAlias, TypeVar
 
+from canonid.data_options import DATA_FLAGS
 from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
 from canonid.jobs import run_folder_lock
 from canonid.kernel.dataset import Dataset, Trajectory
@@ -56,7 +57,6 @@ from canonid.learning.training import CHECKPOINT_FILE
 from canonid.models.registry import signal_units
 
 __all__ = [
-    "DATA_FLAGS",
     "EVALUATIONS_DIR",
     "FIGURES",
     "HISTORY_FILE",
@@ -88,14 +88,6 @@ __all__ = [
 log = logging.getLogger(__name__)
 
 RUN_FILE = "run.json"
-#: the loader options a run records, by the command-line flag that sets each
-DATA_FLAGS = {
-    "inputs": "--inputs",
-    "outputs": "--outputs",
-    "experiment_column": "--experiment-column",
-    "time_column": "--time-column",
-    "dt": "--dt",
-}
 METRICS_FILE = "metrics.json"
 #: the folder of a run's evaluations, one subfolder each (``canonid evaluate``)
 EVALUATIONS_DIR = "evaluations"
@@ -113,7 +105,8 @@ class RunSource:
 
     Attributes:
         data: the training data (a canonid dataset, a CSV file or folder, an ``.npz``).
-        data_options: loader options (:data:`DATA_FLAGS`), ``None`` where not given.
+        data_options: loader options (:data:`canonid.data_options.DATA_FLAGS`), ``None`` where
+            not given.
         val: a validation file, else ``None`` (DATA's own ``val`` split, else ``val_fraction``).
         val_fraction: share of DATA's ``train`` split held out when it has no ``val`` split.
         profile: the profile the options came from.

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from canonid.data_options import DATA_FLAGS
 from canonid.kernel.errors import DataError, OptionError, OutputError
 
 if TYPE_CHECKING:
@@ -213,7 +214,7 @@ def scoring_data(
     ``val``). With ``data``, that file read with the run's recorded loader options overridden by
     those ``given`` (:func:`load_with_run_options`), checked against the ``model``'s ``info``.
     """
-    from canonid.runfolder import DATA_FLAGS, RUN_FILE, check_compatible, recipe_of, run_data
+    from canonid.runfolder import RUN_FILE, check_compatible, recipe_of, run_data
 
     if data is None:
         recipe = recipe_of(run_dir)
@@ -239,7 +240,7 @@ def run_options(run_dir: Path, data: str | Path, given: Mapping[str, Any]) -> di
     """The loader options that read ``data`` for the run in ``run_dir``: those it recorded
     (``run.json``), each overridden by one ``given`` (not ``None``); none for a canonid dataset."""
     from canonid.datagen.loaders import is_dataset
-    from canonid.runfolder import DATA_FLAGS, recipe_of
+    from canonid.runfolder import recipe_of
 
     if is_dataset(data):
         return dict(given)
@@ -251,7 +252,7 @@ def run_options(run_dir: Path, data: str | Path, given: Mapping[str, Any]) -> di
 def load_with_run_options(run_dir: Path, data: str | Path, given: Mapping[str, Any]) -> Dataset:
     """``data`` read with :func:`run_options`; a problem reading it names the options that came
     from the run, and how to override them."""
-    from canonid.runfolder import DATA_FLAGS, load
+    from canonid.runfolder import load
 
     options = run_options(run_dir, data, given)
     try:

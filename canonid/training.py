@@ -55,6 +55,7 @@ __all__ = [
     "parse_weight_decay",
     "parse_widths",
     "parse_window",
+    "request_fields",
     "same_run",
     "train",
     "windows_up_to",
@@ -86,7 +87,7 @@ class TrainRequest:
 
     Attributes:
         data, data_options, val, val_fraction: the training data, the loader options
-            (:data:`canonid.runfolder.DATA_FLAGS`), a validation file, the share held out.
+            (:data:`canonid.data_options.DATA_FLAGS`), a validation file, the share held out.
         model, window: registry name (default ``mlp``) and window ℓ; ``"auto"`` (a new run's
             default): screen ``window_candidates`` and train the chosen one; a tuple: train
             each of them and keep the best on validation.
@@ -221,6 +222,36 @@ def parse_window(text: str | None) -> int | Literal["auto"] | tuple[int, ...] | 
         )
     windows = tuple(dict.fromkeys(int(p) for p in parts))
     return windows[0] if len(parts) == 1 else windows
+
+
+def request_fields(
+    *,
+    window: str | None,
+    hidden: str | None,
+    weight_decay: str | None,
+    max_window: int | None,
+    resume: str | bool | None,
+    out: Path | None,
+) -> dict[str, Any]:
+    """The fields of a :class:`TrainRequest` that ``canonid train`` writes as text or implies:
+    ``window``, ``hidden`` and ``weight_decay`` parsed (:func:`parse_window`,
+    :func:`parse_widths`, :func:`parse_weight_decay`); ``resume`` and ``out`` from ``--resume
+    [RUN]`` and ``--out`` (:func:`canonid.jobs.resume_target`); ``window_candidates``, the
+    screen's windows up to ``max_window`` (:func:`windows_up_to`), refused where the run does
+    not screen (a window given, or a run resumed)."""
+    from canonid.jobs import resume_target
+
+    parsed = parse_window(window)
+    run, folder = resume_target(resume, out)
+    screened = parsed in (None, AUTO) and run is None
+    return {
+        "window": parsed,
+        "resume": run,
+        "out": folder,
+        "hidden": parse_widths(hidden),
+        "weight_decay": parse_weight_decay(weight_decay),
+        "window_candidates": windows_up_to(max_window, screened=screened),
+    }
 
 
 def _flag(name: str) -> str:

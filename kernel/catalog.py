@@ -21,6 +21,7 @@ from typing import Any
 __all__ = [
     "ACTIVATION_NAMES",
     "DEFAULT_NET_OPTIONS",
+    "DEVICE_NAMES",
     "LINEAR_PATHS",
     "MODEL_LABELS",
     "MODEL_NAMES",
@@ -57,6 +58,10 @@ ACTIVATION_NAMES = ("relu", "silu", "tanh")
 #: network, like the linear bypass of deepSI's residual networks; or started at the
 #: least-squares ARX fit with the nonlinear part's output layer at zero
 LINEAR_PATHS = ("off", "skip", "arx")
+
+#: the torch devices a training option may name (``cuda:N`` picks one GPU); ``auto``: CUDA when
+#: present and the job is large enough to run faster there
+DEVICE_NAMES = ("auto", "cpu", "cuda")
 
 #: training's ``weight_decay="auto"``: Adam weight decay SMALL_RECORD_WEIGHT_DECAY when the
 #: training part holds fewer samples than SMALL_RECORD_SAMPLES, else none (chosen on validation

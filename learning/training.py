@@ -69,7 +69,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 import torch
 
-from canonid.kernel.catalog import SMALL_RECORD_SAMPLES, SMALL_RECORD_WEIGHT_DECAY
+from canonid.kernel.catalog import DEVICE_NAMES, SMALL_RECORD_SAMPLES, SMALL_RECORD_WEIGHT_DECAY
 from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
@@ -208,7 +208,7 @@ class TrainOptions:
                 f"training option ema_decay must be None or in (0, 1), got {self.ema_decay}"
             )
         if not isinstance(self.device, str) or (
-            self.device not in ("auto", "cpu", "cuda") and not self.device.startswith("cuda:")
+            self.device not in DEVICE_NAMES and not self.device.startswith("cuda:")
         ):
             raise OptionError(f"device must be auto, cpu or cuda, got {self.device!r}")
 

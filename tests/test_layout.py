@@ -275,6 +275,7 @@ COMMAND_KERNEL = {"canonid.kernel.catalog", "canonid.kernel.errors", "canonid.ke
 COMMAND_APPLICATION = {
     "canonid",
     "canonid.benchmark",
+    "canonid.data_options",
     "canonid.generation",
     "canonid.jobs",
     "canonid.learned",
@@ -287,7 +288,7 @@ COMMAND_APPLICATION = {
     "canonid.training",
 }
 #: the most lines ``commands/`` may hold: a command parses, calls the application and prints
-COMMAND_LINES = 1_150
+COMMAND_LINES = 1_050
 
 
 def _command_modules() -> dict[str, Path]:

@@ -1,9 +1,10 @@
 """The subcommands: one module each, imported only when its command runs.
 
-Each module exposes ``register(subparsers)``, which adds its parser (description, arguments) and
-sets ``func(args) -> int``. :data:`COMMANDS` names every subcommand with the one-line help that
-``canonid --help`` lists, so the listing needs none of the modules (nor the torch, CasADi or
-matplotlib they import).
+Each module exposes ``register(parser)``, which gives the parser that :mod:`canonid.cli` made for
+the command its description and arguments, and ``run(args) -> int``, which the parsed arguments
+call. :data:`COMMANDS` names every subcommand with the one-line help that ``canonid --help``
+lists, so the listing needs none of the modules (nor the torch, CasADi or matplotlib they
+import).
 """
 
 from __future__ import annotations

@@ -1,20 +1,24 @@
 """Command-line options that several commands share, each written once: where the jobs run,
 the profile, the torch device (no import of torch: ``canonid generate`` uses it), the figures'
-file format, threads, progress, ``--resume``, ``--out``, the CSV loader options; comma-separated
-lists, former option names kept as deprecated aliases; and the typed request built from the
-parsed options."""
+file format, threads, progress, ``--resume``, ``--out``, the CSV loader options
+(:data:`canonid.data_options.DATA_OPTIONS`); comma-separated lists, former option names kept as
+deprecated aliases; and the typed request built from the parsed options."""
 
 from __future__ import annotations
 
 import argparse
 import dataclasses
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+from canonid.data_options import DATA_FLAGS, DATA_OPTIONS
 from canonid.jobs import resume_target
+from canonid.kernel.catalog import DEVICE_NAMES
+from canonid.kernel.errors import OptionError
 from canonid.kernel.io import FIGURE_FORMATS
+from canonid.profiles import DEFAULT_PROFILE, profile_names
 
 __all__ = [
     "Items",
@@ -29,14 +33,13 @@ __all__ = [
     "add_run_data",
     "add_threads",
     "add_where",
+    "argument",
     "comma_list",
     "request",
     "resumed",
 ]
 
 _Request = TypeVar("_Request")
-
-DEVICES = ("auto", "cpu", "cuda")
 
 
 def add_where(parser: Any, *, jobs: str, sees: str, workers: int | None = 0) -> None:
@@ -60,17 +63,15 @@ def add_where(parser: Any, *, jobs: str, sees: str, workers: int | None = 0) -> 
     )
 
 
-def add_profile(
-    parser: Any, names: Sequence[str], *, what: str, default: str, keep_none: bool = False
-) -> None:
-    """``--profile NAME``: one of the profiles ``names``, ``what`` they set, ``default``
-    (:data:`canonid.profiles.DEFAULT_PROFILE`) when not given; ``keep_none`` leaves the
+def add_profile(parser: Any, *, what: str, keep_none: bool = False) -> None:
+    """``--profile NAME``: one of the profiles (:func:`canonid.profiles.profile_names`), ``what``
+    they set, :data:`canonid.profiles.DEFAULT_PROFILE` when not given; ``keep_none`` leaves the
     argument ``None`` then, for a command that must tell whether it was given."""
     parser.add_argument(
         "--profile",
-        choices=names,
-        default=None if keep_none else default,
-        help=f"{what} (default {default})",
+        choices=profile_names(),
+        default=None if keep_none else DEFAULT_PROFILE,
+        help=f"{what} (default {DEFAULT_PROFILE})",
     )
 
 
@@ -78,7 +79,7 @@ def add_device(parser: Any, *, what: str, default: str | None = "auto") -> None:
     """``--device {auto,cpu,cuda}``: the torch device of ``what``."""
     if default == "auto":
         what += " (default auto: CUDA when present and the job is large enough to run faster there)"
-    parser.add_argument("--device", choices=DEVICES, default=default, help=what)
+    parser.add_argument("--device", choices=DEVICE_NAMES, default=default, help=what)
 
 
 def add_figure_format(parser: Any) -> None:
@@ -188,6 +189,20 @@ def add_former(parser: Any, old: str, new: str) -> None:
     )
 
 
+def argument(parse: Callable[[str], Any]) -> Callable[[str], Any]:
+    """argparse type of an application parser: its :class:`OptionError` is argparse's one-line
+    error on the option (exit status 2)."""
+
+    def read(text: str) -> Any:
+        try:
+            return parse(text)
+        except OptionError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    read.__name__ = parse.__name__  # argparse's "invalid float value" names it
+    return read
+
+
 def comma_list(item: Callable[[str], Any], what: str) -> Callable[[str], list[Any]]:
     """argparse type of a comma-separated list of ``item`` (``what``: how one is written)."""
 
@@ -220,56 +235,15 @@ def request(kind: type[_Request], args: argparse.Namespace, **given: Any) -> _Re
     values = {n: getattr(args, n) for n in names if hasattr(args, n)}
     if hasattr(args, "no_progress"):
         values["progress"] = not args.no_progress
-    if hasattr(args, "inputs"):
-        values["data_options"] = data_options(args)
+    if hasattr(args, "inputs"):  # the loader options, None where not given
+        values["data_options"] = {name: getattr(args, name) for name in DATA_FLAGS}
     values["command"] = ("canonid", *sys.argv[1:])
     return kind(**{n: v for n, v in values.items() if n in names}, **given)
 
 
-def _columns(text: str) -> list[str]:
-    cols = [c.strip() for c in text.split(",") if c.strip()]
-    if not cols:
-        raise argparse.ArgumentTypeError("expected COL[,COL...]")
-    return cols
-
-
-def _column(text: str) -> str:
-    """A column name; ``none`` (or nothing) switches the column off: ``""``."""
-    return "" if text.strip().lower() in ("", "none") else text.strip()
-
-
-#: the CSV loader options (:data:`canonid.runfolder.DATA_FLAGS`): flag, type, metavar, what it
-#: sets and its default for a new run (``None``: required for CSV data)
-DATA_OPTIONS: tuple[tuple[str, Callable[[str], Any], str, str, str | None], ...] = (
-    ("--inputs", _columns, "COL,...", "input columns", None),
-    ("--outputs", _columns, "COL,...", "output columns", None),
-    (
-        "--experiment-column",
-        _column,
-        "COL|none",
-        "column whose value names the experiment of each row; its rows must be contiguous",
-        "none: one experiment per file",
-    ),
-    (
-        "--time-column",
-        _column,
-        "COL|none",
-        "column of sample times in seconds: gives dt, its steps checked uniform, and warns where "
-        "it goes back (records joined)",
-        "a column named t or time, if any",
-    ),
-    (
-        "--dt",
-        float,
-        "SECONDS",
-        "sampling time (CSV, .npz)",
-        "the time column's step; required without one",
-    ),
-)
-
-
 def add_data_options(parser: argparse.ArgumentParser, *, recorded: bool = False) -> None:
-    """The loader options; ``recorded``: they default to those the run recorded (evaluate)."""
+    """The loader options (:data:`canonid.data_options.DATA_OPTIONS`); ``recorded``: they
+    default to those the run recorded (evaluate)."""
     g = parser.add_argument_group(
         "CSV data of --data FILE" if recorded else "CSV data",
         "Each option defaults to the one the run recorded in RUN/run.json; give one to override "
@@ -277,13 +251,7 @@ def add_data_options(parser: argparse.ArgumentParser, *, recorded: bool = False)
         if recorded
         else "A .csv file, or a folder of them (one experiment each).",
     )
-    for flag, kind, metavar, what, default in DATA_OPTIONS:
+    for flag, parse, metavar, what, default in DATA_OPTIONS:
         given = "the run's" if recorded else default
         tail = f" (default: {given})" if given else " (required for CSV data)"
-        g.add_argument(flag, type=kind, metavar=metavar, help=what + tail)
-
-
-def data_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The loader options given on the command line (``None`` where not given)."""
-    names = [flag[2:].replace("-", "_") for flag, *_ in DATA_OPTIONS]
-    return {name: getattr(args, name) for name in names}
+        g.add_argument(flag, type=argument(parse), metavar=metavar, help=what + tail)

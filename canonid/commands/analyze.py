@@ -6,23 +6,19 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
 from canonid.commands import _options
 from canonid.theory import AnalyzeRequest, run_analysis
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "analyze",
-        description=(
-            "Estimate the Lipschitz constant γ_f and the observability constant α_ℓ of a "
-            "registered system (certified bounds by interval branch-and-bound, sampled bounds "
-            "by optimisation), evaluate Proposition 2's bound 2 γ_f^ℓ α_ℓ^-1 ‖w̄‖ and check it "
-            "by Monte-Carlo trials of the output-error estimator. Writes analysis.json and the "
-            "figure bound_vs_window.png to --out. Without SYSTEM, --run RUN bounds γ_f of the "
-            "learned model alone (for data that no registered system produced)."
-        ),
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Estimate the Lipschitz constant γ_f and the observability constant α_ℓ of a "
+        "registered system (certified bounds by interval branch-and-bound, sampled bounds "
+        "by optimisation), evaluate Proposition 2's bound 2 γ_f^ℓ α_ℓ^-1 ‖w̄‖ and check it "
+        "by Monte-Carlo trials of the output-error estimator. Writes analysis.json and the "
+        "figure bound_vs_window.png to --out. Without SYSTEM, --run RUN bounds γ_f of the "
+        "learned model alone (for data that no registered system produced)."
     )
     p.add_argument(
         "system",
@@ -101,7 +97,6 @@ def register(sub: Any) -> None:
     _options.add_figure_format(p)
     _options.add_no_progress(p)
     _options.add_former(p, "--quiet", "--no-progress")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

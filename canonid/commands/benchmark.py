@@ -11,37 +11,33 @@ from typing import Any, NoReturn
 
 from canonid.benchmark import (
     BENCHMARKS,
-    REPORT_FILE,
     BenchmarkRequest,
     benchmark_list,
+    benchmark_summary,
     parse_window,
-    report_table,
     run_benchmark,
     train_args,
 )
 from canonid.commands import _options, train
 from canonid.kernel.catalog import MODEL_NAMES
 from canonid.kernel.errors import OptionError
-from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import TrainRequest
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "benchmark",
-        description=(
-            "Load benchmark NAME from its files (offline), train on the official training part "
-            "as `canonid train` does (the last 20 % of every training record validates), score "
-            "every official test part by the official rule (simulation from the whole test "
-            "input after the first n_init measured outputs) and show the published baselines. The "
-            "same command run again continues an interrupted run, as --resume does."
-        ),
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Load benchmark NAME from its files (offline), train on the official training part "
+        "as `canonid train` does (the last 20 % of every training record validates), score "
+        "every official test part by the official rule (simulation from the whole test "
+        "input after the first n_init measured outputs) and show the published baselines. The "
+        "same command run again continues an interrupted run, as --resume does."
     )
     p.add_argument("name", nargs="?", metavar="NAME", help=f"one of {', '.join(BENCHMARKS)}")
     _options.add_resume(p, what="benchmark run (as canonid train --resume)", path=True)
     p.add_argument("--list", action="store_true", help="list the benchmarks and their files")
     p.add_argument(
         "--dir",
+        dest="files",
         type=Path,
         metavar="DIR",
         help="folder of the benchmark files (default ~/.nonlinear_benchmarks, the package's cache)",
@@ -54,9 +50,7 @@ def register(sub: Any) -> None:
         "of canonid train's screen that are ≤ n_init, screened on validation); passed to "
         "canonid train",
     )
-    _options.add_profile(
-        p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
-    )
+    _options.add_profile(p, what="training budget", keep_none=True)
     _options.add_out(p, "runs/NAME-MODEL", what="run folder", metavar="RUN")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     _options.add_threads(p)
@@ -75,7 +69,6 @@ def register(sub: Any) -> None:
         "--batch-size 64'; default: none)",
     )
     _options.add_no_progress(p)
-    p.set_defaults(func=run)
 
 
 class _TrainParser(argparse.ArgumentParser):
@@ -91,25 +84,22 @@ class _TrainParser(argparse.ArgumentParser):
 
 def train_request(argv: list[str]) -> TrainRequest:
     """``argv`` read by ``canonid train``'s own parser (its defaults included)."""
-    parser = _TrainParser(prog="canonid")
-    train.register(parser.add_subparsers(dest="command", parser_class=_TrainParser))
-    return train.request(parser.parse_args(["train", *argv]))
+    parser = _TrainParser(prog="canonid train")
+    train.register(parser)
+    return train.request(parser.parse_args(argv))
 
 
 def run(args: argparse.Namespace) -> int:
     if args.list:
-        print(benchmark_list(args.dir))
+        print(benchmark_list(args.files))
         return 0
-    extra = train_args(args.train_args) + (["--no-progress"] if args.no_progress else [])
+    extra = train_args(args.train_args, progress=not args.no_progress)
     request = _options.request(
         BenchmarkRequest,
         args,
-        files=args.dir,
         window=parse_window(args.window),
         train=train_request(extra),
         **_options.resumed(args),
     )
-    report, run_dir = run_benchmark(request)
-    print(report_table(report))
-    print(f"scores written to {run_dir / REPORT_FILE}")
+    print(benchmark_summary(*run_benchmark(request)))
     return 0

@@ -5,23 +5,19 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
 from canonid.commands import _options
 from canonid.scoring import EvaluateRequest, score_run
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "evaluate",
-        description=(
-            "Score the model of RUN on test data: the paper's metric (MSE of open-loop rollouts "
-            "after an ℓ-sample burn-in, physical units) and RMSE / NRMSE / fit % of a full "
-            "open-loop simulation of each record after n_init samples. Writes metrics.json and "
-            "rollouts.png to RUN/evaluations/DATA-SHA256[:8]-SPLIT[-OPTIONS]/, named by the data "
-            "and the options; training's RUN/metrics.json stays. The same evaluation again is "
-            "read back, not redone."
-        ),
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Score the model of RUN on test data: the paper's metric (MSE of open-loop rollouts "
+        "after an ℓ-sample burn-in, physical units) and RMSE / NRMSE / fit % of a full "
+        "open-loop simulation of each record after n_init samples. Writes metrics.json and "
+        "rollouts.png to RUN/evaluations/DATA-SHA256[:8]-SPLIT[-OPTIONS]/, named by the data "
+        "and the options; training's RUN/metrics.json stays. The same evaluation again is "
+        "read back, not redone."
     )
     p.add_argument("run", type=Path, metavar="RUN", help="run folder written by canonid train")
     _options.add_run_data(
@@ -54,7 +50,6 @@ def register(sub: Any) -> None:
     )
     _options.add_figure_format(p)
     _options.add_data_options(p, recorded=True)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,21 +5,16 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
 from canonid.commands import _options
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "export",
-        help="write a trained canonical model as a CasADi Function (.casadi)",
-        description=(
-            "Build the trained canonical model of RUN (Ours MLP/GRU, or reduced) as CasADi SX "
-            "expressions from its weights — x_next = f(x, u), y = h(x, u), the state x being "
-            "the canonical window z_t (or the reduced state) — and write it as a serialised "
-            "casadi.Function, with a JSON description beside it."
-        ),
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Build the trained canonical model of RUN (Ours MLP/GRU, or reduced) as CasADi SX "
+        "expressions from its weights — x_next = f(x, u), y = h(x, u), the state x being "
+        "the canonical window z_t (or the reduced state) — and write it as a serialised "
+        "casadi.Function, with a JSON description beside it."
     )
     p.add_argument("run", type=Path, metavar="RUN", help="run folder of canonid train / reduce")
     p.add_argument(
@@ -32,14 +27,10 @@ def register(sub: Any) -> None:
     _options.add_run_data(
         p, "data for the sets X, U, W (default: the training data named in RUN/run.json)"
     )
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from canonid.learned import export_casadi  # torch, CasADi
 
-    summary, files = export_casadi(args.run, args.casadi, data=args.data)
-    print(summary)
-    for path in files:
-        print(f"  wrote {path}")
+    print(export_casadi(args.run, args.casadi, data=args.data).summary())
     return 0

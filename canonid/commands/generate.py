@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 from canonid.commands import _options
 from canonid.generation import GenerateRequest, generate, scenario_names
@@ -12,12 +11,11 @@ from canonid.generation import GenerateRequest, generate, scenario_names
 SPLITS = ("train", "val", "test")
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "generate",
-        description="Generate a closed-loop identification dataset: random spline references "
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Generate a closed-loop identification dataset: random spline references "
         "tracked by the system's controller, bounded measurement noise, train/val/test splits. "
-        "Writes DIR/dataset.npz and DIR/dataset.json.",
+        "Writes DIR/dataset.npz and DIR/dataset.json."
     )
     p.add_argument(
         "system",
@@ -84,7 +82,6 @@ def register(sub: Any) -> None:
     )
     _options.add_figure_format(p)
     _options.add_no_progress(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,10 +5,8 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
 from canonid.commands import _options
-from canonid.profiles import DEFAULT_PROFILE, profile_names
 
 
 def _rate(text: str) -> float:
@@ -18,17 +16,14 @@ def _rate(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a number in (0, 1), got {text!r}") from None
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "reduce",
-        description=(
-            "Reduce the state z of the canonical model (Ours MLP/GRU) trained in RUN: an "
-            "auto-encoder (E, D) gives the reduced model x̄⁺ = E(Ā D(x̄) + B̄ u + S̄ Ĥ(D(x̄), u)), "
-            "ȳ = Ĥ(D(x̄), u) with n̄ = ⌊dim z (1 − r)⌋ + 1 states. --compression R trains one "
-            "reduced model and writes a run folder that `canonid evaluate` reads; --sweep "
-            "trains one per (RUN, rate, seed) and draws the reconstruction heat-map and the "
-            "reduced model's 100-step MSE against n̄."
-        ),
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Reduce the state z of the canonical model (Ours MLP/GRU) trained in RUN: an "
+        "auto-encoder (E, D) gives the reduced model x̄⁺ = E(Ā D(x̄) + B̄ u + S̄ Ĥ(D(x̄), u)), "
+        "ȳ = Ĥ(D(x̄), u) with n̄ = ⌊dim z (1 − r)⌋ + 1 states. --compression R trains one "
+        "reduced model and writes a run folder that `canonid evaluate` reads; --sweep "
+        "trains one per (RUN, rate, seed) and draws the reconstruction heat-map and the "
+        "reduced model's 100-step MSE against n̄."
     )
     p.add_argument(
         "runs", nargs="+", type=Path, metavar="RUN", help="run folder(s) of canonid train"
@@ -38,7 +33,7 @@ def register(sub: Any) -> None:
         "--compression", type=_rate, metavar="R", help="compression rate in (0, 1), e.g. 0.6"
     )
     mode.add_argument("--sweep", action="store_true", help="the compression study")
-    _options.add_profile(p, profile_names(), what="budget", default=DEFAULT_PROFILE)
+    _options.add_profile(p, what="budget")
     _options.add_out(p, "RUN-r<rate> beside RUN; runs/compression-sweep", metavar="DIR")
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
     p.add_argument(
@@ -69,7 +64,6 @@ def register(sub: Any) -> None:
     g.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per rate (default 3)")
     _options.add_where(g, jobs="run the reductions", sees="RUN and --out")
     _options.add_no_progress(p)
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -5,30 +5,20 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
-from typing import Any
 
 from canonid.commands import _options
-from canonid.profiles import DEFAULT_PROFILE, profile_names
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "reproduce",
-        description=(
-            "Reproduce the paper: generate (or reuse) the datasets, train and score every "
-            "(system, model, window, seed) of Table 1, analyse α_ℓ, γ_f and Proposition 2, check "
-            "the learned canonical models, run the compression study, and write one report "
-            "(OUT/report.md and OUT/report.html) that sets each number beside the paper's. "
-            "Every job runs serially, on --workers local Dask processes or on a Dask cluster "
-            "(--scheduler); --resume keeps every finished job."
-        ),
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Reproduce the paper: generate (or reuse) the datasets, train and score every "
+        "(system, model, window, seed) of Table 1, analyse α_ℓ, γ_f and Proposition 2, check "
+        "the learned canonical models, run the compression study, and write one report "
+        "(OUT/report.md and OUT/report.html) that sets each number beside the paper's. "
+        "Every job runs serially, on --workers local Dask processes or on a Dask cluster "
+        "(--scheduler); --resume keeps every finished job."
     )
-    _options.add_profile(
-        p,
-        profile_names(),
-        what="budgets and defaults of every stage (paper: the paper's sizes)",
-        default=DEFAULT_PROFILE,
-    )
+    _options.add_profile(p, what="budgets and defaults of every stage (paper: the paper's sizes)")
     for name, item, what, example in (
         ("systems", str, "S", "systems, e.g. tank,drone2d,quadrotor"),
         ("windows", int, "L", "windows ℓ, e.g. 5,10,15"),
@@ -52,7 +42,6 @@ def register(sub: Any) -> None:
     _options.add_device(p, what="torch device of the training jobs")
     _options.add_figure_format(p)
     _options.add_no_progress(p, bars="bars")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

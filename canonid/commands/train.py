@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 from canonid.commands import _options
 from canonid.kernel.catalog import (
@@ -16,31 +15,23 @@ from canonid.kernel.catalog import (
     SMALL_RECORD_WEIGHT_DECAY,
     preset_word,
 )
-from canonid.profiles import DEFAULT_PROFILE, profile_names
 from canonid.training import (
-    AUTO,
     FOLLOWUP_SHARE,
     SCREEN_FRACTION,
     SCREEN_TOLERANCE,
     WIDTH_CANDIDATES,
     WINDOW_CANDIDATES,
     TrainRequest,
-    parse_weight_decay,
-    parse_widths,
-    parse_window,
+    request_fields,
     train,
-    windows_up_to,
 )
 
 
-def register(sub: Any) -> None:
-    p: argparse.ArgumentParser = sub.add_parser(
-        "train",
-        description=(
-            "Train a model on DATA (a canonid dataset, a CSV file or folder, or an .npz of "
-            "arrays) by output error: ℓ measured samples burn in, the model predicts the next "
-            "H outputs in open loop. Writes a run folder and scores the model on the test split."
-        ),
+def register(p: argparse.ArgumentParser) -> None:
+    p.description = (
+        "Train a model on DATA (a canonid dataset, a CSV file or folder, or an .npz of "
+        "arrays) by output error: ℓ measured samples burn in, the model predicts the next "
+        "H outputs in open loop. Writes a run folder and scores the model on the test split."
     )
     p.add_argument("data", nargs="?", metavar="DATA", help="training data (not with --resume)")
     p.add_argument(
@@ -67,9 +58,7 @@ def register(sub: Any) -> None:
         "will use (a model needs ℓ measured samples before it simulates); default: every "
         "window the data allow",
     )
-    _options.add_profile(
-        p, profile_names(), what="training budget", default=DEFAULT_PROFILE, keep_none=True
-    )
+    _options.add_profile(p, what="training budget", keep_none=True)
     p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
     p.add_argument("--lr", type=float, help="override the profile's learning rate")
     p.add_argument(
@@ -186,22 +175,19 @@ def register(sub: Any) -> None:
     )
     _options.add_no_progress(p)
     _options.add_data_options(p)
-    p.set_defaults(func=run)
 
 
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
-    window, resumed = parse_window(args.window), _options.resumed(args)
-    screened = window in (None, AUTO) and not resumed["resume"]
-    return _options.request(
-        TrainRequest,
-        args,
-        hidden=parse_widths(args.hidden),
-        window=window,
-        weight_decay=parse_weight_decay(args.weight_decay),
-        window_candidates=windows_up_to(args.max_window, screened=screened),
-        **resumed,
+    given = request_fields(
+        window=args.window,
+        hidden=args.hidden,
+        weight_decay=args.weight_decay,
+        max_window=args.max_window,
+        resume=args.resume,
+        out=args.out,
     )
+    return _options.request(TrainRequest, args, **given)
 
 
 def run(args: argparse.Namespace) -> int:
