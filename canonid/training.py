@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
+from canonid.learning.extrapolation import CUBIC_GAIN, CUBIC_UNITS, HOLD_OUT, CubicTest
 from canonid.learning.screen import (
     FOLLOWUPS_DIR,
     SCREEN_FILE,
@@ -41,8 +42,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "AUTO",
+    "CUBIC_HELP",
     "FOLLOWUPS_DIR",
     "FOLLOWUP_SHARE",
+    "REQUEST_TEXT_FIELDS",
     "SCREEN_FRACTION",
     "SCREEN_TOLERANCE",
     "TRAIN_OPTION_FIELDS",
@@ -52,6 +55,7 @@ __all__ = [
     "TrainRequest",
     "check_new_run",
     "check_request",
+    "parse_cubic",
     "parse_weight_decay",
     "parse_widths",
     "parse_window",
@@ -78,7 +82,16 @@ TRAIN_OPTION_FIELDS = (
     "device",
 )
 #: the request's network options that are never given again to a resumed run
-_NET_FLAGS = ("residual", "feedthrough", "linear")
+_NET_FLAGS = ("residual", "feedthrough", "linear", "cubic")
+#: the options of ``canonid train`` that :func:`request_fields` reads as text
+REQUEST_TEXT_FIELDS = ("window", "hidden", "weight_decay", "cubic", "max_window", "resume", "out")
+#: ``canonid train --cubic``: what the branch is and how ``auto`` decides it
+CUBIC_HELP = (
+    "Ours (MLP)'s cubic branch C (W x + b)³ beside the network, K units (0: none); default "
+    "auto: hold out the training part's largest excursions (above "
+    f"{HOLD_OUT:g}× the largest), train briefly with {CUBIC_UNITS} units and without, and keep "
+    f"the branch when its loss on them is at most {CUBIC_GAIN:g}× the plain network's"
+)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -94,8 +107,9 @@ class TrainRequest:
         window_candidates: the windows ``window="auto"`` screens (those the data allow).
         profile: the training budget (default :data:`canonid.profiles.DEFAULT_PROFILE`).
         epochs … device: overrides of the profile's training options (:data:`TRAIN_OPTION_FIELDS`).
-        hidden, activation, residual, feedthrough, linear, paper_options: the network's options
-            (``hidden="auto"``: select the widths).
+        hidden, activation, residual, feedthrough, linear, cubic, paper_options: the network's
+            options (``hidden="auto"``: select the widths; ``cubic="auto"``: decided on the
+            training part's held-out peaks, :mod:`canonid.learning.extrapolation`).
         out, resume: the new run's folder, or the run to continue.
         eval_horizon, threads: the final score's rollout length; torch CPU threads.
         figure_format: the figures' file format (one of :data:`canonid.kernel.io.FIGURE_FORMATS`).
@@ -124,6 +138,7 @@ class TrainRequest:
     residual: bool | None = None
     feedthrough: bool | None = None
     linear: str | None = None
+    cubic: int | Literal["auto"] | None = None
     paper_options: bool = False
     out: Path | None = None
     resume: Path | None = None
@@ -177,6 +192,9 @@ class TrainOutcome:
                     f"{test['with_u'] / test['without_u']:.3g} of that without; "
                     "--feedthrough / --no-feedthrough decide instead)"
                 )
+            cubic = fitted.model.info.get("cubic_test")
+            if cubic:  # cubic "auto": say what the held-out peaks decided
+                head.append(f"{CubicTest.from_dict(cubic).summary()} (--cubic K decides instead)")
         return "\n".join([*head, metrics_table(self.metrics), f"run written to {self.run_dir}"])
 
 
@@ -208,6 +226,16 @@ def parse_weight_decay(text: str | None) -> float | Literal["auto"] | None:
         raise OptionError(f"--weight-decay: expected a number >= 0 or auto, got {text!r}") from None
 
 
+def parse_cubic(text: str | None) -> int | Literal["auto"] | None:
+    """``--cubic``: a number of units >= 0, ``"auto"`` or ``None`` (not given); else an
+    :class:`OptionError` naming the option."""
+    if text is None or text == AUTO:
+        return text  # type: ignore[return-value]
+    if not (text.isascii() and text.isdigit()):
+        raise OptionError(f"--cubic: expected a number of units >= 0 or auto, got {text!r}")
+    return int(text)
+
+
 def parse_window(text: str | None) -> int | Literal["auto"] | tuple[int, ...] | None:
     """``--window``: ``"10"`` → 10, ``"5,10,20"`` → ``(5, 10, 20)``, ``"auto"``, ``None`` (not
     given); else :class:`OptionError` naming ``--window``."""
@@ -229,16 +257,17 @@ def request_fields(
     window: str | None,
     hidden: str | None,
     weight_decay: str | None,
+    cubic: str | None,
     max_window: int | None,
     resume: str | bool | None,
     out: Path | None,
 ) -> dict[str, Any]:
     """The fields of a :class:`TrainRequest` that ``canonid train`` writes as text or implies:
-    ``window``, ``hidden`` and ``weight_decay`` parsed (:func:`parse_window`,
-    :func:`parse_widths`, :func:`parse_weight_decay`); ``resume`` and ``out`` from ``--resume
-    [RUN]`` and ``--out`` (:func:`canonid.jobs.resume_target`); ``window_candidates``, the
-    screen's windows up to ``max_window`` (:func:`windows_up_to`), refused where the run does
-    not screen (a window given, or a run resumed)."""
+    ``window``, ``hidden``, ``weight_decay`` and ``cubic`` parsed (:func:`parse_window`,
+    :func:`parse_widths`, :func:`parse_weight_decay`, :func:`parse_cubic`); ``resume`` and
+    ``out`` from ``--resume [RUN]`` and ``--out`` (:func:`canonid.jobs.resume_target`);
+    ``window_candidates``, the screen's windows up to ``max_window`` (:func:`windows_up_to`),
+    refused where the run does not screen (a window given, or a run resumed)."""
     from canonid.jobs import resume_target
 
     parsed = parse_window(window)
@@ -250,6 +279,7 @@ def request_fields(
         "out": folder,
         "hidden": parse_widths(hidden),
         "weight_decay": parse_weight_decay(weight_decay),
+        "cubic": parse_cubic(cubic),
         "window_candidates": windows_up_to(max_window, screened=screened),
     }
 
@@ -328,6 +358,10 @@ def _recipe(request: TrainRequest) -> RunRecipe:
         if model == "arx" and request.linear != "arx":
             raise OptionError(f"--linear {request.linear}: ARX is the affine path alone (arx)")
         chosen["linear"] = request.linear
+    if request.cubic is not None:
+        if model != "mlp":
+            raise OptionError(f"--cubic applies to Ours (MLP) only, not {model}")
+        chosen["cubic"] = request.cubic
     return RunRecipe(
         data=str(request.data),
         data_options=dict(request.data_options),

@@ -70,7 +70,13 @@ SMALL_RECORD_SAMPLES = 5_000
 SMALL_RECORD_WEIGHT_DECAY = 1e-5
 
 DEFAULT_NET_OPTIONS: dict[str, dict[str, Any]] = {
-    "mlp": {"residual": True, "feedthrough": "auto", "activation": "silu", "linear": "skip"},
+    "mlp": {
+        "residual": True,
+        "feedthrough": "auto",
+        "activation": "silu",
+        "linear": "skip",
+        "cubic": "auto",
+    },
     "arx": {"residual": False, "feedthrough": False},
 }
 

@@ -678,8 +678,9 @@ def fit_batched(
     if not candidates:
         raise OptionError("fit_batched: give at least one candidate")
     config = preset_net_options("mlp", net_options)
-    if config.get("cubic"):
+    if config.get("cubic") not in (None, 0, "auto"):
         raise OptionError("stacked candidates have no cubic branch: train it with fit")
+    config["cubic"] = 0  # "auto" too: stacked candidates train the plain network
     train, val = _training_pair(train, val)
     base = resolve_weight_decay(base, train)
     windows = [int(c.get("window", window)) for c in candidates]

@@ -35,6 +35,7 @@ from canonid.learning.window_screen import (
     ScreenCandidate,
     WindowScreen,
     choose_window,
+    screen_options,
 )
 
 if TYPE_CHECKING:  # torch loads when a screen runs, not for the command line's --help
@@ -89,23 +90,6 @@ def fitting_windows(
     ]
 
 
-def screen_options(options: TrainOptions, fraction: float = SCREEN_FRACTION) -> TrainOptions:
-    """``options`` compressed to ``fraction`` of their epochs (at least one): the curriculum and
-    the early-stopping patience scaled alike, so the candidates see the whole schedule."""
-    if not (isinstance(fraction, (int, float)) and 0 < fraction <= 1):
-        raise OptionError(f"screen fraction must be in (0, 1], got {fraction!r}")
-
-    def scaled(n: int) -> int:
-        return max(1, round(n * fraction))
-
-    return dataclasses.replace(
-        options,
-        epochs=scaled(options.epochs),
-        curriculum_epochs=round(options.curriculum_epochs * fraction),
-        patience=None if options.patience is None else scaled(options.patience),
-    )
-
-
 def screen_windows(
     train: Sequence[Any],
     val: Sequence[Any],
@@ -148,6 +132,8 @@ def screen_windows(
             int(windows[0]), None, 0, 0, "not screened: the only window", None, 0.0
         )
         return WindowScreen((only,), only.window, float(fraction), opts.to_dict(), float(tolerance))
+    # the windows are ranked on the plain network; the chosen window's run tests the branch
+    net_options = {**(net_options or {}), "cubic": 0} if model == "mlp" else net_options
     longest_val = max(len(t.y) for t in val)
     common = min(opts.rollout_horizon, longest_val - max(windows))
     opts = dataclasses.replace(opts, val_horizon=max(common, 1))

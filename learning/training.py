@@ -74,6 +74,7 @@ from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
 from canonid.learning.data import Normalisation, WindowBank
+from canonid.learning.extrapolation import CubicTest, cubic_test
 from canonid.learning.linear import feedthrough_test, initialise_linear
 from canonid.learning.model import Model, check_same, load_state
 from canonid.learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
@@ -746,10 +747,12 @@ def fit(
         window: ℓ.
         options: :class:`TrainOptions` (defaults if ``None``).
         net_options: constructor arguments of the network (sizes, ``feedthrough``,
-            ``residual``, ``activation``, ``linear``) over the model's defaults
+            ``residual``, ``activation``, ``linear``, ``cubic``) over the model's defaults
             (:data:`canonid.learning.presets.DEFAULT_NET_OPTIONS`); ``feedthrough="auto"``
-            decides on validation (:func:`canonid.learning.linear.feedthrough_test`, recorded
-            in the model's info).
+            decides on validation (:func:`canonid.learning.linear.feedthrough_test`) and
+            ``cubic="auto"`` on the training part's held-out peaks
+            (:func:`canonid.learning.extrapolation.cubic_test`; a resumed run reads the decision
+            from its checkpoint), both recorded in the model's info.
         run_dir: where the model and ``checkpoint.pt`` are written (nothing is written if
             ``None``).
         resume: continue from ``run_dir/checkpoint.pt``; the model, its configuration, the
@@ -770,6 +773,21 @@ def fit(
         test = feedthrough_test(train, val, Normalisation.fit(train), window=window)
         options_all = {**options_all, "feedthrough": test.feedthrough}
         info = {**dict(info or {}), "feedthrough_test": test.to_dict()}
+    identity = None
+    if options_all.get("cubic") == "auto":  # decided on the training part's held-out peaks
+        cubic = _resumed_cubic_test(run_dir) if resume else None
+        if cubic is None:
+            cubic = cubic_test(
+                train,
+                window=window,
+                options=options or TrainOptions(),
+                net_options={**options_all, "cubic": 0},
+                fit=fit,
+                model=model,
+            )
+        options_all = {**options_all, "cubic": cubic.units}
+        info = {**dict(info or {}), "cubic_test": cubic.to_dict()}
+        identity = {"cubic_test": cubic.to_dict()}
 
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
@@ -788,7 +806,20 @@ def fit(
         resume=resume,
         callback=callback,
         info=info,
+        identity=identity,
     )
+
+
+def _resumed_cubic_test(run_dir: str | Path | None) -> CubicTest | None:
+    """The cubic test recorded in a checkpoint, so that a resumed run does not test again."""
+    path = Path(run_dir or ".") / CHECKPOINT_FILE
+    if run_dir is None or not path.is_file():
+        return None
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        return CubicTest.from_dict(state["identity"]["extra"]["cubic_test"])
+    except (KeyError, TypeError, RuntimeError, pickle.UnpicklingError):
+        return None  # _load_checkpoint names what is wrong with it
 
 
 def fit_net(

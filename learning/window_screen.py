@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from canonid.kernel.errors import CheckpointError
+from canonid.kernel.errors import CheckpointError, OptionError
 from canonid.kernel.io import atomic_write_json, read_json
 
 __all__ = [
@@ -26,6 +26,7 @@ __all__ = [
     "ScreenCandidate",
     "WindowScreen",
     "choose_window",
+    "screen_options",
 ]
 
 #: the windows the screen tries (those the data allow): a doubling ladder from canonid's earlier
@@ -261,3 +262,22 @@ def choose_window(losses: Mapping[int, float], tolerance: float = SCREEN_TOLERAN
     (window → finite best validation loss)."""
     lowest = min(losses.values())
     return min(window for window, loss in losses.items() if loss <= tolerance * lowest)
+
+
+def screen_options(options: Any, fraction: float = SCREEN_FRACTION) -> Any:
+    """``options`` (:class:`~canonid.learning.training.TrainOptions`, typed loosely in this
+    module, which does not import the trainer) compressed to ``fraction`` of their epochs (at
+    least one): the curriculum and the early-stopping patience scaled alike, so the candidates
+    see the whole schedule."""
+    if not (isinstance(fraction, (int, float)) and 0 < fraction <= 1):
+        raise OptionError(f"screen fraction must be in (0, 1], got {fraction!r}")
+
+    def scaled(n: int) -> int:
+        return max(1, round(n * fraction))
+
+    return dataclasses.replace(
+        options,
+        epochs=scaled(options.epochs),
+        curriculum_epochs=round(options.curriculum_epochs * fraction),
+        patience=None if options.patience is None else scaled(options.patience),
+    )

@@ -27,9 +27,11 @@ from canonid.learning.batched import (
 )
 
 # the network options spelt out in full, so that the tests do not follow the defaults; the
-# skip path and the residual output are on so that every branch of the stacked rollout runs
+# skip path and the residual output are on so that every branch of the stacked rollout runs;
+# stacked candidates are plain networks (no cubic branch)
 TINY = {
     "hidden": [16, 16],
+    "cubic": 0,
     "feedthrough": True,
     "residual": True,
     "activation": "silu",

@@ -40,20 +40,27 @@ def test_columns_are_a_comma_list_and_none_switches_a_column_off():
 
 
 def _fields(**given):
-    text = {"window": None, "hidden": None, "weight_decay": None, "max_window": None}
+    text = {"window": None, "hidden": None, "weight_decay": None, "cubic": None, "max_window": None}
     return request_fields(**{**text, "resume": None, "out": None, **given})
 
 
 def test_request_fields_parse_the_text_options():
-    fields = _fields(window="5,10", hidden="64,64", weight_decay="auto", out=Path("run"))
+    fields = _fields(
+        window="5,10", hidden="64,64", weight_decay="auto", cubic="16", out=Path("run")
+    )
     assert fields == {
         "window": (5, 10),
         "resume": None,
         "out": Path("run"),
         "hidden": (64, 64),
         "weight_decay": "auto",
+        "cubic": 16,
         "window_candidates": WINDOW_CANDIDATES,
     }
+    assert _fields(cubic="auto")["cubic"] == "auto"
+    for bad in ("-1", "2.5", "many"):
+        with pytest.raises(OptionError, match="--cubic: expected a number of units"):
+            _fields(cubic=bad)
     assert _fields(max_window=20)["window_candidates"] == tuple(
         w for w in WINDOW_CANDIDATES if w <= 20
     )

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import torch
 
@@ -63,3 +64,114 @@ def test_stacked_candidates_refuse_a_cubic_branch() -> None:
     train, val = damped_split()
     with pytest.raises(OptionError, match="cubic"):
         fit_batched(train, val, [Candidate.of()], window=2, net_options={"cubic": 2})
+
+
+# ---------------------------------------------------------------- the decision on held-out peaks
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from canonid.kernel.dataset import Trajectory  # noqa: E402
+from canonid.learning.extrapolation import (  # noqa: E402
+    CUBIC_GAIN,
+    CUBIC_UNITS,
+    HOLD_OUT,
+    CubicTest,
+    held_out_peaks,
+    keeps_cubic,
+)
+
+
+def _bursty(seed: int, n: int, T: int) -> list[Trajectory]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(n):
+        envelope = 1 + 3 * (rng.random(T) < 0.01)
+        y = np.convolve(rng.normal(size=T) * envelope, np.ones(5) / 5, mode="same")
+        out.append(Trajectory(u=rng.normal(size=(T, 1)), y=np.stack([y, -0.5 * y], axis=1)))
+    return out
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    seed=st.integers(0, 10_000),
+    n=st.integers(1, 3),
+    window=st.integers(1, 12),
+    horizon=st.integers(2, 30),
+    val_horizon=st.integers(2, 40),
+)
+def test_held_out_peaks_hold_out_every_large_excursion_and_nothing_overlaps(
+    seed, n, window, horizon, val_horizon
+) -> None:
+    trajectories = _bursty(seed, n, 1_500)
+    try:
+        split = held_out_peaks(
+            trajectories, window=window, horizon=horizon, val_horizon=val_horizon
+        )
+    except ShapeError:
+        return
+    y = np.concatenate([t.y for t in trajectories])
+    mean, std = y.mean(axis=0), y.std(axis=0)
+    dev = np.max(np.abs(y - mean) / std, axis=1)
+    assert split.threshold == pytest.approx(HOLD_OUT * dev.max())
+    # nothing above the threshold trains; the largest excursion validates
+    assert split.largest_train <= split.threshold < split.largest_val
+    assert split.largest_val == pytest.approx(dev.max())
+    assert all(t.T >= window + horizon + 1 for t in split.train)
+    assert all(t.T >= window + val_horizon for t in split.val)
+    # the pieces are disjoint slices: no sample is in both parts, none twice
+    assert sum(t.T for t in (*split.train, *split.val)) <= sum(t.T for t in trajectories)
+
+
+def test_records_too_short_for_held_out_peaks_are_named() -> None:
+    with pytest.raises(ShapeError, match="too short to hold out"):
+        held_out_peaks(_bursty(0, 1, 120), window=10, horizon=50, val_horizon=100)
+
+
+@pytest.mark.parametrize(
+    ("plain", "cubic", "kept"),
+    [
+        (1.0, CUBIC_GAIN, True),
+        (1.0, CUBIC_GAIN * 1.001, False),
+        (1.0, 0.1, True),
+        (None, 1.0, True),
+        (1.0, None, False),
+        (None, None, False),
+    ],
+)
+def test_the_branch_stays_only_when_clearly_better_on_the_held_out_peaks(plain, cubic, kept):
+    assert keeps_cubic(plain, cubic) is kept
+
+
+def test_a_run_records_its_cubic_test_and_a_resume_reads_it_back(tmp_path, monkeypatch) -> None:
+    from canonid.learning import extrapolation, training
+    from canonid.learning.training import TrainOptions, fit
+
+    train = _bursty(1, 2, 900)
+    val = _bursty(2, 1, 300)
+    opts = TrainOptions(
+        epochs=20, batch_size=8, horizon=6, val_horizon=10, windows_per_epoch=16, device="cpu"
+    )
+    net = {"hidden": [8], "feedthrough": False}
+    first = fit(train, val, window=3, options=opts, net_options=net, run_dir=tmp_path)
+    recorded = first.model.info["cubic_test"]
+    assert recorded["reason"] is None and recorded["units"] in (0, CUBIC_UNITS)
+    assert recorded["epochs"] == 2  # the window screen's share of the epochs
+    assert keeps_cubic(recorded["plain_loss"], recorded["cubic_loss"]) == bool(recorded["units"])
+    assert first.model.net.cubic == recorded["units"]
+
+    def no_second_test(*args, **kwargs):
+        raise AssertionError("a resumed run tested the cubic branch again")
+
+    monkeypatch.setattr(training, "cubic_test", no_second_test)
+    monkeypatch.setattr(extrapolation, "cubic_test", no_second_test)
+    again = fit(
+        train,
+        val,
+        window=3,
+        options=TrainOptions(**{**opts.to_dict(), "epochs": 25}),
+        net_options=net,
+        run_dir=tmp_path,
+        resume=True,
+    )
+    assert again.model.info["cubic_test"] == recorded
+    assert CubicTest.from_dict(recorded).summary().startswith("cubic branch on the held-out")

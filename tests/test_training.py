@@ -21,6 +21,7 @@ TINY = {
     "residual": False,
     "activation": "relu",
     "linear": "off",
+    "cubic": 0,
 }
 
 

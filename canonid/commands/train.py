@@ -16,7 +16,9 @@ from canonid.kernel.catalog import (
     preset_word,
 )
 from canonid.training import (
+    CUBIC_HELP,
     FOLLOWUP_SHARE,
+    REQUEST_TEXT_FIELDS,
     SCREEN_FRACTION,
     SCREEN_TOLERANCE,
     WIDTH_CANDIDATES,
@@ -152,6 +154,7 @@ def register(p: argparse.ArgumentParser) -> None:
         const="off",
         help="no affine path (--linear off)",
     )
+    p.add_argument("--cubic", metavar="K|auto", help=CUBIC_HELP)
     p.add_argument(
         "--paper-options",
         action="store_true",
@@ -179,14 +182,7 @@ def register(p: argparse.ArgumentParser) -> None:
 
 def request(args: argparse.Namespace) -> TrainRequest:
     """The training run that the parsed arguments ask for."""
-    given = request_fields(
-        window=args.window,
-        hidden=args.hidden,
-        weight_decay=args.weight_decay,
-        max_window=args.max_window,
-        resume=args.resume,
-        out=args.out,
-    )
+    given = request_fields(**{key: getattr(args, key) for key in REQUEST_TEXT_FIELDS})
     return _options.request(TrainRequest, args, **given)
 
 

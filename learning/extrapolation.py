@@ -1,0 +1,225 @@
+"""Whether Ours (MLP) gets its cubic branch: decided on the training part's largest excursions.
+
+A network fitted inside the training range must also hold beyond it: a test record that drives
+the system harder than the training record did (Silverbox's "arrow full") is scored where no
+sample trained it. The MLP's SiLU units grow linearly there; the cubic branch of
+:class:`~canonid.learning.nets.OursMLP` keeps a cubic growth, which suits a hardening spring
+and spoils a saturating tank. Which of the two a record needs is decided by the record itself:
+
+* :func:`held_out_peaks` cuts the *training* trajectories around their largest excursions: a
+  sample whose largest ``|y − mean| / std`` over the outputs exceeds :data:`HOLD_OUT` × the
+  largest of the record is held out, with the context every validation rollout needs around it
+  (ℓ + 0.6 H before, 0.5 H after, ``H`` the validation rollout); what lies between trains;
+* :func:`cubic_test` trains the plain network and the one with :data:`CUBIC_UNITS` cubic units
+  briefly on that split (the window screen's share of the epochs) and keeps the branch when its
+  best loss on the held-out peaks is at most :data:`CUBIC_GAIN` × the plain one's.
+
+The validation part and the test part play no part: the held-out peaks come from the training
+part. How the constants were chosen, on validation only: benchmarks/RESULTS.md, "Extrapolation".
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from canonid.kernel.dataset import Trajectory
+from canonid.kernel.errors import ShapeError
+from canonid.learning.window_screen import SCREEN_FRACTION, screen_options
+
+__all__ = [
+    "CUBIC_GAIN",
+    "CUBIC_UNITS",
+    "HOLD_OUT",
+    "CubicTest",
+    "HeldOutPeaks",
+    "cubic_test",
+    "held_out_peaks",
+    "keeps_cubic",
+]
+
+#: samples above this share of the record's largest deviation are held out: the held-out peaks
+#: reach up to 1 / 0.7 = 1.43 × above everything that trains
+HOLD_OUT = 0.7
+#: units of the cubic branch when the test keeps it
+CUBIC_UNITS = 16
+#: the branch is kept when its held-out loss is at most this share of the plain network's
+CUBIC_GAIN = 0.8
+
+
+@dataclass(frozen=True)
+class HeldOutPeaks:
+    """The training trajectories cut around their largest excursions.
+
+    Attributes:
+        train: the pieces between the held-out peaks.
+        val: one trajectory per cluster of held-out samples, with its context.
+        threshold: the deviation above which a sample is held out (training standard deviations).
+        largest_train, largest_val: the largest deviation of each part.
+    """
+
+    train: tuple[Trajectory, ...]
+    val: tuple[Trajectory, ...]
+    threshold: float
+    largest_train: float
+    largest_val: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "train_samples": sum(t.T for t in self.train),
+            "val_samples": sum(t.T for t in self.val),
+            "threshold": self.threshold,
+            "largest_train": self.largest_train,
+            "largest_val": self.largest_val,
+        }
+
+
+def held_out_peaks(
+    trajectories: Sequence[Trajectory], *, window: int, horizon: int, val_horizon: int
+) -> HeldOutPeaks:
+    """Cut ``trajectories`` into training pieces (each at least ℓ + ``horizon`` + 1 samples) and
+    held-out peaks (each at least ℓ + ``val_horizon`` samples); see the module docstring.
+
+    Raises :class:`ShapeError` when either part would be empty (records too short for it).
+    """
+    y = np.concatenate([t.y for t in trajectories])
+    mean, std = y.mean(axis=0), np.where(y.std(axis=0) > 0, y.std(axis=0), 1.0)
+    devs = [np.max(np.abs(t.y - mean) / std, axis=1) for t in trajectories]
+    threshold = HOLD_OUT * max(float(d.max()) for d in devs)
+    before, after = window + math.ceil(0.6 * val_horizon), math.ceil(0.5 * val_horizon)
+    train: list[Trajectory] = []
+    val: list[Trajectory] = []
+    for traj, dev in zip(trajectories, devs, strict=True):
+        spans: list[list[int]] = []
+        for i in np.flatnonzero(dev > threshold):
+            lo, hi = max(int(i) - before, 0), min(int(i) + after + 1, traj.T)
+            if spans and lo <= spans[-1][1]:
+                spans[-1][1] = hi
+            else:
+                spans.append([lo, hi])
+        val += [_piece(traj, lo, hi) for lo, hi in spans if hi - lo >= window + val_horizon]
+        edges = [0, *(e for s in spans for e in s), traj.T]
+        train += [
+            _piece(traj, lo, hi)
+            for lo, hi in zip(edges[::2], edges[1::2], strict=True)
+            if hi - lo >= window + horizon + 1
+        ]
+    if not train or not val:
+        raise ShapeError(
+            "the records are too short to hold out their largest excursions: "
+            f"{len(train)} training piece(s) of ℓ + {horizon} + 1 samples, {len(val)} held-out "
+            f"peak(s) of ℓ + {val_horizon}"
+        )
+
+    def largest(part: list[Trajectory]) -> float:
+        return max(float(np.max(np.abs(t.y - mean) / std)) for t in part)
+
+    return HeldOutPeaks(tuple(train), tuple(val), threshold, largest(train), largest(val))
+
+
+def _piece(traj: Trajectory, lo: int, hi: int) -> Trajectory:
+    return Trajectory(u=traj.u[lo:hi], y=traj.y[lo:hi])
+
+
+@dataclass(frozen=True)
+class CubicTest:
+    """What :func:`cubic_test` decided (losses normalised, on the held-out peaks).
+
+    Attributes:
+        units: the cubic units chosen (0: the plain network).
+        plain_loss, cubic_loss: the best held-out loss of each short training (``None``: not
+            run, or not finite).
+        epochs: the epochs of each short training.
+        reason: why the test did not run (records too short), else ``None``.
+        split: :meth:`HeldOutPeaks.to_dict` of the split, when there was one.
+        cpu_seconds: the CPU time of both trainings.
+    """
+
+    units: int
+    plain_loss: float | None
+    cubic_loss: float | None
+    epochs: int
+    reason: str | None
+    split: Mapping[str, Any] | None
+    cpu_seconds: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {**dataclasses.asdict(self), "gain": CUBIC_GAIN, "split": dict(self.split or {})}
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any]) -> CubicTest:
+        fields = {f.name for f in dataclasses.fields(cls)}
+        return cls(**{k: v for k, v in data.items() if k in fields})
+
+    def summary(self) -> str:
+        if self.reason is not None:
+            return f"cubic branch: not tested ({self.reason}); the plain network trains"
+        verdict = f"{self.units} cubic units" if self.units else "the plain network"
+        return (
+            f"cubic branch on the held-out peaks: loss {_fmt(self.cubic_loss)} against "
+            f"{_fmt(self.plain_loss)} without ({self.epochs} epochs each): {verdict} trains"
+        )
+
+
+def _fmt(loss: float | None) -> str:
+    return "-" if loss is None else f"{loss:.3g}"
+
+
+def keeps_cubic(plain: float | None, cubic: float | None) -> bool:
+    """The rule: the branch stays when its held-out loss is at most :data:`CUBIC_GAIN` × the
+    plain network's (or the plain one reached no finite loss and it did)."""
+    return cubic is not None and (plain is None or cubic <= CUBIC_GAIN * plain)
+
+
+def cubic_test(
+    train: Sequence[Trajectory],
+    *,
+    window: int,
+    options: Any,
+    net_options: Mapping[str, Any],
+    fit: Callable[..., Any],
+    model: str = "mlp",
+) -> CubicTest:
+    """Decide the cubic branch on ``train``'s held-out peaks (see the module docstring).
+
+    ``options`` are the full run's :class:`~canonid.learning.training.TrainOptions`
+    (compressed here to the window screen's share); ``net_options`` the network's, resolved but
+    for ``cubic``; ``fit`` is :func:`canonid.learning.training.fit`, given by it (this module
+    does not import its caller).
+    """
+    opts = screen_options(options, SCREEN_FRACTION)
+    try:
+        split = held_out_peaks(
+            train, window=window, horizon=opts.horizon, val_horizon=opts.rollout_horizon
+        )
+    except ShapeError as exc:
+        return CubicTest(0, None, None, opts.epochs, str(exc), None, 0.0)
+    cpu0 = time.process_time()
+    losses = []
+    for units in (0, CUBIC_UNITS):
+        result = fit(
+            split.train,
+            split.val,
+            model=model,
+            window=window,
+            options=opts,
+            net_options={**net_options, "cubic": units},
+        )
+        loss = result.best_val_loss
+        losses.append(loss if math.isfinite(loss) else None)
+    plain, cubic = losses
+    return CubicTest(
+        CUBIC_UNITS if keeps_cubic(plain, cubic) else 0,
+        plain,
+        cubic,
+        opts.epochs,
+        None,
+        split.to_dict(),
+        round(time.process_time() - cpu0, 3),
+    )
