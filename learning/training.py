@@ -775,7 +775,8 @@ def fit(
         info = {**dict(info or {}), "feedthrough_test": test.to_dict()}
     identity = None
     if options_all.get("cubic") == "auto":  # decided on the training part's held-out peaks
-        cubic = _resumed_cubic_test(run_dir) if resume else None
+        resumed = _resumed_cubic_test(run_dir) if resume else None
+        cubic = resumed[0] if resumed is not None else None
         if cubic is None:
             cubic = cubic_test(
                 train,
@@ -787,7 +788,8 @@ def fit(
             )
         options_all = {**options_all, "cubic": cubic.units}
         info = {**dict(info or {}), "cubic_test": cubic.to_dict()}
-        identity = {"cubic_test": cubic.to_dict()}
+        if resumed is None or resumed[1]:  # a checkpoint from before the test has none
+            identity = {"cubic_test": cubic.to_dict()}
 
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
@@ -810,15 +812,21 @@ def fit(
     )
 
 
-def _resumed_cubic_test(run_dir: str | Path | None) -> CubicTest | None:
-    """The cubic test recorded in a checkpoint, so that a resumed run does not test again."""
+def _resumed_cubic_test(run_dir: str | Path | None) -> tuple[CubicTest, bool] | None:
+    """The cubic test recorded in a checkpoint (and ``True``), so that a resumed run does not
+    test again; for a checkpoint written before the test, the units of the network it holds
+    (and ``False``); ``None`` without a readable checkpoint."""
     path = Path(run_dir or ".") / CHECKPOINT_FILE
     if run_dir is None or not path.is_file():
         return None
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-        return CubicTest.from_dict(state["identity"]["extra"]["cubic_test"])
-    except (KeyError, TypeError, RuntimeError, pickle.UnpicklingError):
+        identity = torch.load(path, map_location="cpu", weights_only=True)["identity"]
+        if "cubic_test" in identity["extra"]:
+            return CubicTest.from_dict(identity["extra"]["cubic_test"]), True
+        units = int(identity["net"].get("cubic", 0))  # written before the test existed
+        reason = "resumed from a checkpoint written before the test"
+        return CubicTest(units, None, None, 0, reason, None), False
+    except (KeyError, TypeError, ValueError, RuntimeError, pickle.UnpicklingError):
         return None  # _load_checkpoint names what is wrong with it
 
 

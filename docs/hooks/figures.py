@@ -512,6 +512,9 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/followup-share": Code(lambda: _followup_share()),
     "code/small-record-samples": Code(lambda: f"{_catalog().SMALL_RECORD_SAMPLES:,}"),
     "code/small-record-weight-decay": Code(lambda: _catalog().SMALL_RECORD_WEIGHT_DECAY),
+    "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
+    "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
+    "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
     **{
         f"window/{system}/chosen": Cell(
             "Window on validation",
@@ -547,6 +550,12 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         for start, column in (("recorded", "recorded states"), ("rest", "from rest"))
     },
 }
+
+
+def _extrapolation() -> Any:
+    from canonid.learning import extrapolation
+
+    return extrapolation
 
 
 def _feedthrough_gain() -> float:
