@@ -11,8 +11,9 @@ hull X of the training windows and the training inputs U:
   reduced or GRU model); in ℓ(n_u+n_y) dimensions the budget usually ends long before the
   bracket closes;
 * ``layer_norms`` — **certified upper bound, loose**: the product of the layer norms (below), a
-  Lipschitz constant on the whole space, so also on X × U; always available for Ours (MLP) and
-  its reduced model (for a GRU regressor it is the trivial ``∞``).
+  Lipschitz constant on the whole space, so also on X × U; finite for Ours (MLP) and its reduced
+  model, except where a cubic branch reads the window (below); for a GRU regressor it is the
+  trivial ``∞``.
 
 Layer-norm bound. With ``Ĥ = y_mean + D_y ỹ``, ``ỹ = C a + diag(s) MLP(a)``, ``a`` the normalised
 ``[z; u]`` (``C``: the residual and affine terms,
@@ -26,6 +27,15 @@ and since the rows of ``∂f/∂z = [Ā_top; 0; ∂Ĥ/∂z]`` split into the shi
 auto-encoder half bounded by its layer product plus its skip path's norm. Every matrix norm is a
 verified bound (:func:`canonid.analysis.matrix_bounds.spectral_upper`) and every product and sum is
 rounded upwards.
+
+A cubic branch ``C (W x + b)³`` (:class:`canonid.kernel.network.CanonicalNet`) has the slope
+``C diag(3 h²) W``, unbounded on the whole space when some unit with a non-zero column of ``C``
+reads ``z``: a network with one has **no finite global bound**, and ``layer_norms`` is the
+trivial ``∞`` with that reason (an activation without a finite slope bound in
+:data:`canonid.kernel.network.ACTIVATIONS`, the cube, anywhere in the layers likewise). The
+bracket on X × U is unaffected: the enclosures bound the slope on each box. A branch that does
+not read ``z`` (``C = 0``, as training starts) adds nothing to ``∂f/∂z``, and the bound is the
+network's.
 
 The true system's γ_f on its own X (for the same window ℓ) is a different quantity — its state is
 the physical ``x``, not the window ``z`` — set beside this one by ``canonid analyze --run``.
@@ -90,18 +100,38 @@ def _regressor_z(net: CanonicalNet, z_scale: np.ndarray, y_scale: np.ndarray) ->
     return _up(_norm(linear) + _chain(weights, slopes))
 
 
+def _unbounded(net: CanonicalNet | ReducedCanonicalNet) -> str | None:
+    """Why ``net`` has no finite global Lipschitz constant in its state, or ``None``."""
+    reg = net.regressor if isinstance(net, ReducedCanonicalNet) else net
+    if reg.cubic_reads_state():
+        return "the slope 3 h² of its cubic branch is unbounded on the whole space"
+    layers = list(reg.layers)
+    if isinstance(net, ReducedCanonicalNet):
+        layers += [*net.encoder, *net.decoder]
+    names = sorted({x.activation for x in layers if not math.isfinite(ACTIVATIONS[x.activation])})
+    if names:
+        return f"the slope of its activation {', '.join(names)} is unbounded on the whole space"
+    return None
+
+
 def layer_norm_bound(system: LearnedSystem) -> Estimate:
-    """The product-of-layer-norms upper bound of γ_f (module docstring): certified, loose."""
+    """The product-of-layer-norms upper bound of γ_f (module docstring): certified, loose; the
+    trivial ``∞`` where the network has no finite global bound (a GRU, a cubic branch)."""
     t0 = time.perf_counter()
     net = system.network
     reg = system.regressor
-    if reg.recurrent:
+    why = "a GRU regressor" if reg.recurrent else _unbounded(net)
+    if why is not None:
         return Estimate(
             quantity="gamma_f",
             value=math.inf,
             kind="upper",
             sets={"X": system.X, "U": system.U},
-            method="trivial: no layer-norm bound for a GRU regressor",
+            method=(
+                "trivial: no layer-norm bound for a GRU regressor"
+                if reg.recurrent
+                else f"trivial: no finite global bound ({why})"
+            ),
             window=reg.window,
         )
     shift = 1.0 if reg.window >= 2 else 0.0

@@ -12,15 +12,17 @@ network in 20 dimensions, 3 × 256 in 50):
 * slopes ``σ'(h_k)`` as intervals (ReLU's on an interval that reaches 0: ``[0, 1]``, the hull of
   Clarke's generalised derivative, as :mod:`canonid.analysis.enclosure` takes for ``fmax``);
 * ``∂raw/∂z̃ ∈ W_L diag(σ'(h_{L−1})) W_{L−1} ⋯ diag(σ'(h_1)) W_{1,z}``, multiplied from the right;
+* the cubic branch ``C (W a_0 + b)³`` (:class:`canonid.kernel.network.CanonicalNet`) the same
+  way: its cube on ``h = W a_0 + b`` is monotone, ``[lo³, hi³]``, its slope ``3 h²`` holds 0 where
+  ``h`` straddles 0, and it adds ``C diag(3 h²) W_z`` to ``∂raw/∂z̃``;
 * ``∂f/∂z = Ā + S̄ D_y (C_z + diag(s) ∂raw/∂z̃) D_z⁻¹`` (notation of :mod:`canonid.analysis.certify`).
 
 Soundness. Products of a weight matrix and an interval vector or matrix are enclosed by
 :func:`canonid.analysis.interval.point_matmul` (midpoint–radius with a rigorous bound of the float
-error). Element-wise steps use the
-outward-rounded :class:`~canonid.analysis.interval.Interval` arithmetic. ``σ`` and ``σ'`` are
-evaluated in float64 at the ends of each interval (and at their extrema, when an extremum lies
-inside) and widened by ``1e-13`` relative plus ``1e-300``, hundreds of times the error of libm's
-``tanh``.
+error). Element-wise steps use the outward-rounded :class:`~canonid.analysis.interval.Interval`
+arithmetic, the cube and its slope included. The other ``σ`` and ``σ'`` are evaluated in float64
+at the ends of each interval (and at their extrema, when an extremum lies inside) and widened by
+``1e-13`` relative plus ``1e-300``, hundreds of times the error of libm's ``tanh``.
 """
 
 from __future__ import annotations
@@ -106,6 +108,8 @@ def activation_enclosure(name: str, h: Interval) -> tuple[Interval, Interval]:
         s_bottom = np.where(_inside(-_SLOPE_ARG, lo, hi), _SLOPE_MIN, np.minimum(d_lo, d_hi))
         s_top = np.where(_inside(_SLOPE_ARG, lo, hi), _SLOPE_MAX, np.maximum(d_lo, d_hi))
         return _widen(bottom, np.maximum(v_lo, v_hi)), _widen(s_bottom, s_top)
+    if name == "cube":  # increasing; its slope 3h² is 0 at h = 0 (Interval.sq keeps that)
+        return h.power(3), h.sq().scale(3.0)
     raise ShapeError(f"no interval enclosure for the activation {name!r}")
 
 
@@ -163,6 +167,13 @@ class NetworkEnclosure:
             for layer, slope in zip(net.layers[1:-1], slopes[1:-1]):
                 jac = self._scale_rows(slope, point_matmul(layer.weight, jac))
             jac = point_matmul(net.layers[-1].weight, jac)  # ∂raw/∂z̃ from the network, (B, n_y, d)
+        if net.cubic is not None:  # C (W a0 + b)³ and its C diag(3 h²) W_z
+            inner, outer = net.cubic
+            h = point_matmul(inner.weight, a0) + Interval.point(inner.bias)
+            cube, slope = activation_enclosure(inner.activation, h)
+            raw = raw + point_matmul(outer.weight, cube) + Interval.point(outer.bias)
+            w_z = Interval.point(inner.weight[None, :, :d])
+            jac = jac + point_matmul(outer.weight, self._scale_rows(slope, w_z))
         scale = Interval.point(net.output_scale[None, :, None])
         if net.affine is not None:
             raw = raw + point_matmul(net.affine[0], a0) + Interval.point(net.affine[1])

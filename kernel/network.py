@@ -13,19 +13,26 @@ and ``z̃`` the window of normalised pairs, in the :mod:`canonid.kernel.canonica
 ``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})`` (oldest pair first).
 
 A :class:`Layer` is ``v ↦ σ(W v + b)``; a network is a tuple of layers applied in order, the last
-one with ``activation="linear"``. A :class:`GRULayer` is one layer of a GRU (PyTorch's equations).
+one with ``activation="linear"``. ``σ`` is one of :data:`ACTIVATIONS`; ``"cube"`` (``σ(h) = h³``)
+serves the cubic branch below. A :class:`GRULayer` is one layer of a GRU (PyTorch's equations).
 
 :class:`CanonicalNet` is the regressor ``Ĥ`` of Ours (MLP) or Ours (GRU), in normalised units::
 
     φ   = z̃ (Ours (MLP)), or the last top-layer state of the GRU layers reading the ℓ pairs of
           z̃ oldest first from zero states (Ours (GRU))
     a   = [φ; ũ] with feedthrough, φ without
-    x   = [z̃; ũ] with feedthrough, z̃ without (the regression vector of the affine path)
-    raw = layers(a) + (L x + c if affine is not None)
+    x   = [z̃; ũ] with feedthrough, z̃ without (the regression vector: affine path, cubic branch)
+    raw = layers(a) + (L x + c if affine is not None) + (C (W x + b)³ + c_C if cubic is not None)
     ỹ   = ỹ_{t−1} + s ⊙ raw   with residual (ỹ_{t−1}: the newest y of z̃, s: residual_scale)
         = raw                 without
 
 and ``Ĥ(z, u) = y_mean + y_std ⊙ ỹ`` in physical units.
+
+The cubic branch of Ours (MLP) (net option ``cubic=K``) is the pair of layers
+``cubic = (x ↦ (W x + b)³, v ↦ C v + c_C)``: ``W`` ``(K, dim x)``, ``C`` ``(n_y, K)``, the cube
+taken elementwise and ``c_C = 0`` as exported. Its slope ``3 h²`` is unbounded on the whole
+space, so a network whose branch reads ``z̃`` has no finite global Lipschitz bound
+(:data:`ACTIVATIONS` gives ``inf`` for the cube); on a bounded region it has one.
 
 :class:`ReducedCanonicalNet` adds the auto-encoder of :mod:`canonid.learning.nets.reduced`
 (whose torch module is ``ReducedNet``) around it: ``E(z̃) = encoder(z̃) (+ encoder_skip(z̃))``
@@ -36,6 +43,7 @@ and ``D(x̄) = decoder(x̄) (+ decoder_skip(x̄))``, and the reduced model
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -48,8 +56,14 @@ from canonid.kernel.validate import require_finite
 __all__ = ["ACTIVATIONS", "CanonicalNet", "GRULayer", "Layer", "ReducedCanonicalNet"]
 
 #: activation name → an upper bound of |σ'| over R, for Lipschitz bounds (SiLU's slope peaks at
-#: 1.0998 near x = 2.4, rounded up here)
-ACTIVATIONS: dict[str, float] = {"linear": 1.0, "relu": 1.0, "tanh": 1.0, "silu": 1.1}
+#: 1.0998 near x = 2.4, rounded up here; the cube's slope 3h² has no bound: ``inf``)
+ACTIVATIONS: dict[str, float] = {
+    "linear": 1.0,
+    "relu": 1.0,
+    "tanh": 1.0,
+    "silu": 1.1,
+    "cube": math.inf,
+}
 
 
 def _array(value: Any, ndim: int, name: str) -> np.ndarray:
@@ -165,6 +179,8 @@ class CanonicalNet:
         residual_scale: ``s`` of the residual option, ``(n_y,)``, or ``None`` without it.
         affine: ``(L, c)`` of an affine path on ``x`` added to the network's output, ``L``
             ``(n_y, dim x)``, ``c`` ``(n_y,)``, or ``None``.
+        cubic: the cubic branch on ``x`` added to the network's output, a ``"cube"`` layer
+            ``(W, b)`` then a linear layer ``(C, c_C)`` (module docstring), or ``None``.
     """
 
     window: int
@@ -179,6 +195,7 @@ class CanonicalNet:
     residual_scale: np.ndarray | None = None
     affine: tuple[np.ndarray, np.ndarray] | None = None
     recurrent: tuple[GRULayer, ...] = ()
+    cubic: tuple[Layer, Layer] | None = None
 
     def __post_init__(self) -> None:
         for key in ("window", "n_u", "n_y"):
@@ -217,6 +234,16 @@ class CanonicalNet:
                     f"({self.n_y},), got {L.shape} and {c.shape}"
                 )
             object.__setattr__(self, "affine", (L, c))
+        if self.cubic is not None:
+            branch = tuple(self.cubic)
+            if len(branch) != 2:
+                raise ShapeError("cubic must be a pair of layers ((W, b) cubed, then C)")
+            _check_chain(branch, self.regression_dim, self.n_y, "cubic branch")
+            if branch[0].activation != "cube":
+                raise ShapeError(
+                    f"cubic branch: its first layer must cube, got {branch[0].activation!r}"
+                )
+            object.__setattr__(self, "cubic", branch)
 
     def _vector(self, name: str, n: int) -> np.ndarray:
         arr = _array(getattr(self, name), 1, name)
@@ -260,14 +287,38 @@ class CanonicalNet:
         return np.ones(self.n_y) if self.residual_scale is None else self.residual_scale
 
     def linear_part(self) -> np.ndarray:
-        """``∂ỹ/∂x`` of the terms outside the network: ``s ⊙ L`` and, with residual, the
-        identity on the newest ``ỹ`` of ``z̃`` — ``(n_y, dim x)``."""
+        """``∂ỹ/∂x`` of the linear terms outside the network: ``s ⊙ L`` and, with residual, the
+        identity on the newest ``ỹ`` of ``z̃`` — ``(n_y, dim x)``. The cubic branch is not
+        linear and is not part of it (:meth:`cubic_branch` gives its ``∂raw/∂x``)."""
         out = np.zeros((self.n_y, self.regression_dim))
         if self.affine is not None:
             out += self.output_scale[:, None] * self.affine[0]
         if self.residual_scale is not None:
             out[:, self.state_dim - self.n_y : self.state_dim] += np.eye(self.n_y)
         return out
+
+    def cubic_branch(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The cubic branch's term of ``raw`` at the rows of ``x`` ``(N, dim x)`` and its
+        Jacobian ``C diag(3 h²) W`` with ``h = W x + b``: ``(N, n_y)`` and ``(N, n_y, dim x)``
+        (zeros without the branch)."""
+        n = x.shape[0]
+        if self.cubic is None:
+            return np.zeros((n, self.n_y)), np.zeros((n, self.n_y, self.regression_dim))
+        first, second = self.cubic
+        h = x @ first.weight.T + first.bias
+        value = (h * h * h) @ second.weight.T + second.bias
+        jac = (second.weight[None] * (3.0 * h * h)[:, None, :]) @ first.weight
+        return value, jac
+
+    def cubic_reads_state(self) -> bool:
+        """Whether the cubic branch's output depends on ``z̃``: some unit with a non-zero column
+        of ``C`` reads ``z̃`` (``False`` without the branch, or with ``C = 0`` as training
+        starts)."""
+        if self.cubic is None:
+            return False
+        first, second = self.cubic
+        used = np.any(second.weight != 0, axis=0)
+        return bool(np.any(first.weight[used, : self.state_dim] != 0))
 
 
 @dataclass(frozen=True)

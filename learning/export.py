@@ -38,8 +38,8 @@ The object holds a float64 copy of the network on the CPU; it never changes the 
 from.
 
 ``network()`` returns the weights themselves as plain numpy (:mod:`canonid.kernel.network`): a
-:class:`~canonid.kernel.network.CanonicalNet` for Ours (MLP) and Ours (GRU), a
-:class:`~canonid.kernel.network.ReducedCanonicalNet` for their reduced models.
+:class:`~canonid.kernel.network.CanonicalNet` for Ours (MLP) (its cubic branch included) and
+Ours (GRU), a :class:`~canonid.kernel.network.ReducedCanonicalNet` for their reduced models.
 :mod:`canonid.models.learned` builds CasADi expressions from it; the other models raise
 :class:`NotExportableError`.
 """
@@ -131,6 +131,16 @@ def _affine_path(regressor: nn.Module) -> tuple[np.ndarray, np.ndarray] | None:
     return affine.weight.detach().cpu().numpy().copy(), affine.bias.detach().cpu().numpy().copy()
 
 
+def _cubic_branch(regressor: nn.Module) -> tuple[plain.Layer, plain.Layer] | None:
+    """The cubic branch ``C (W x + b)³`` of an Ours (MLP) (its ``cubic_in`` and ``cubic_out``
+    layers, see :class:`canonid.kernel.network.CanonicalNet`), or ``None`` where it has none."""
+    first, second = getattr(regressor, "cubic_in", None), getattr(regressor, "cubic_out", None)
+    if first is None or second is None:
+        return None
+    weight = second.weight.detach().cpu().numpy().copy()
+    return _layer(first, "cube"), plain.Layer(weight, np.zeros(weight.shape[0]))
+
+
 def _batch(name: str, value: Any, cols: int) -> tuple[np.ndarray, bool]:
     """``(N, cols)`` float64 and whether a single vector ``(cols,)`` was given."""
     arr = np.asarray(value, dtype=np.float64)
@@ -202,10 +212,6 @@ class NumpyModel:
 
     def _regressor(self, net: Any) -> plain.CanonicalNet:
         recurrent: tuple[plain.GRULayer, ...]
-        if isinstance(net, OursMLP) and net.cubic:
-            raise NotExportableError(
-                "Ours (MLP) with a cubic branch does not export to plain numpy or CasADi yet"
-            )
         if isinstance(net, OursMLP):
             layers, recurrent, affine = _layers(net.net, net.activation), (), _affine_path(net)
         elif isinstance(net, OursGRU):
@@ -231,6 +237,7 @@ class NumpyModel:
             residual_scale=net.residual_scale.detach().cpu().numpy() if net.residual else None,
             affine=affine,
             recurrent=recurrent,
+            cubic=_cubic_branch(net),
         )
 
 

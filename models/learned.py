@@ -3,9 +3,10 @@ weights.
 
 The weights arrive as a plain description (:mod:`canonid.kernel.network`, exported by
 ``canonid.learning.NumpyModel.network()``), so this module never sees torch. The SX graph is written
-out layer by layer — ReLU as ``fmax(v, 0)``, SiLU as ``v (1 + tanh(v/2)) / 2``, tanh as ``tanh`` —
-which keeps it open to the interval evaluator of :mod:`canonid.analysis.enclosure` (a wrapped torch
-function would be opaque to it).
+out layer by layer — ReLU as ``fmax(v, 0)``, SiLU as ``v (1 + tanh(v/2)) / 2``, tanh as ``tanh``,
+the cubic branch's cube as ``v**3`` (CasADi's constant power) — which keeps it open to the
+interval evaluator of :mod:`canonid.analysis.enclosure` (a wrapped torch function would be opaque
+to it).
 
 State and maps. For a :class:`~canonid.kernel.network.CanonicalNet` the state is the canonical
 ``z_t = (u_{t−ℓ}, y_{t−ℓ}, …, u_{t−1}, y_{t−1})`` in physical units (:mod:`canonid.kernel.canonical`
@@ -58,6 +59,7 @@ _ACTIVATIONS: dict[str, Callable[[ca.SX], ca.SX]] = {
     "tanh": ca.tanh,
     # v σ(v) with σ(v) = (1 + tanh(v/2)) / 2: bounded, so interval enclosures never overflow
     "silu": lambda v: 0.5 * v * (1 + ca.tanh(0.5 * v)),
+    "cube": lambda v: v**3,
 }
 
 
@@ -106,9 +108,11 @@ def regressor_expr(net: CanonicalNet, zn: ca.SX, un: ca.SX) -> ca.SX:
     features = _features(net, zn)
     a = ca.vertcat(features, un) if net.feedthrough else features
     raw = network_expr(net.layers, a)
+    x = ca.vertcat(zn, un) if net.feedthrough else zn
     if net.affine is not None:
-        x = ca.vertcat(zn, un) if net.feedthrough else zn
         raw = raw + ca.mtimes(ca.DM(net.affine[0]), x) + net.affine[1]
+    if net.cubic is not None:
+        raw = raw + network_expr(net.cubic, x)
     if net.residual_scale is None:
         return raw
     return zn[net.state_dim - net.n_y :] + raw * net.residual_scale
@@ -169,6 +173,7 @@ class LearnedSystem(System):
             kind = "canonical model"
         self._z_mean, self._z_std = reg.z_mean, reg.z_std
         regressor = "GRU" if reg.recurrent else "MLP"
+        branch = "" if reg.cubic is None else " with a cubic branch"
         super().__init__(
             name=name,
             dt=dt,
@@ -181,7 +186,7 @@ class LearnedSystem(System):
             X=X,
             U=U,
             W=W,
-            discretisation=f"learned ({kind}: canonical shift + {regressor} regressor)",
+            discretisation=f"learned ({kind}: canonical shift + {regressor} regressor{branch})",
             parameters={
                 "window": reg.window,
                 "feedthrough": reg.feedthrough,
@@ -191,6 +196,8 @@ class LearnedSystem(System):
                 "hidden": [layer.n_out for layer in reg.layers[:-1]],
                 "gru_hidden": [layer.hidden for layer in reg.recurrent],
                 "activation": reg.layers[0].activation if len(reg.layers) > 1 else "linear",
+                # only with the branch, so that the description of a plain network is unchanged
+                **({"cubic": reg.cubic[0].n_out} if reg.cubic is not None else {}),
             },
         )
         z = ca.SX.sym("z", reg.state_dim)
@@ -313,6 +320,8 @@ def _forward_with_slopes(layer: Layer, v: np.ndarray) -> tuple[np.ndarray, np.nd
     if layer.activation == "silu":  # the SX form above: v (1 + tanh(v/2)) / 2
         t = np.tanh(0.5 * pre)
         return 0.5 * pre * (1.0 + t), 0.5 * (1.0 + t) + 0.25 * pre * (1.0 - t * t)
+    if layer.activation == "cube":
+        return pre * pre * pre, 3.0 * pre * pre
     return pre, np.ones_like(pre)
 
 
@@ -335,6 +344,9 @@ def _mlp_linearisation(net: CanonicalNet, x: np.ndarray, u: np.ndarray) -> Linea
     if net.affine is not None:
         raw = raw + a @ net.affine[0].T + net.affine[1]
         grad = grad + net.affine[0]
+    if net.cubic is not None:  # on x = a (an MLP reads the regression vector itself)
+        cubic, d_cubic = net.cubic_branch(a)
+        raw, grad = raw + cubic, grad + d_cubic
     if net.residual_scale is None:
         yn, d_yn = raw, np.array(grad)
     else:

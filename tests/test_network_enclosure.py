@@ -81,23 +81,28 @@ def test_sampled_values_and_jacobians_lie_in_the_box_enclosures(
     activation, feedthrough, residual, affine, rng
 ):
     system = _system(_net(activation, feedthrough, residual, affine))
+    assert_boxes_enclose(system, [1e-6, 1e-3, 0.05, 0.3, 1.0, 3.0], rng)
+
+
+def assert_boxes_enclose(system: LearnedSystem, scales: list[float], rng) -> np.ndarray:
+    """Boxes of half-widths about ``scales`` around random centres in [−2, 2]: the values and
+    Jacobians sampled in each (corners too) lie in its enclosure; returns the centres."""
     enclosure = network_enclosure(system)
     assert isinstance(enclosure, NetworkEnclosure)
-    d = system.n_x
-    centres = rng.uniform(-2, 2, size=(6, d + N_U))
-    widths = np.array([1e-6, 1e-3, 0.05, 0.3, 1.0, 3.0])[:, None] * rng.uniform(
-        0.2, 1.0, size=(6, d + N_U)
-    )
+    d, n_u = system.n_x, system.n_u
+    centres = rng.uniform(-2, 2, size=(len(scales), d + n_u))
+    widths = np.array(scales)[:, None] * rng.uniform(0.2, 1.0, size=(len(scales), d + n_u))
     lo, hi = centres - widths, centres + widths
     res = enclosure([Interval(lo[:, :d], hi[:, :d]), Interval(lo[:, d:], hi[:, d:])])
     assert not res.jac_flags.any()
     jac, val = res.jacobians[0], res.values[0]
     for b in range(len(lo)):
-        pts = rng.uniform(lo[b], hi[b], size=(200, d + N_U))
+        pts = rng.uniform(lo[b], hi[b], size=(200, d + n_u))
         pts[:2] = lo[b], hi[b]  # the corners count too
         lin = system.linearise(pts[:, :d], pts[:, d:])
         assert np.all(lin.f_x >= jac.lo[b]) and np.all(lin.f_x <= jac.hi[b])
         assert np.all(lin.f >= val.lo[b]) and np.all(lin.f <= val.hi[b])
+    return centres
 
 
 @pytest.mark.parametrize("activation", ["relu", "silu", "tanh"])
