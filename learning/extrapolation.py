@@ -9,8 +9,10 @@ and spoils a saturating tank. Which of the two a record needs is decided by the 
 * :func:`held_out_peaks` cuts the *training* trajectories around their largest excursions: a
   sample whose largest ``|y − mean| / std`` over the outputs exceeds :data:`HOLD_OUT` × the
   largest of the record is held out, with the context every validation rollout needs around it
-  (ℓ + 0.6 H before, 0.5 H after, ``H`` the validation rollout); what lies between trains;
-* :func:`cubic_test` trains the plain network and the one with :data:`CUBIC_UNITS` cubic units
+  (ℓ + 0.6 H before, 0.5 H after, ``H`` the validation rollout); what lies between trains
+  (pieces of at least ℓ + 1 + the longer of the training and validation rollouts);
+* :func:`cubic_test` — when those pieces hold at least :data:`MIN_TRAIN_SHARE` of the
+  training samples — trains the plain network and the one with :data:`CUBIC_UNITS` cubic units
   briefly on that split (the window screen's share of the epochs) and keeps the branch when its
   best loss on the held-out peaks is at most :data:`CUBIC_GAIN` × the plain one's.
 
@@ -36,6 +38,7 @@ __all__ = [
     "CUBIC_GAIN",
     "CUBIC_UNITS",
     "HOLD_OUT",
+    "MIN_TRAIN_SHARE",
     "CubicTest",
     "HeldOutPeaks",
     "cubic_test",
@@ -50,6 +53,9 @@ HOLD_OUT = 0.7
 CUBIC_UNITS = 16
 #: the branch is kept when its held-out loss is at most this share of the plain network's
 CUBIC_GAIN = 0.8
+#: the test runs only when the pieces between the peaks hold at least this share of the
+#: training samples (the records of the study that chose the rule kept 44–98 %)
+MIN_TRAIN_SHARE = 0.4
 
 
 @dataclass(frozen=True)
@@ -195,11 +201,20 @@ def cubic_test(
     """
     opts = screen_options(options, SCREEN_FRACTION)
     try:
+        # training pieces hold the longer of the two rollouts, as in the study that chose this
+        longest = max(opts.horizon, opts.rollout_horizon)
         split = held_out_peaks(
-            train, window=window, horizon=opts.horizon, val_horizon=opts.rollout_horizon
+            train, window=window, horizon=longest, val_horizon=opts.rollout_horizon
         )
     except ShapeError as exc:
         return CubicTest(0, None, None, opts.epochs, str(exc), None)
+    share = sum(t.T for t in split.train) / sum(t.T for t in train)
+    if share < MIN_TRAIN_SHARE:
+        reason = (
+            f"the pieces between the largest excursions hold {share:.0%} of the training "
+            f"samples, under {MIN_TRAIN_SHARE:.0%}"
+        )
+        return CubicTest(0, None, None, opts.epochs, reason, split.to_dict())
     losses = []
     for units in (0, CUBIC_UNITS):
         result = fit(

@@ -113,9 +113,9 @@ def test_held_out_peaks_hold_out_every_large_excursion_and_nothing_overlaps(
     mean, std = y.mean(axis=0), y.std(axis=0)
     dev = np.max(np.abs(y - mean) / std, axis=1)
     assert split.threshold == pytest.approx(HOLD_OUT * dev.max())
-    # nothing above the threshold trains; the largest excursion validates
-    assert split.largest_train <= split.threshold < split.largest_val
-    assert split.largest_val == pytest.approx(dev.max())
+    # nothing above the threshold trains; held-out peaks lie above it (a peak whose context
+    # the trajectory's ends cut short is dropped from both parts)
+    assert split.largest_train <= split.threshold < split.largest_val <= dev.max() + 1e-12
     assert all(t.T >= window + horizon + 1 for t in split.train)
     assert all(t.T >= window + val_horizon for t in split.val)
     # the pieces are disjoint slices: no sample is in both parts, none twice
@@ -175,3 +175,24 @@ def test_a_run_records_its_cubic_test_and_a_resume_reads_it_back(tmp_path, monke
     )
     assert again.model.info["cubic_test"] == recorded
     assert CubicTest.from_dict(recorded).summary().startswith("cubic branch on the held-out")
+
+
+def test_the_test_does_not_run_when_the_peaks_leave_too_little_to_train() -> None:
+    from canonid.learning.extrapolation import MIN_TRAIN_SHARE, cubic_test
+    from canonid.learning.training import TrainOptions
+
+    rng = np.random.default_rng(3)
+    y = 0.1 * rng.normal(size=(600, 1))
+    y[200::12] = 5.0  # a quiet first third, then a large excursion every 12 samples
+    train = [Trajectory(u=rng.normal(size=(600, 1)), y=y)]
+
+    def no_training(*args, **kwargs):
+        raise AssertionError("the test trained although the split was refused")
+
+    opts = TrainOptions(epochs=10, horizon=4, val_horizon=6)
+    # with short rollouts the split itself exists, but leaves under the share to train
+    split = held_out_peaks(train, window=2, horizon=6, val_horizon=6)
+    assert sum(t.T for t in split.train) < MIN_TRAIN_SHARE * 600
+    test = cubic_test(train, window=2, options=opts, net_options={}, fit=no_training)
+    assert test.units == 0 and test.plain_loss is None and "under 40%" in test.reason
+    assert "not tested" in test.summary()

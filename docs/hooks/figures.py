@@ -515,6 +515,9 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
     "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
     "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
+    "code/cubic-min-share": Code(
+        lambda: f"{_extrapolation().MIN_TRAIN_SHARE:.0%}".replace("%", " %")
+    ),
     **{
         f"window/{system}/chosen": Cell(
             "Window on validation",
