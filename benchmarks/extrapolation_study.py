@@ -28,6 +28,7 @@ same order, before the option existed). Every variant's ``cubic`` is given, so c
 Usage: python extrapolation_study.py prepare [--dir ../shared/data/silverbox]
        python extrapolation_study.py all --out DIR [--jobs N] [--deadline S] [--set more]
        python extrapolation_study.py run SYSTEM VARIANT --out DIR [--deadline S]
+       python extrapolation_study.py decide SYSTEM [SYSTEM ...]
        python extrapolation_study.py collect DIR --out FILE
        python extrapolation_study.py record FILE [FILE ...]
        python extrapolation_study.py render FILE
@@ -54,6 +55,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 DATA = ROOT / "runs" / "extrapolation-study" / "data"
+DECISIONS = ROOT / "runs" / "extrapolation-study" / "decisions"
 STUDY_FILE = ROOT / "benchmarks" / "studies" / "extrapolation_study.json"
 SECTION = "Extrapolation"
 SCREEN_EPOCH = 60  # the epochs canonid's cubic test trains each network (the screen's share)
@@ -241,6 +243,42 @@ def run(system: str, variant: str, out: Path, deadline: float | None) -> None:
         write(False)
         return
     write(True)
+
+
+def decide(system: str) -> None:
+    """canonid's own cubic test (:func:`canonid.learning.extrapolation.cubic_test`, the compressed
+    schedule the defaults run) on ``system``'s usual training part, written to
+    ``DECISIONS/SYSTEM.json``."""
+    import torch
+
+    from canonid.kernel.dataset import Dataset
+    from canonid.kernel.io import atomic_write_json
+    from canonid.learning.data import Normalisation
+    from canonid.learning.extrapolation import cubic_test
+    from canonid.learning.linear import feedthrough_test
+    from canonid.learning.presets import net_options
+    from canonid.learning.training import fit
+    from canonid.profiles import train_options
+
+    torch.set_num_threads(1)
+    usual = Dataset.load(DATA / system / "dataset.npz")
+    train, val = usual.split("train"), usual.split("val")
+    window = SOURCES[system][1]
+    options = net_options("mlp", {"cubic": 0})
+    options["feedthrough"] = feedthrough_test(
+        train, val, Normalisation.fit(train), window=window
+    ).feedthrough
+    cpu0 = time.process_time()
+    test = cubic_test(
+        train,
+        window=window,
+        options=train_options("quick", device="cpu"),
+        net_options=options,
+        fit=fit,
+    )
+    record = {"system": system, "window": window, "cpu_seconds": time.process_time() - cpu0}
+    atomic_write_json(DECISIONS / f"{system}.json", {**record, "test": test.to_dict()})
+    print(f"{system}: {test.summary()}", flush=True)
 
 
 def run_all(out: Path, jobs: int, deadline: float, todo: list[tuple[str, str]]) -> None:
@@ -440,6 +478,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("variant", choices=list(VARIANTS))
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--deadline", type=float)
+    p = sub.add_parser("decide")
+    p.add_argument("systems", nargs="+", choices=list(SOURCES))
     p = sub.add_parser("collect")
     p.add_argument("directory", type=Path)
     p.add_argument("--out", type=Path, required=True)
@@ -455,6 +495,9 @@ def main(argv: list[str] | None = None) -> int:
     elif args.command == "run":
         args.out.mkdir(parents=True, exist_ok=True)
         run(args.system, args.variant, args.out, args.deadline)
+    elif args.command == "decide":
+        for system in args.systems:
+            decide(system)
     elif args.command == "collect":
         args.out.write_text(json.dumps(collect(args.directory), indent=1) + "\n")
     elif args.command == "record":

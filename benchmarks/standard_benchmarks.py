@@ -51,6 +51,25 @@ def _screen_line(run: Path) -> str:
     )
 
 
+def _cubic_line(run: Path) -> str:
+    """What the cubic test decided for the run's model, or nothing when it did not run."""
+    from canonid.learning.extrapolation import CubicTest
+
+    info = json.loads((run / "config.json").read_text()).get("info", {})
+    if "cubic_test" not in info:
+        return ""
+    test = CubicTest.from_dict(info["cubic_test"])
+    split = (
+        ""
+        if not test.split
+        else (
+            f"; {test.split['train_samples']:,} training samples, {test.split['val_samples']:,} "
+            "held out"
+        )
+    )
+    return f'Cubic branch (`cubic="auto"`): {test.summary()}{split}.\n\n'
+
+
 def _body(run: Path, cpu: float, wall: float, load: str, earlier: str | None = None) -> str:
     report = json.loads((run / "benchmark.json").read_text())
     recipe = json.loads((run / "run.json").read_text())
@@ -80,6 +99,7 @@ def _body(run: Path, cpu: float, wall: float, load: str, earlier: str | None = N
     sources = "; ".join(sorted({b["source"] for b in report["baselines"]})) or "none entered"
     return (
         _screen_line(run)
+        + _cubic_line(run)
         + f"{report['title']}: {report['model']}, ℓ = {report['window']}, profile "
         f"{report['profile']} ({options['epochs']} epochs, rollouts up to {options['horizon']} "
         f"steps), seed {options['seed']}; validation: {report['validation']}. Score: simulation "

@@ -142,7 +142,7 @@ def test_one_record_or_ten_experiments_get_the_same_budget_and_error(monkeypatch
             model="mlp",
             window=3,
             options=options(epochs=4),
-            net_options={"linear": True},
+            net_options={"linear": True, "cubic": 0},  # the cubic test would add its own steps
         )
         results[name] = (steps["n"], res.best_val_loss)
     assert results["record"][0] == results["experiments"][0] == 4 * 64 // 16
@@ -276,9 +276,11 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
     assert "feedthrough off (decided on validation" in capsys.readouterr().out
     config = json.loads((tmp_path / "d" / "config.json").read_text())
     net, decided = config["net"], config["info"]["feedthrough_test"]
-    # feedthrough "auto" is recorded as what the validation test decided, with the test
-    expected = {**DEFAULT_NET_OPTIONS["mlp"], "feedthrough": decided["feedthrough"]}
-    assert {k: net[k] for k in DEFAULT_NET_OPTIONS["mlp"]} == expected
+    # feedthrough and cubic "auto" are recorded as what their tests decided, with the tests (a
+    # network without the cubic branch does not name it)
+    cubic = config["info"]["cubic_test"]["units"]
+    expected = {**DEFAULT_NET_OPTIONS["mlp"], "feedthrough": decided["feedthrough"], "cubic": cubic}
+    assert {k: net.get(k, 0) for k in DEFAULT_NET_OPTIONS["mlp"]} == expected
     assert decided["feedthrough"] is False  # the damped system has no direct term
     assert (
         main(["train", *common, "--model", "mlp", "--paper-options", "--out", str(tmp_path / "p")])
