@@ -342,8 +342,16 @@ def record(files: list[Path]) -> int:
             **{p: sum(t.T for t in data.split(p)) for p in ("train", "val")},
             **{k: v for k, v in data.metadata.items() if k != "study"},
         }
-    facts = {k: v for k, v in found[0].items() if k != "records"}
-    study = {**facts, "splits": splits, "records": [runs[k] for k in sorted(runs)]}
+    facts = {k: v for k, v in found[0].items() if k not in ("records", "decisions")}
+    decisions = {d["system"]: d for f in found for d in f.get("decisions", [])}
+    for path in sorted(DECISIONS.glob("*.json")):
+        decisions[path.stem] = json.loads(path.read_text())
+    study = {
+        **facts,
+        "splits": splits,
+        "records": [runs[k] for k in sorted(runs)],
+        "decisions": [decisions[k] for k in sorted(decisions)],
+    }
     atomic_write_text(STUDY_FILE, json.dumps(study, indent=1) + "\n")
     write_section(SECTION, render(study))
     print(render(study))
@@ -418,7 +426,41 @@ def render(study: dict) -> str:
                 f"{cells[3]} | {common} | {rec['history'][-1][0]} | "
                 f"{'yes' if rec['finished'] else 'no'} |"
             )
-    return "\n".join([*lines, "", _verdict(study)])
+    return "\n".join([*lines, "", _verdict(study), *_decisions(study)])
+
+
+def _decisions(study: dict) -> list[str]:
+    """canonid's own test on each system's usual training part (``decide``)."""
+    rows = study.get("decisions", [])
+    if not rows:
+        return []
+    lines = [
+        "",
+        "What canonid's own test decides (`python extrapolation_study.py decide SYSTEM`, here, "
+        "one CPU thread): `canonid.learning.extrapolation.cubic_test` as `canonid train` runs "
+        "it — the quick profile compressed to the window screen's share of the epochs (its own "
+        "cosine schedule and curriculum, unlike the table above, which reads the full runs at "
+        f"epoch {SCREEN_EPOCH}) — on each system's usual training part at the window the "
+        "defaults chose there.",
+        "",
+        "| system | ℓ | training samples between the peaks | held out | plain network | "
+        "16 cubic units | ratio | decision | CPU s |",
+        "|---|---:|---:|---:|---:|---:|---:|---|---:|",
+    ]
+    for row in rows:
+        test = row["test"]
+        split = test.get("split") or {}
+        plain, cubic = test["plain_loss"], test["cubic_loss"]
+        ratio = "-" if plain is None or cubic is None else f"{cubic / plain:.2f}"
+        decision = test["reason"] or (
+            f"{test['units']} cubic units" if test["units"] else "plain network"
+        )
+        lines.append(
+            f"| {row['system']} | {row['window']} | {split.get('train_samples', 0):,} | "
+            f"{split.get('val_samples', 0):,} | {_g(plain)} | {_g(cubic)} | {ratio} | "
+            f"{decision} | {row['cpu_seconds']:.0f} |"
+        )
+    return lines
 
 
 def _verdict(study: dict) -> str:
