@@ -3,7 +3,9 @@ that was never interrupted.
 
 The kill is not timed from outside (that would make the test depend on the machine's speed): the
 training process kills itself with SIGKILL at a fixed point, the second optimiser step of epoch 4,
-after the checkpoint of epoch 3 and in the middle of work that the checkpoint does not hold.
+after the checkpoint of epoch 3 and in the middle of work that the checkpoint does not hold. Only
+that run is a process of its own; the uninterrupted run and the resumption run in the test's
+process (a fresh process holds nothing the folder does not, and starting one costs seconds).
 """
 
 from __future__ import annotations
@@ -60,11 +62,10 @@ SAME_BYTES = (
 )
 
 
-def _canonid(*argv: str, kill: tuple[int, int] | None = None) -> subprocess.CompletedProcess:
-    code = KILLED_RUN if kill else "import sys; from canonid.cli import main; sys.exit(main())"
-    extra = [str(k) for k in kill] if kill else []
+def _killed_canonid(*argv: str, kill: tuple[int, int]) -> subprocess.CompletedProcess:
+    """``canonid ARGV`` in a process of its own that SIGKILLs itself at ``kill`` (epoch, step)."""
     return subprocess.run(
-        [sys.executable, "-c", code, *extra, *argv],
+        [sys.executable, "-c", KILLED_RUN, *(str(k) for k in kill), *argv],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -74,7 +75,7 @@ def _canonid(*argv: str, kill: tuple[int, int] | None = None) -> subprocess.Comp
 
 
 @pytest.mark.slow
-def test_kill_9_during_training_then_resume_gives_the_same_bytes(tmp_path):
+def test_kill_9_during_training_then_resume_gives_the_same_bytes(tmp_path, monkeypatch):
     data = tmp_path / "tank"
     gen = ["generate", "tank", "--out", str(data), "--n-train", "3", "--n-val", "1"]
     assert main([*gen, "--n-test", "1", "--seed", "3", "--no-progress"]) == 0
@@ -83,15 +84,15 @@ def test_kill_9_during_training_then_resume_gives_the_same_bytes(tmp_path):
     train += ["--no-progress"]  # 4 optimiser steps per epoch (batch 8), a checkpoint after each
     whole, killed = tmp_path / "whole", tmp_path / "killed"
 
-    done = _canonid(*train, "--out", str(whole))
-    assert done.returncode == 0, done.stderr[-2000:]
-    cut = _canonid(*train, "--out", str(killed), kill=(4, 2))
+    monkeypatch.setattr("sys.argv", ["canonid", *train, "--out", str(whole)])  # run.json's
+    assert main([*train, "--out", str(whole)]) == 0
+    cut = _killed_canonid(*train, "--out", str(killed), kill=(4, 2))
     assert cut.returncode == -signal.SIGKILL, cut.stderr[-2000:]
     assert not (killed / "metrics.json").exists()  # it died before the end,
     assert torch.load(killed / "checkpoint.pt", weights_only=True)["epoch"] == 3  # after epoch 3
     resume = ["train", "--resume", str(killed), "--threads", "1", "--device", "cpu"]
-    resumed = _canonid(*resume, "--no-progress")
-    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    monkeypatch.setattr("sys.argv", ["canonid", *resume, "--no-progress"])
+    assert main([*resume, "--no-progress"]) == 0
 
     for name in SAME_BYTES:
         assert (killed / name).read_bytes() == (whole / name).read_bytes(), name

@@ -308,7 +308,7 @@ def test_bad_input_is_refused_with_a_clear_error(data):
 
 @pytest.mark.slow
 def test_mlp_on_a_linear_system_reaches_the_noise_level():
-    """Ours (MLP), quick profile shortened to 100 epochs of 30-step rollouts, on a damped
+    """Ours (MLP), quick profile shortened to 30 epochs of 30-step rollouts, on a damped
     linear system: the 100-step rollout MSE is within 2× the noise variance of the measured
     outputs, and below it against the noise-free outputs."""
     from canonid.profiles import train_options
@@ -318,7 +318,7 @@ def test_mlp_on_a_linear_system_reaches_the_noise_level():
     train = trajectories(system, 20, 200, noise=noise, seed=1)
     val = trajectories(system, 5, 200, noise=noise, seed=2)
     test = trajectories(system, 5, 200, noise=noise, seed=3)
-    opts = train_options("quick", epochs=100, horizon=30, val_horizon=100, device="cpu")
+    opts = train_options("quick", epochs=30, horizon=30, val_horizon=100, device="cpu")
     res = fit(train, val, model="mlp", window=4, options=opts, net_options={"residual": True})
     scores = evaluate(res.model, test, horizon=100)
     noise_var = noise**2 / 3
