@@ -69,6 +69,8 @@ SOURCES = {
     "masses": ("runs/data/masses-id", 40),
     "silverbox-3k": ("runs/small-data/data/n3000", 10),
     "silverbox-10k": ("runs/small-data/data/n10000", 10),
+    "silverbox-1k": ("runs/small-data/data/n1000", 10),
+    "overflow-tanks": ("runs/data/tanks-overflow", 10),
 }
 #: variant → (network options over the defaults, training options over the quick profile,
 #: cubic units (0: none))
@@ -147,13 +149,15 @@ def prepare(directory: Path) -> None:
         else:
             full = Dataset.load(ROOT / source)
         usual = {part: full.split(part) for part in ("train", "val")}
-        train, val, facts = held_out_split(
-            list(full.split("train")), window, max(opts.horizon, opts.val_horizon or 0)
-        )
-        for label, splits, extra in (
-            (name, usual, {}),
-            (f"{name}-x", {"train": train, "val": val}, facts),
-        ):
+        parts = [(name, usual, {})]
+        try:
+            train, val, facts = held_out_split(
+                list(full.split("train")), window, max(opts.horizon, opts.val_horizon or 0)
+            )
+            parts.append((f"{name}-x", {"train": train, "val": val}, facts))
+        except ValueError:  # no piece long enough between the peaks: the usual split alone
+            print(f"{name}-x: the training part is too short to hold out its peaks")
+        for label, splits, extra in parts:
             kept = Dataset(
                 splits=splits,
                 dt=full.dt,
@@ -492,9 +496,12 @@ def _verdict(study: dict) -> str:
         "`canonid.learning.extrapolation`): the training part's held-out peaks as above, the "
         f"plain network and {CUBIC_UNITS} cubic units trained for the window screen's share of "
         f"the epochs ({SCREEN_EPOCH} here), the branch kept when its loss is at most "
-        f"{CUBIC_GAIN} × the plain one's. On this study's systems that rule keeps the branch on "
-        f"{', '.join(kept)} and the plain network on {', '.join(plain)}; by the longest epoch "
-        f"both variants reached, {agree} of {len(kept) + len(plain)} verdicts are the same. "
+        f"{CUBIC_GAIN} × the plain one's. The rule was chosen on the full runs above read at "
+        f"epoch {SCREEN_EPOCH}, a proxy of the test (whose schedule is compressed into those "
+        f"epochs): read so, it keeps the branch on {', '.join(kept)} and the plain network on "
+        f"{', '.join(plain)}, and by the longest epoch both variants reached {agree} of "
+        f"{len(kept) + len(plain)} of those verdicts are the same. The test itself decides "
+        "less often for the branch (the next table). "
         f"{CUBIC_UNITS} units rather than 64: 64 ran on Silverbox alone and was behind the "
         f"plain network by epoch {SCREEN_EPOCH}. Inside the training range (Silverbox's usual "
         f"split) the branch ended {in_range:.2f}× the plain network's best loss. The other "

@@ -398,6 +398,8 @@ def record() -> int:
         + ("; ".join(screens) if screens else "none yet")
         + ".",
         "",
+        cubic_line(),
+        "",
         sentence,
     ]
     if missing:
@@ -410,6 +412,34 @@ def record() -> int:
         "the time below is the sum of the jobs' wall times.",
     ]
     return publish(SECTION, lines, sum(cpu_of(j)["wall_s"] for j in ran) / 60)
+
+
+def cubic_line() -> str:
+    """What canonid's cubic test decided on each cut (a run from before the test: said so)."""
+    from canonid.learning.extrapolation import CubicTest
+
+    told = []
+    for n in SIZES:
+        config = RUNS / f"n{n}" / "config.json"
+        if not config.is_file():
+            continue
+        test = json.loads(config.read_text()).get("info", {}).get("cubic_test")
+        told.append(
+            f"{n:,} samples: "
+            + (
+                CubicTest.from_dict(test).summary()
+                if test
+                else "trained before the cubic test existed (the test cannot run on this cut: "
+                "`benchmarks/extrapolation_study.py decide silverbox-1k`)"
+            )
+        )
+    return (
+        'The cubic branch (`cubic="auto"`, section "Extrapolation"): '
+        + "; ".join(told)
+        + ". Where the plain network trains, the model is the one trained before the test "
+        "existed, to the bit (the 3,000 and 10,000 cuts were trained again with it: the same "
+        "weights); the CPU time includes the test."
+    )
 
 
 def losses(run: Path) -> list[tuple[str, str, str]]:
