@@ -135,8 +135,8 @@ def train_variant(train: Any, val: Any, key: str, *, seed: int, run: Path) -> An
 def main() -> int:
     import torch
 
-    from canonid.commands._data import load
     from canonid.learning import Model, evaluate
+    from canonid.runfolder import load
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("data", type=Path, help="the tank dataset (canonid generate tank)")

@@ -512,6 +512,11 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/followup-share": Code(lambda: _followup_share()),
     "code/small-record-samples": Code(lambda: f"{_catalog().SMALL_RECORD_SAMPLES:,}"),
     "code/small-record-weight-decay": Code(lambda: _catalog().SMALL_RECORD_WEIGHT_DECAY),
+    # canonid's cubic test per system (extrapolation_study.py decide): held-out loss ratio
+    **{
+        f"cubic/decision/{system}": Cell("Extrapolation", _row(system=system), "ratio", nth=1)
+        for system in ("silverbox", "masses", "silverbox-3k", "silverbox-10k", "tank", "drone2d")
+    },
     "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
     "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
     "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
