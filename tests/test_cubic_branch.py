@@ -196,3 +196,20 @@ def test_the_test_does_not_run_when_the_peaks_leave_too_little_to_train() -> Non
     test = cubic_test(train, window=2, options=opts, net_options={}, fit=no_training)
     assert test.units == 0 and test.plain_loss is None and "under 40%" in test.reason
     assert "not tested" in test.summary()
+
+
+def test_a_short_training_that_fails_leaves_the_plain_network(caplog) -> None:
+    from types import SimpleNamespace
+
+    from canonid.learning.extrapolation import cubic_test
+    from canonid.learning.training import TrainOptions
+
+    def fit(*args, net_options, **kwargs):
+        if net_options["cubic"]:
+            raise RuntimeError("the loss is not finite")
+        return SimpleNamespace(best_val_loss=0.5)
+
+    opts = TrainOptions(epochs=20, horizon=6, val_horizon=10)
+    test = cubic_test(_bursty(1, 2, 900), window=3, options=opts, net_options={}, fit=fit)
+    assert (test.units, test.plain_loss, test.cubic_loss) == (0, 0.5, None)
+    assert "failed: the loss is not finite" in caplog.text
