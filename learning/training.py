@@ -813,21 +813,23 @@ def fit(
 
 
 def _resumed_cubic_test(run_dir: str | Path | None) -> tuple[CubicTest, bool] | None:
-    """The cubic test recorded in a checkpoint (and ``True``), so that a resumed run does not
-    test again; for a checkpoint written before the test, the units of the network it holds
-    (and ``False``); ``None`` without a readable checkpoint."""
-    path = Path(run_dir or ".") / CHECKPOINT_FILE
-    if run_dir is None or not path.is_file():
+    """The cubic test recorded in the checkpoint of ``run_dir`` (and ``True``), so that a
+    resumed run does not test again; for a checkpoint written before the test, the units of the
+    network it holds (and ``False``). :class:`CheckpointError` for an unreadable checkpoint,
+    before any training; ``None`` without ``run_dir`` (``fit_net`` then says so)."""
+    if run_dir is None:
         return None
+    path = Path(run_dir) / CHECKPOINT_FILE
+    identity = _read_checkpoint(path)["identity"]
+    extra, net = identity.get("extra"), identity.get("net")
     try:
-        identity = torch.load(path, map_location="cpu", weights_only=True)["identity"]
-        if "cubic_test" in identity["extra"]:
-            return CubicTest.from_dict(identity["extra"]["cubic_test"]), True
-        units = int(identity["net"].get("cubic", 0))  # written before the test existed
-        reason = "resumed from a checkpoint written before the test"
-        return CubicTest(units, None, None, 0, reason, None), False
-    except (KeyError, TypeError, ValueError, RuntimeError, pickle.UnpicklingError):
-        return None  # _load_checkpoint names what is wrong with it
+        if isinstance(extra, Mapping) and "cubic_test" in extra:
+            return CubicTest.from_dict(extra["cubic_test"]), True
+        units = int(net.get("cubic", 0)) if isinstance(net, Mapping) else 0
+    except (TypeError, ValueError) as exc:
+        raise CheckpointError(f"checkpoint {path}: its cubic test is unreadable ({exc})") from None
+    reason = "resumed from a checkpoint written before the test"  # the network it holds
+    return CubicTest(units, None, None, 0, reason, None), False
 
 
 def fit_net(
@@ -989,6 +991,27 @@ def _rng_state(state: Mapping[str, Any], *, encode: bool) -> dict[str, Any]:
 
 
 def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
+    state = _read_checkpoint(path)
+    found = state["identity"]
+    check_same(
+        {"model": found.get("model"), "data": found.get("data")},
+        {"model": identity["model"], "data": identity["data"]},
+        what=f"checkpoint {path} (model / training data)",
+    )
+    net = dict(found.get("net", {}))
+    if isinstance(net.get("linear"), bool):  # written before the linear skip: True / False
+        net["linear"] = linear_path(net["linear"])
+    check_same(net, identity["net"], what=f"checkpoint {path} (network)")
+    check_same(
+        found.get("options", {}), identity["options"], what=f"checkpoint {path} (training options)"
+    )
+    check_same(found.get("extra", {}), identity["extra"], what=f"checkpoint {path}")
+    return state
+
+
+def _read_checkpoint(path: Path) -> dict[str, Any]:
+    """A canonid training checkpoint (tensors and plain data only), or :class:`CheckpointError`
+    naming what is wrong with the file."""
     if not path.is_file():
         raise CheckpointError(f"no checkpoint to resume from: {path} does not exist")
     try:
@@ -1005,20 +1028,6 @@ def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
         ) from exc
     if not isinstance(state, dict) or state.get("version") != CHECKPOINT_VERSION:
         raise CheckpointError(f"{path} is not a canonid training checkpoint (version)")
-    found = state.get("identity")
-    if not isinstance(found, Mapping):
+    if not isinstance(state.get("identity"), Mapping):
         raise CheckpointError(f"{path} is not a canonid training checkpoint (no identity)")
-    check_same(
-        {"model": found.get("model"), "data": found.get("data")},
-        {"model": identity["model"], "data": identity["data"]},
-        what=f"checkpoint {path} (model / training data)",
-    )
-    net = dict(found.get("net", {}))
-    if isinstance(net.get("linear"), bool):  # written before the linear skip: True / False
-        net["linear"] = linear_path(net["linear"])
-    check_same(net, identity["net"], what=f"checkpoint {path} (network)")
-    check_same(
-        found.get("options", {}), identity["options"], what=f"checkpoint {path} (training options)"
-    )
-    check_same(found.get("extra", {}), identity["extra"], what=f"checkpoint {path}")
     return state

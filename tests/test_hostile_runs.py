@@ -20,7 +20,7 @@ import casadi as ca
 import numpy as np
 import pytest
 from cli_helpers import one_line_error
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_siso, trajectories
 
@@ -382,6 +382,9 @@ def _commands(run: Path) -> dict[str, list[str]]:
     mutations=st.lists(_mutations, min_size=1, max_size=3),
     command=st.sampled_from(["evaluate", "export", "analyze", "resume"]),
 )
+# found by hypothesis: the cubic test's record is read from the checkpoint before training
+@example(mutations=[("bytes", "checkpoint.pt", b"")], command="resume")
+@example(mutations=[("symlink", "checkpoint.pt")], command="resume")
 def test_random_hostile_run_folders_never_give_a_traceback_or_write_outside(
     root, mutations, command, capsys
 ):
