@@ -87,6 +87,7 @@ PAPER_NET_OPTIONS: dict[str, dict[str, Any]] = {
         "residual": True,
         "feedthrough": False,
         "linear": "off",
+        "cubic": 0,  # the paper's model has no cubic branch (and runs no test for one)
     },
 }
 

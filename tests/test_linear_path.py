@@ -192,13 +192,15 @@ def test_option_sets_are_named_once():
     assert net_options("mlp", paper=True) == PAPER_NET_OPTIONS["mlp"]
     assert net_options("mlp", {"linear": "off"})["linear"] == "off"
     assert net_options("classic-gru") == {}
-    # the authors' code: increment output, no feedthrough, ReLU, 3 × 256, no affine path
+    # the authors' code: increment output, no feedthrough, ReLU, 3 × 256, no affine path, no
+    # cubic branch
     assert PAPER_NET_OPTIONS["mlp"] == {
         "hidden": [256, 256, 256],
         "activation": "relu",
         "residual": True,
         "feedthrough": False,
         "linear": "off",
+        "cubic": 0,
     }
 
 
@@ -287,7 +289,9 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
         == 0
     )
     net = json.loads((tmp_path / "p" / "config.json").read_text())["net"]
-    assert {k: net[k] for k in PAPER_NET_OPTIONS["mlp"]} == PAPER_NET_OPTIONS["mlp"]
+    assert {k: net.get(k, 0) for k in PAPER_NET_OPTIONS["mlp"]} == PAPER_NET_OPTIONS["mlp"]
+    paper_info = json.loads((tmp_path / "p" / "config.json").read_text())["info"]
+    assert "cubic_test" not in paper_info  # the paper's model runs no cubic test
     out = tmp_path / "a"
     assert main(["train", *common, "--model", "arx", "--out", str(out)]) == 0
     assert "arx: least_squares after 0 epochs" in capsys.readouterr().out
