@@ -548,7 +548,9 @@ def main(argv: list[str] | None = None) -> int:
         for system in args.systems:
             decide(system)
     elif args.command == "collect":
-        args.out.write_text(json.dumps(collect(args.directory), indent=1) + "\n")
+        from canonid.kernel.io import atomic_write_text
+
+        atomic_write_text(args.out, json.dumps(collect(args.directory), indent=1) + "\n")
     elif args.command == "record":
         return record(args.files)
     else:
