@@ -7,7 +7,8 @@ Every estimate says whether it is a lower bound, an upper bound or an estimate
 * :mod:`canonid.analysis.lipschitz` — γ_f / γ_h (sampled lower bound, certified upper bound);
 * :mod:`canonid.analysis.observability` — α_ℓ (sampled upper bounds, certified lower bound);
 * :mod:`canonid.analysis.linear` — closed forms for linear systems (the oracle);
-* :mod:`canonid.analysis.bound` — Proposition 2 and its Monte-Carlo check;
+* :mod:`canonid.analysis.bound` — Proposition 2, its Monte-Carlo check and its value along
+  recorded trajectories;
 * :mod:`canonid.analysis.learned` — residual and state-probe checks of learned regressors;
 * :mod:`canonid.analysis.report` — everything for a range of windows, JSON, table, figure.
 
@@ -26,6 +27,8 @@ from canonid.kernel.lazy import lazy_exports
 _EXPORTS = {
     "BoundCheck": "canonid.analysis.bound",
     "BoundConstants": "canonid.analysis.bound",
+    "TrajectoryBound": "canonid.analysis.bound",
+    "bound_along": "canonid.analysis.bound",
     "check_bound": "canonid.analysis.bound",
     "Bracket": "canonid.analysis.estimate",
     "Budget": "canonid.analysis.estimate",

@@ -15,13 +15,17 @@ Consequence used for learned models (paper §III-B): ``y_t = h(x̂_t, u_t) + ξ_
 ``‖ξ_t‖ ≤ ‖w_t‖ + γ_h ‖x̂_t − x_t‖ ≤ ‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{−1}‖w̄‖``. The paper writes this
 level without the factor 2 of Proposition 2; the factor is kept here (it is what the proof gives
 for a general argmin; for a linear system's least-squares estimate the factor 1 already holds).
+
+Along recorded trajectories (:func:`bound_along`): the bound of every window of ℓ samples of a
+recorded noise sequence, marked where the premises hold (the state at the window's start in X, the
+window's inputs in U), and the reason when a constant makes it infinite.
 """
 
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,7 +39,7 @@ from canonid.kernel.errors import SetError, ShapeError
 from canonid.models.base import System
 from canonid.models.sets import Box
 
-__all__ = ["BoundCheck", "BoundConstants", "check_bound"]
+__all__ = ["BoundCheck", "BoundConstants", "TrajectoryBound", "bound_along", "check_bound"]
 
 _QUANTILES = (0.5, 0.9, 0.99, 1.0)
 
@@ -88,6 +92,23 @@ class BoundConstants:
         if math.isinf(self.factor):
             return np.where(w > 0, np.inf, 0.0)
         return 2.0 * self.factor * w
+
+    def why_infinite(self) -> str | None:
+        """Why ``2 γ_f^ℓ α_ℓ^{−1}`` is infinite — which constant, and how it was obtained — or
+        ``None`` when the factor is finite."""
+        if self.alpha.value <= 0:
+            return (
+                f"α_{self.window} has the {self.alpha.kind} bound 0 ({self.alpha.method}): "
+                "the window's outputs do not separate the states"
+            )
+        if not math.isfinite(self.gamma_f.value):
+            why = self.gamma_f.details.get("why")
+            return f"γ_f has no finite {self.gamma_f.kind} bound ({self.gamma_f.method})" + (
+                f": {why}" if why else ""
+            )
+        if math.isinf(self.factor):
+            return f"γ_f^{self.window} = {self.gamma_f.value:.4g}^{self.window} overflows float64"
+        return None
 
     def residual_level(self, w_now: np.ndarray, w_window: np.ndarray) -> np.ndarray:
         """``‖w_t‖ + 2 γ_h γ_f^ℓ α_ℓ^{−1}‖w̄_{t−ℓ|t−1}‖`` (needs ``gamma_h``)."""
@@ -189,6 +210,124 @@ class BoundCheck:
             seconds=float(data.get("seconds", 0.0)),
             settings=dict(data.get("settings", {})),
         )
+
+
+@dataclass(frozen=True)
+class TrajectoryBound:
+    """Proposition 2's bound along recorded trajectories (:func:`bound_along`).
+
+    One entry per window start ``j`` of each trajectory, in order (trajectory by trajectory):
+    the window holds the samples ``j … j+ℓ−1`` and the bound is on the error of the estimate of
+    the state at sample ``j+ℓ``.
+
+    Attributes:
+        constants: the constants used.
+        trajectory: the index of the trajectory of each window.
+        start: ``j`` within its trajectory.
+        noise_norms: ``‖w̄_{j|j+ℓ−1}‖`` (Euclidean norm of the stacked noise of the window).
+        bounds: ``2 γ_f^ℓ α_ℓ^{−1}‖w̄‖`` (``inf`` where the factor is infinite and ``w̄ ≠ 0``).
+        applies: where the premises hold — ``x_j ∈ X`` (the argmin is over X) and
+            ``u_j … u_{j+ℓ−1} ∈ U`` — when states and inputs were given; ``True`` otherwise.
+    """
+
+    constants: BoundConstants
+    trajectory: np.ndarray
+    start: np.ndarray
+    noise_norms: np.ndarray
+    bounds: np.ndarray
+    applies: np.ndarray
+
+    @property
+    def infinite(self) -> str | None:
+        """Why the bound is infinite (:meth:`BoundConstants.why_infinite`), or ``None``."""
+        return self.constants.why_infinite()
+
+    def summary(self) -> dict[str, Any]:
+        """Median and largest bound and ``‖w̄‖`` over the windows where the premises hold
+        (bounds ``None`` when infinite, with the reason in ``infinite``); JSON-ready."""
+        ok = self.applies
+        b, w = self.bounds[ok], self.noise_norms[ok]
+        finite = b.size > 0 and bool(np.all(np.isfinite(b)))
+        return {
+            "window": self.constants.window,
+            "windows": int(self.applies.size),
+            "windows_applied": int(np.count_nonzero(ok)),
+            "certified": self.constants.certified,
+            "factor": self.constants.factor if math.isfinite(self.constants.factor) else None,
+            "infinite": self.infinite,
+            "bound_median": float(np.median(b)) if finite else None,
+            "bound_max": float(np.max(b)) if finite else None,
+            "noise_norm_median": float(np.median(w)) if w.size else None,
+            "noise_norm_max": float(np.max(w)) if w.size else None,
+            "constants": self.constants.to_dict(),
+        }
+
+
+def bound_along(
+    constants: BoundConstants,
+    noise: Sequence[np.ndarray],
+    *,
+    states: Sequence[np.ndarray] | None = None,
+    inputs: Sequence[np.ndarray] | None = None,
+    X: Box | None = None,
+    U: Box | None = None,
+) -> TrajectoryBound:
+    """Proposition 2's bound ``2 γ_f^ℓ α_ℓ^{−1}‖w̄_{j|j+ℓ−1}‖`` along recorded trajectories.
+
+    Args:
+        constants: the constants (certified ones make a bound: :attr:`BoundConstants.certified`).
+        noise: per trajectory, the measurement noise ``w_k`` of its samples, ``(T, n_y)``
+            (``y_k = h(x_k, u_k) + w_k``); the windows are ``w_j … w_{j+ℓ−1}`` for
+            ``j = 0 … T−ℓ`` (none when ``T < ℓ``).
+        states, inputs: per trajectory, the true states ``x_k`` and the inputs ``u_k`` of the
+            same samples (at least ``T`` rows from sample 0), with ``X``, ``U``: a window
+            applies where ``x_j ∈ X`` and ``u_j … u_{j+ℓ−1} ∈ U`` (the proposition's premises).
+            Without them every window applies.
+    """
+    ell = constants.window
+    if (states is None) != (X is None) or (inputs is None) != (U is None):
+        raise ShapeError("give states with X and inputs with U (or neither of a pair)")
+    for name, given in (("states", states), ("inputs", inputs)):
+        if given is not None and len(given) != len(noise):
+            raise ShapeError(f"{name}: {len(given)} trajectories for {len(noise)} of noise")
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("traj", "start", "norm", "ok")}
+    for i, w in enumerate(noise):
+        w = np.asarray(w, dtype=np.float64)
+        if w.ndim != 2:
+            raise ShapeError(f"noise of trajectory {i} must be (T, n_y), got {w.shape}")
+        starts = np.arange(max(w.shape[0] - ell + 1, 0))
+        # window j stacks the rows j … j+ℓ−1: its norm is √(Σ of the rows' squared norms)
+        squares = np.sum(w**2, axis=1)
+        norms = np.sqrt(np.array([squares[j : j + ell].sum() for j in starts]))
+        ok = np.ones(starts.size, dtype=bool)
+        if states is not None and X is not None:
+            x = np.asarray(states[i], dtype=np.float64)
+            if x.ndim != 2 or x.shape[0] < w.shape[0] or x.shape[1] != X.dim:
+                raise ShapeError(
+                    f"states of trajectory {i} must be (>= {w.shape[0]}, {X.dim}), got {x.shape}"
+                )
+            ok &= np.all((x[starts] >= X.lo) & (x[starts] <= X.hi), axis=1)
+        if inputs is not None and U is not None:
+            u = np.asarray(inputs[i], dtype=np.float64)
+            if u.ndim != 2 or u.shape[0] < w.shape[0] or u.shape[1] != U.dim:
+                raise ShapeError(
+                    f"inputs of trajectory {i} must be (>= {w.shape[0]}, {U.dim}), got {u.shape}"
+                )
+            inside = np.all((u >= U.lo) & (u <= U.hi), axis=1)
+            ok &= np.array([bool(inside[j : j + ell].all()) for j in starts], dtype=bool)
+        parts["traj"].append(np.full(starts.size, i))
+        parts["start"].append(starts)
+        parts["norm"].append(norms)
+        parts["ok"].append(ok)
+    norms = np.concatenate(parts["norm"]) if parts["norm"] else np.zeros(0)
+    return TrajectoryBound(
+        constants=constants,
+        trajectory=np.concatenate(parts["traj"]) if parts["traj"] else np.zeros(0, dtype=int),
+        start=np.concatenate(parts["start"]) if parts["start"] else np.zeros(0, dtype=int),
+        noise_norms=norms,
+        bounds=constants.bound(norms),
+        applies=np.concatenate(parts["ok"]) if parts["ok"] else np.zeros(0, dtype=bool),
+    )
 
 
 def check_bound(
