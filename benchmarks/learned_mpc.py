@@ -26,6 +26,17 @@ for that many steps, beside the Gauss-Newton one (the cost before the option exi
 learned tank model's γ_f bracket on its training hull (:mod:`canonid.analysis.certify`) beside the
 true tank's on its X.
 
+Beside the drone loops (per ``--drone-run``; ``--theory-seconds 0`` leaves it out), the theory
+(:func:`loop_theory`): γ_f of the learned model in its window state z on the box hull of the
+windows ``z_t`` and inputs ``u_t`` its NMPC loops visit and on its training hull (sampled lower
+bound, certified branch-and-bound upper bound within ``--gamma-seconds`` per stage, certified
+layer-norm upper bound); and Proposition 2 for the true drone's state estimated from each window
+of ℓ measured outputs of those loops, ``‖x̂_t − x_t‖ ≤ 2 γ_f^ℓ α_ℓ^{−1}‖w̄_{t−ℓ|t−1}‖``, with the
+certified constants of ``canonid analyze drone2d`` (γ_f upper bound on the box reachable from X
+in ℓ − 1 steps × U, α_ℓ lower bound on X × U^ℓ; ``--theory-seconds`` per certified stage) and the
+loops' recorded noise, over the windows whose premises hold (``x_{t−ℓ}`` in X, the inputs in U);
+set beside it the measured ``‖w̄‖`` and the learned model's one-step output error.
+
 The step responses of ``Case.judged`` (drone: px and θ after a rotor difference) are also run from
 rest (hover) and judged: learned / true change in [0.7, 1.3] is the true sign within 30 %.
 
@@ -50,14 +61,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # this checkout's 
 import numpy as np
 from _results import write_section
 
+from canonid.analysis.bound import bound_along
 from canonid.analysis.certify import learned_gamma
 from canonid.analysis.estimate import Budget
 from canonid.analysis.lipschitz import lipschitz_bracket
+from canonid.analysis.report import analyze
 from canonid.datagen.controllers.nmpc import NMPC
 from canonid.learned import learned_system
 from canonid.models.base import System
 from canonid.models.drone2d import Drone2D
 from canonid.models.learned import LearnedSystem
+from canonid.models.sets import Box
 from canonid.models.tank import Tank
 from canonid.profiles import PROFILES
 
@@ -174,10 +188,28 @@ def controller(system: System, case: Case, solver: str, hessian: str) -> NMPC:
     )
 
 
-def closed_loop(nmpc: NMPC, case: Case, flight, ell: int, steps: int, *, learned, noise, rng):
-    """Track the reference's first ``n_y`` columns from sample ℓ for ``steps`` samples; returns
-    the clean outputs ``(steps, n_y)``, the applied inputs, the per-solve records and the
-    measured outputs ``(ℓ + steps, n_y)`` (the recorded first ℓ, then the loop's, with noise)."""
+@dataclass
+class Loop:
+    """One closed loop, sample by sample: loop step ``k = 0 … steps−1`` applies ``u[k]`` to the
+    true state ``x[k]`` (``x[0]``: the recorded state at sample ℓ) and measures
+    ``y_meas[ℓ + k] = y[k] + noise[k]`` with ``y[k] = h(x[k], u[k])``; ``z[k]`` is the window of
+    the ℓ inputs and measured outputs before step ``k`` (``y_meas[k … k+ℓ−1]``, the learned
+    model's state; recorded samples for ``k < ℓ``)."""
+
+    y: np.ndarray  # clean outputs (steps, n_y)
+    u: np.ndarray  # applied inputs (steps, n_u)
+    infos: list[dict[str, Any]]
+    y_meas: np.ndarray  # measured outputs (ℓ + steps, n_y): the recorded first ℓ, then the loop's
+    x: np.ndarray  # true states (steps, n_x), before each step
+    z: np.ndarray  # windows (steps, ℓ (n_u + n_y)), canonical ordering
+    noise: np.ndarray  # the loop's measurement noise (steps, n_y)
+
+
+def closed_loop(
+    nmpc: NMPC, case: Case, flight, ell: int, steps: int, *, learned, noise, rng
+) -> Loop:
+    """Track the reference's first ``n_y`` columns from sample ℓ for ``steps`` samples (the
+    learned model's NMPC is fed the window ``z``, the true model's the state ``x``)."""
     true = case.system
     ref = flight.reference[ell : ell + steps, : true.n_y]
     u_hist = list(flight.u[:ell])
@@ -188,21 +220,41 @@ def closed_loop(nmpc: NMPC, case: Case, flight, ell: int, steps: int, *, learned
         return np.concatenate([u_hist[-ell:], y_hist[-ell:]], axis=1).ravel()
 
     nmpc.reset(ref, state() if learned else x)
-    ys, us, infos = [], [], []
+    ys, us, xs, zs, ws, infos = [], [], [], [], [], []
     left = None  # the first step at which the true state is outside the system's X
     for k in range(steps):
-        step = nmpc(k, state() if learned else x)
+        z = state()
+        step = nmpc(k, z if learned else x)
         infos.append({"ok": step.ok, **step.info})
         y_clean = true.output(x, step.u)
+        w = rng.uniform(noise.lo, noise.hi)
         ys.append(y_clean)
         us.append(step.u)
+        xs.append(x)
+        zs.append(z)
+        ws.append(w)
         u_hist.append(step.u)
-        y_hist.append(y_clean + rng.uniform(noise.lo, noise.hi))
+        y_hist.append(y_clean + w)
         x = true.step(x, step.u)
         if case.envelope and left is None and not true.X.contains(x):
             left = k + 1
     infos[-1]["left_X"] = left
-    return np.array(ys), np.array(us), infos, np.array(y_hist)
+    return Loop(
+        np.array(ys),
+        np.array(us),
+        infos,
+        np.array(y_hist),
+        np.array(xs),
+        np.array(zs),
+        np.array(ws),
+    )
+
+
+def visited_hull(loops: list[Loop]) -> tuple[Box, Box]:
+    """The box hulls of the windows ``z_t`` and of the inputs ``u_t`` visited along ``loops``."""
+    z = np.concatenate([loop.z for loop in loops])
+    u = np.concatenate([loop.u for loop in loops])
+    return Box(z.min(axis=0), z.max(axis=0)), Box(u.min(axis=0), u.max(axis=0))
 
 
 def open_loop_errors(
@@ -317,6 +369,83 @@ def learned_of(run_dir: Path, case: Case):
     return run, learned
 
 
+def with_sets(learned: LearnedSystem, X: Box, U: Box) -> LearnedSystem:
+    """The same learned model with the sets ``X`` (of its window state) and ``U``."""
+    return LearnedSystem(
+        learned.network,
+        dt=learned.dt,
+        input_names=learned.input_names,
+        output_names=learned.output_names,
+        X=X,
+        U=U,
+        W=learned.W,
+    )
+
+
+def loop_theory(
+    case: Case, trained: LearnedSystem, learned: LearnedSystem, loops: list[Loop], args
+) -> dict[str, Any]:
+    """The theory beside the learned-model NMPC's ``loops``: γ_f of the learned model on the box
+    hull of the windows and inputs they visit and on its training hull (``trained``'s sets), and
+    Proposition 2's bound on the true system's state estimate from each window of ℓ of the
+    loops' measured outputs, with the certified constants of ``canonid analyze`` (γ_f upper
+    bound on the hull reachable from X in ℓ − 1 steps × U, α_ℓ lower bound on X × U^ℓ)."""
+    t0 = time.perf_counter()
+    true, ell = case.system, learned.regressor.window
+    z_box, u_box = visited_hull(loops)
+    budget = Budget(seconds=args.gamma_seconds)
+    gammas = {
+        where: learned_gamma(with_sets(learned, X, U), budget=budget)
+        for where, X, U in (("loops", z_box, u_box), ("training hull", trained.X, trained.U))
+    }
+    # as `canonid analyze --budget S`: each stage stops at S seconds, not at a box count
+    budget = Budget(seconds=args.theory_seconds, boxes=10**9)
+    report = analyze(true, [ell], trials=0, budget=budget)
+    result = next(r for r in report.results if r.window == ell)
+    along = bound_along(
+        report.constants(ell),
+        [loop.noise for loop in loops],
+        states=[loop.x for loop in loops],
+        inputs=[loop.u for loop in loops],
+        X=true.X,
+        U=true.U,
+    )
+    # the learned model's one-step output error ‖Ĥ(z_k, u_k) − y_k‖ at the steps with x_k ∈ X
+    errors = []
+    for loop in loops:
+        predicted = np.asarray(learned.h.map(len(loop.u))(loop.z.T, loop.u.T)).T
+        inside = np.all((loop.x >= true.X.lo) & (loop.x <= true.X.hi), axis=1)
+        errors.append(np.linalg.norm(predicted - loop.y, axis=1)[inside])
+    error = np.concatenate(errors)
+    return {
+        "region": {
+            "z": z_box.to_dict(),
+            "u": u_box.to_dict(),
+            "samples": int(sum(len(loop.u) for loop in loops)),
+        },
+        "gamma_learned": {where: g.to_dict() for where, g in gammas.items()},
+        "gamma_seconds": args.gamma_seconds,
+        "true": {
+            "window": ell,
+            "gamma_f": {
+                "lower": result.gamma_f.lower.to_dict(),
+                "upper": result.gamma_f.upper.to_dict(),
+            },
+            "alpha": {"lower": result.alpha.lower.to_dict(), "upper": result.alpha.upper.to_dict()},
+            "hull": None if result.hull is None else result.hull.to_dict(),
+            "limitations": report.limitations,
+            "seconds_per_stage": args.theory_seconds,
+        },
+        "bound": along.summary(),
+        "one_step_error": {
+            "median": float(np.median(error)) if error.size else None,
+            "max": float(np.max(error)) if error.size else None,
+            "steps": int(error.size),
+        },
+        "seconds": time.perf_counter() - t0,
+    }
+
+
 def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, Any]:
     """Both controllers on the first ``--references`` test references of ``case``."""
     run, learned = learned_of(run_dir, case)
@@ -325,6 +454,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     flights = list(run.dataset.split("test"))[: count or args.references]
     limit = args.drone_steps if case.name == "drone2d" else None
     rows: dict[str, Row] = {}
+    learned_loops: list[Loop] = []  # the learned-model NMPC's loops, for the theory beside them
     for name, system, hessian in (
         ("true model", case.system, "exact"),
         ("learned model", learned, args.hessian),
@@ -336,9 +466,12 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
         for i, flight in enumerate(flights):
             steps = min(flight.T - ell, limit or flight.T)
             rng = np.random.default_rng(1000 + i)
-            y, u, infos, y_meas = closed_loop(
+            loop = closed_loop(
                 nmpc, case, flight, ell, steps, learned=system is learned, noise=learned.W, rng=rng
             )
+            if system is learned:
+                learned_loops.append(loop)
+            y, u, infos, y_meas = loop.y, loop.u, loop.infos, loop.y_meas
             u_all = np.vstack([flight.u[:ell], u])
             errors = open_loop_errors(learned, u_all, y_meas, y, infos[-1]["left_X"] or steps)
             if errors is not None:
@@ -376,6 +509,9 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
             "starts": len(true_change),
             "flights": min(5, len(flights)),
         }
+    theory = None
+    if case.name == "drone2d" and args.theory_seconds > 0:
+        theory = loop_theory(case, run.system, learned, learned_loops, args)
     net = learned.regressor
     recipe = json.loads((run_dir / "run.json").read_text())
     return {
@@ -396,6 +532,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
         "rows": {name: {**row.summary(), "envelope": case.envelope} for name, row in rows.items()},
         "outputs": list(case.system.output_names),
         "responses": responses,
+        "theory": theory,
     }
 
 
@@ -411,9 +548,10 @@ def exact_against_gauss_newton(case: Case, run_dir: Path, args) -> dict[str, Any
         nmpc = controller(learned, case, args.solver, hessian)
         build = time.perf_counter() - t0
         rng = np.random.default_rng(1000)
-        y, u, infos, _ = closed_loop(
+        loop = closed_loop(
             nmpc, case, flight, ell, args.exact_steps, learned=True, noise=learned.W, rng=rng
         )
+        y, u, infos = loop.y, loop.u, loop.infos
         inputs[hessian] = u
         out[hessian] = {
             "build_s": build,
@@ -516,6 +654,70 @@ def goals(results: dict[str, Any]) -> list[str]:
     return lines
 
 
+def _num(value: float | None) -> str:
+    return "∞" if value is None or value == float("inf") else f"{value:.4g}"
+
+
+def _gamma_words(g: dict[str, Any]) -> str:
+    """A learned model's γ_f bracket (:meth:`LearnedGamma.to_dict`), each number labelled."""
+    bb = g["branch_and_bound"]
+    stop = bb["details"].get("stop", bb["method"])
+    return (
+        f"sampled lower bound {_num(g['lower']['value'])}; certified upper bounds "
+        f"{_num(bb['value'])} (interval branch-and-bound, {stop}) "
+        f"and {_num(g['layer_norms']['value'])} (product of layer norms, loose)"
+    )
+
+
+def theory_lines(key: str, res: dict[str, Any]) -> list[str]:
+    """The lines on the theory beside the learned-model loops (:func:`loop_theory`)."""
+    th = res["theory"]
+    if th is None:
+        return []
+    ell, true, bound = res["window"], th["true"], th["bound"]
+    gl = th["gamma_learned"]
+    lines = [
+        f"{key}, γ_f of the learned model in its window state z (dim z = "
+        f"{len(th['region']['z']['lower'])}), on the box hull of the windows z_t and inputs u_t "
+        f"that the learned-model NMPC loops visit ({th['region']['samples']} samples): "
+        f"{_gamma_words(gl['loops'])}; on its training hull: "
+        f"{_gamma_words(gl['training hull'])} ({th['gamma_seconds']:g} s per stage).",
+        "",
+    ]
+    gamma, alpha = true["gamma_f"], true["alpha"]
+    head = (
+        f"{key}, Proposition 2 for the true drone's state x̂_t estimated from the window of "
+        f"ℓ = {ell} measured outputs of the learned-model loops (x̂_(t−ℓ) the output-error argmin "
+        f"over the drone's X): α_{ell} certified lower bound {_num(alpha['lower']['value'])} "
+        f"({alpha['lower']['method']}; sampled upper bound {_num(alpha['upper']['value'])}); "
+        f"γ_f certified upper bound {_num(gamma['upper']['value'])} on H_{ell - 1} × U, the box "
+        f"of the states reachable from X in {ell - 1} steps (sampled lower bound "
+        f"{_num(gamma['lower']['value'])}); {true['seconds_per_stage']:g} s per certified stage. "
+    )
+    windows = (
+        f"{bound['windows_applied']} of {bound['windows']} noise windows w̄_(t−ℓ|t−1) have "
+        "x_(t−ℓ) ∈ X and the inputs in U (the others are outside the proposition)"
+    )
+    if bound["infinite"] is not None:
+        body = f"The bound is infinite: {bound['infinite']}. {windows}."
+    elif bound["bound_max"] is None:
+        body = f"No window satisfies the premises: {windows}."
+    else:
+        body = (
+            f"Factor 2 γ_f^ℓ / α_ℓ = {2 * bound['factor']:.4g}; {windows}; over them the bound "
+            f"‖x̂_t − x_t‖ ≤ 2 γ_f^ℓ α_ℓ^(−1) ‖w̄‖ (2-norm over the six states, mixed units) is "
+            f"{_num(bound['bound_median'])} (median), {_num(bound['bound_max'])} (max)."
+        )
+    err = th["one_step_error"]
+    measured = (
+        f" Measured beside it: ‖w̄‖ {_num(bound['noise_norm_median'])} (median), "
+        f"{_num(bound['noise_norm_max'])} (max); the learned model's one-step output error "
+        f"‖Ĥ(z_t, u_t) − y_t‖ against the clean outputs {_num(err['median'])} (median), "
+        f"{_num(err['max'])} (max) over the {err['steps']} loop steps with x_t ∈ X."
+    )
+    return [*lines, head + body + measured, ""]
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--run", type=Path, help="an Ours (MLP) or ARX run on tank data")
@@ -540,7 +742,19 @@ def main() -> int:
         help="the learned model's NMPC (default gauss-newton)",
     )
     parser.add_argument("--exact-steps", type=int, default=40)
-    parser.add_argument("--gamma-seconds", type=float, default=30.0)
+    parser.add_argument(
+        "--gamma-seconds",
+        type=float,
+        default=30.0,
+        help="each stage of a learned model's γ_f bracket (sampled lower bound, branch-and-bound)",
+    )
+    parser.add_argument(
+        "--theory-seconds",
+        type=float,
+        default=10.0,
+        help="drone runs: each certified stage of the true drone's constants of Proposition 2 "
+        "(0: no theory beside the drone loops, nor the learned γ_f on them)",
+    )
     parser.add_argument("--json", type=Path, help="also write the numbers here")
     parser.add_argument("--no-write", action="store_true", help="do not touch RESULTS.md")
     parser.add_argument(
@@ -549,6 +763,8 @@ def main() -> int:
         help=f"the RESULTS.md section to write (default {SECTION!r}; another keeps that one)",
     )
     args = parser.parse_args()
+    if not 0 <= args.theory_seconds < float("inf"):  # NaN fails too
+        parser.error(f"--theory-seconds must be a finite number >= 0, got {args.theory_seconds}")
     started = time.perf_counter()
     all_cases = cases()
     results: dict[str, Any] = {}
@@ -606,6 +822,7 @@ def main() -> int:
     ]
     for key, res in results.items():
         lines += model_check(key, res)
+        lines += theory_lines(key, res)
     if exact is not None:
         e, g = exact["exact"], exact["gauss-newton"]
         lines += [

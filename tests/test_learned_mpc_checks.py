@@ -120,3 +120,101 @@ def test_rows_name_the_design_and_the_rollout_length_that_differ_from_the_defaul
     recipe["train_options"]["horizon"] = 10
     assert bench.model_label(recipe) == "mlp, horizon 10"
     assert bench.model_label({**recipe, "model": "arx"}) == "arx"
+
+
+class _Planner:
+    """A stand-in for the NMPC: a fixed input sequence, whatever it is fed."""
+
+    def __init__(self, inputs: np.ndarray) -> None:
+        self.inputs = inputs
+        self.fed: list[np.ndarray] = []  # every state it was fed, the reset's first
+
+    def reset(self, reference, state) -> None:
+        self.fed.append(np.array(state))
+
+    def __call__(self, k: int, state):
+        self.fed.append(np.array(state))
+        return SimpleNamespace(u=self.inputs[k], ok=True, info={})
+
+
+def _loop(bench, rng, seed: int, steps: int = 12):
+    true = LinearSystem([[A]], [[B]], [[1.0]])
+    case = bench.Case("linear", true, [0.0], [1.0], [1.0], [0], "", False, {})
+    flight = _flight(true, rng)
+    flight.reference = np.zeros((flight.T, 1))
+    planner = _Planner(rng.uniform(-1, 1, size=(steps, 1)))
+    noise = Box([-0.1], [0.1])
+    loop = bench.closed_loop(
+        planner, case, flight, 1, steps, learned=True, noise=noise, rng=np.random.default_rng(seed)
+    )
+    return true, case, flight, planner, loop
+
+
+def test_the_loop_records_the_windows_it_feeds_the_states_and_the_noise_it_draws(bench, rng):
+    _, _, flight, planner, loop = _loop(bench, rng, seed=3)
+    steps = len(loop.u)
+    np.testing.assert_array_equal(loop.z, np.array(planner.fed[1:]))  # what the planner was fed
+    # ℓ = 1: z_k = (u, y_meas) of the sample before step k (the recorded one for k = 0)
+    np.testing.assert_array_equal(loop.z[0], [flight.u[0, 0], flight.y[0, 0]])
+    np.testing.assert_array_equal(loop.z[1:, 0], loop.u[:-1, 0])
+    np.testing.assert_array_equal(loop.z[1:, 1], loop.y_meas[1:-1, 0])
+    drawn = np.random.default_rng(3).uniform(-0.1, 0.1, size=(steps, 1))
+    np.testing.assert_array_equal(loop.noise, drawn)
+    np.testing.assert_allclose(loop.y_meas[1:] - loop.y, drawn, atol=1e-15)
+    assert loop.x[0] == flight.x[1]
+    np.testing.assert_allclose(loop.x[1:], A * loop.x[:-1] + B * loop.u[:-1], atol=1e-15)
+    np.testing.assert_allclose(loop.y, loop.x, atol=1e-15)  # y = x, no feedthrough
+
+
+def test_the_visited_hull_is_the_box_of_the_windows_and_inputs_of_all_loops(bench, rng):
+    loops = [_loop(bench, rng, seed)[-1] for seed in (0, 1)]
+    z_box, u_box = bench.visited_hull(loops)
+    z = np.vstack([loop.z for loop in loops])
+    u = np.vstack([loop.u for loop in loops])
+    assert z_box.lower == tuple(z.min(axis=0)) and z_box.upper == tuple(z.max(axis=0))
+    assert u_box.lower == tuple(u.min(axis=0)) and u_box.upper == tuple(u.max(axis=0))
+    single = bench.visited_hull(loops[:1])[0]
+    assert all(a >= b for a, b in zip(single.lower, z_box.lower))  # one loop: a smaller box
+
+
+def test_the_theory_beside_the_loop_gives_the_closed_forms(bench, rng):
+    """ℓ = 1: the learned model's f(z, u) = (u, a y + b u_prev) has γ_f = √(a² + b²) (its
+    sampled and certified bounds bracket it); the true x⁺ = a x + b u, y = x has γ_f = a and
+    α_1 = 1, so the bound of each window is 2 a |w| exactly."""
+    loops, case = [], None
+    for seed in (0, 1):
+        _, case, _, _, loop = _loop(bench, rng, seed)
+        loops.append(loop)
+    args = SimpleNamespace(gamma_seconds=2.0, theory_seconds=2.0)
+    theory = bench.loop_theory(case, _model(), _model(), loops, args)
+    exact = float(np.hypot(A, B))
+    for where in ("loops", "training hull"):
+        g = theory["gamma_learned"][where]
+        assert g["lower"]["value"] <= exact * (1 + 1e-9)
+        assert g["lower"]["value"] >= exact * 0.999  # linear: any sample attains it
+        assert g["branch_and_bound"]["value"] >= exact * (1 - 1e-9)
+    bound = theory["bound"]
+    # the premise x_j ∈ X = [−1, 1]: the windows from states outside do not count
+    inside = np.concatenate([np.abs(loop.x[:, 0]) <= 1.0 for loop in loops])
+    noise = np.concatenate([np.abs(loop.noise[:, 0]) for loop in loops])[inside]
+    assert 0 < inside.sum() < inside.size
+    assert theory["true"]["alpha"]["lower"]["value"] == pytest.approx(1.0)
+    gamma = theory["true"]["gamma_f"]["upper"]["value"]
+    assert gamma == pytest.approx(A, rel=0.05) and gamma >= A
+    assert bound["windows"] == inside.size and bound["windows_applied"] == noise.size
+    assert bound["bound_max"] == pytest.approx(2 * gamma * noise.max(), rel=1e-12)
+    assert bound["noise_norm_median"] == pytest.approx(float(np.median(noise)), rel=1e-12)
+    # the model is the true system: from the measured window its one-step error is a |w_{k−1}|
+    # (0 at k = 0, whose window is the recorded, noise-free sample)
+    errors = np.concatenate([np.r_[0.0, A * np.abs(loop.noise[:-1, 0])] for loop in loops])
+    assert theory["one_step_error"]["steps"] == noise.size
+    assert theory["one_step_error"]["max"] == pytest.approx(errors[inside].max(), rel=1e-12)
+    lines = "\n".join(bench.theory_lines("linear", {"window": 1, "theory": theory}))
+    assert "infinite" not in lines and f"{bound['bound_max']:.4g}" in lines
+    # where a constant makes the bound infinite the text says which, and prints no bound
+    infinite = {**bound, "infinite": "α_1 has the lower bound 0 (trivial)", "factor": None}
+    infinite.update(bound_median=None, bound_max=None)
+    res = {"window": 1, "theory": {**theory, "bound": infinite}}
+    lines = "\n".join(bench.theory_lines("linear", res))
+    assert "The bound is infinite: α_1 has the lower bound 0 (trivial)" in lines
+    assert "Factor" not in lines and f"{bound['bound_max']:.4g}" not in lines
