@@ -97,9 +97,15 @@ class BoundConstants:
         """Why ``2 γ_f^ℓ α_ℓ^{−1}`` is infinite — which constant, and how it was obtained — or
         ``None`` when the factor is finite."""
         if self.alpha.value <= 0:
-            return (
-                f"α_{self.window} has the {self.alpha.kind} bound 0 ({self.alpha.method}): "
+            # an exact 0 is structure (outputs that miss some state); any other 0 is a search
+            # that certified nothing positive
+            what = (
                 "the window's outputs do not separate the states"
+                if self.alpha.method.startswith("exact")
+                else "no positive bound was certified"
+            )
+            return (
+                f"α_{self.window} has the {self.alpha.kind} bound 0 ({self.alpha.method}): {what}"
             )
         if not math.isfinite(self.gamma_f.value):
             why = self.gamma_f.details.get("why")
@@ -280,9 +286,10 @@ def bound_along(
             (``y_k = h(x_k, u_k) + w_k``); the windows are ``w_j … w_{j+ℓ−1}`` for
             ``j = 0 … T−ℓ`` (none when ``T < ℓ``).
         states, inputs: per trajectory, the true states ``x_k`` and the inputs ``u_k`` of the
-            same samples (at least ``T`` rows from sample 0), with ``X``, ``U``: a window
-            applies where ``x_j ∈ X`` and ``u_j … u_{j+ℓ−1} ∈ U`` (the proposition's premises).
-            Without them every window applies.
+            same samples (at least ``T`` rows from sample 0).
+        X, U: the sets of the constants, given with ``states`` and ``inputs``: a window applies
+            where ``x_j ∈ X`` and ``u_j … u_{j+ℓ−1} ∈ U`` (the proposition's premises). Without
+            them every window applies.
     """
     ell = constants.window
     if (states is None) != (X is None) or (inputs is None) != (U is None):

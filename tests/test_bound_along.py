@@ -82,6 +82,11 @@ def test_a_zero_alpha_or_an_infinite_gamma_makes_the_bound_infinite_and_says_whi
     summary = along.summary()
     assert summary["bound_max"] is None and summary["bound_median"] is None
     assert summary["factor"] is None and "α_2" in summary["infinite"]
+    assert "do not separate the states" in summary["infinite"]  # an exact 0: structure
+    searched = BoundConstants(
+        2, no_alpha.gamma_f, Estimate("alpha", 0.0, "lower", {}, "trivial (budget)", window=2)
+    )
+    assert "no positive bound was certified" in (searched.why_infinite() or "")
     no_gamma = BoundConstants(
         2,
         _constant("gamma_f", math.inf, "upper", 2, why="H_1 has no finite certified box"),
