@@ -1,4 +1,5 @@
-"""The datasets the benchmarks train on: generated with ``canonid generate`` when missing."""
+"""The datasets the benchmarks train on (generated with ``canonid generate`` when missing) and the
+systems the validation studies read."""
 
 from __future__ import annotations
 
@@ -17,7 +18,21 @@ DATASETS = {
     "drone2d-id-small": ["drone2d-id", "--n-train", "40", "--n-val", "10", "--n-test", "10"],
 }
 
-__all__ = ["DATA", "DATASETS", "ensure_dataset"]
+#: system → (data source, the window ℓ the defaults chose there: RESULTS.md's sections) for the
+#: validation studies (extrapolation_study.py, weight_decay_study.py); a source is a dataset
+#: folder under the repository root, or "silverbox" (the benchmark, loaded from ``--dir``)
+STUDY_SYSTEMS = {
+    "silverbox": ("silverbox", 10),
+    "tank": ("runs/data/tank-s0", 10),
+    "drone2d": ("runs/data/drone2d-small", 10),
+    "masses": ("runs/data/masses-id", 40),
+    "silverbox-3k": ("runs/small-data/data/n3000", 10),
+    "silverbox-10k": ("runs/small-data/data/n10000", 10),
+    "silverbox-1k": ("runs/small-data/data/n1000", 10),
+    "overflow-tanks": ("runs/data/tanks-overflow", 10),
+}
+
+__all__ = ["DATA", "DATASETS", "STUDY_SYSTEMS", "ensure_dataset"]
 
 
 def ensure_dataset(name: str, path: Path | None = None) -> Path:

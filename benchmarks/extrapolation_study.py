@@ -54,6 +54,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
+from _data import STUDY_SYSTEMS  # noqa: E402
+
 DATA = ROOT / "runs" / "extrapolation-study" / "data"
 DECISIONS = ROOT / "runs" / "extrapolation-study" / "decisions"
 STUDY_FILE = ROOT / "benchmarks" / "studies" / "extrapolation_study.json"
@@ -61,17 +63,6 @@ SECTION = "Extrapolation"
 SCREEN_EPOCH = 60  # the epochs canonid's cubic test trains each network (the screen's share)
 HOLD_OUT = 0.7  # samples above 0.7 × the largest deviation validate: peaks up to 1.43× above
 BEFORE, AFTER = 60, 50  # validation context around a held-out cluster (plus ℓ before)
-#: system → (source, window the defaults chose there: RESULTS.md's sections)
-SOURCES = {
-    "silverbox": ("silverbox", 10),
-    "tank": ("runs/data/tank-s0", 10),
-    "drone2d": ("runs/data/drone2d-small", 10),
-    "masses": ("runs/data/masses-id", 40),
-    "silverbox-3k": ("runs/small-data/data/n3000", 10),
-    "silverbox-10k": ("runs/small-data/data/n10000", 10),
-    "silverbox-1k": ("runs/small-data/data/n1000", 10),
-    "overflow-tanks": ("runs/data/tanks-overflow", 10),
-}
 #: variant → (network options over the defaults, training options over the quick profile,
 #: cubic units (0: none))
 VARIANTS: dict[str, tuple[dict[str, Any], dict[str, Any], int]] = {
@@ -141,7 +132,7 @@ def prepare(directory: Path) -> None:
     from canonid.profiles import train_options
 
     opts = train_options("quick")
-    for name, (source, window) in SOURCES.items():
+    for name, (source, window) in STUDY_SYSTEMS.items():
         if source == "silverbox":
             full = split_train_val(
                 load_benchmark("silverbox", directory), val_fraction=0.2, record_tails=True
@@ -187,7 +178,7 @@ def run(system: str, variant: str, out: Path, deadline: float | None) -> None:
     torch.set_num_threads(1)
     usual = Dataset.load(DATA / system.removesuffix("-x") / "dataset.npz")
     data = Dataset.load(DATA / system / "dataset.npz")
-    window = SOURCES[system.removesuffix("-x")][1]
+    window = STUDY_SYSTEMS[system.removesuffix("-x")][1]
     net_changes, train_changes, cubic = VARIANTS[variant]
     options = {**net_options("mlp", net_changes), "cubic": cubic}
     # feedthrough as the defaults decide it on the usual split, the same for every variant
@@ -267,7 +258,7 @@ def decide(system: str) -> None:
     torch.set_num_threads(1)
     usual = Dataset.load(DATA / system / "dataset.npz")
     train, val = usual.split("train"), usual.split("val")
-    window = SOURCES[system][1]
+    window = STUDY_SYSTEMS[system][1]
     options = net_options("mlp", {"cubic": 0})
     options["feedthrough"] = feedthrough_test(
         train, val, Normalisation.fit(train), window=window
@@ -528,7 +519,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, required=True)
     p.add_argument("--deadline", type=float)
     p = sub.add_parser("decide")
-    p.add_argument("systems", nargs="+", choices=list(SOURCES))
+    p.add_argument("systems", nargs="+", choices=list(STUDY_SYSTEMS))
     p = sub.add_parser("collect")
     p.add_argument("directory", type=Path)
     p.add_argument("--out", type=Path, required=True)
