@@ -31,8 +31,9 @@ rounded upwards.
 A cubic branch ``C (W x + b)³`` (:class:`canonid.kernel.network.CanonicalNet`) has the slope
 ``C diag(3 h²) W``, unbounded on the whole space when some unit with a non-zero column of ``C``
 reads ``z``: a network with one has **no finite global bound**, and ``layer_norms`` is the
-trivial ``∞`` with that reason (an activation without a finite slope bound in
-:data:`canonid.kernel.network.ACTIVATIONS`, the cube, anywhere in the layers likewise). The
+trivial ``∞`` with that reason in its ``method`` and alone in ``details["unbounded"]`` (an
+activation without a finite slope bound in :data:`canonid.kernel.network.ACTIVATIONS`, the cube,
+anywhere in the layers likewise; a GRU regressor, which has no layer-norm bound, too). The
 bracket on X × U is unaffected: the enclosures bound the slope on each box. A branch that does
 not read ``z`` (``C = 0``, as training starts) adds nothing to ``∂f/∂z``, and the bound is the
 network's.
@@ -120,7 +121,7 @@ def layer_norm_bound(system: LearnedSystem) -> Estimate:
     t0 = time.perf_counter()
     net = system.network
     reg = system.regressor
-    why = "a GRU regressor" if reg.recurrent else _unbounded(net)
+    why = "a GRU regressor has no layer-norm bound" if reg.recurrent else _unbounded(net)
     if why is not None:
         return Estimate(
             quantity="gamma_f",
@@ -133,6 +134,7 @@ def layer_norm_bound(system: LearnedSystem) -> Estimate:
                 else f"trivial: no finite global bound ({why})"
             ),
             window=reg.window,
+            details={"unbounded": why},  # the reason alone, for a summary line
         )
     shift = 1.0 if reg.window >= 2 else 0.0
     if isinstance(net, ReducedCanonicalNet):

@@ -393,11 +393,14 @@ def _learned_gamma_line(gamma: Mapping[str, Any]) -> str:
     """The learned model's γ_f bracket in one line (``_learned_gamma_record``'s record)."""
     if not gamma.get("available"):
         return f"γ_f of the learned model: not computed ({gamma.get('why', 'no run')})"
+    # an infinite layer-norm bound says why (its Estimate's details), a finite one that it is loose
+    why = gamma["layer_norms"].get("details", {}).get("unbounded")
+    layer_norms = "product of layer norms" + (f": {why}" if why else ", loose")
     return (
         f"γ_f of the learned model (its state z, dim {gamma['state_dim']}, on the training "
         f"hull): sampled lower bound {_value(gamma['lower'])}, certified upper bound "
         f"{_value(gamma['branch_and_bound'])} (interval branch-and-bound, "
         f"{gamma['branch_and_bound']['details'].get('stop', '')}), "
-        f"{_value(gamma['layer_norms'])} (product of layer norms, loose); so γ_f ≤ "
+        f"{_value(gamma['layer_norms'])} ({layer_norms}); so γ_f ≤ "
         f"{_value({'value': gamma.get('best_upper')})}"
     )

@@ -186,6 +186,10 @@ def test_analyze_run_reports_the_learned_models_gamma_beside_the_true_systems(
         gamma["branch_and_bound"]["value"], gamma["layer_norms"]["value"]
     )
     assert "product of layer norms" in gamma["layer_norms"]["method"]
+    # a finite layer-norm bound: the printed line as before, without a reason
+    bound = gamma["layer_norms"]["value"]
+    assert f"{bound:.4g} (product of layer norms, loose); so γ_f ≤ " in printed
+    assert "unbounded" not in gamma["layer_norms"]["details"]
     # a non-canonical model: the residual check as before, γ_f says why it is missing
     gru = tmp_path / "linear-gru"
     train = ["train", str(data), "--model", "classic-gru", "--window", str(ELL), "--out", str(gru)]

@@ -266,18 +266,20 @@ def test_without_cubic_units_the_export_is_the_plain_networks():
     assert model_function(a).serialize() == model_function(b).serialize()
 
 
-def test_a_trained_cubic_model_saves_loads_and_exports(tmp_path, capsys):
+@pytest.fixture(scope="module")
+def cubic_run(tmp_path_factory):
+    """A library run of Ours (MLP) with 2 cubic units (3 epochs on damped data), its data saved
+    beside it (the library run records no recipe): ``(run, data, model)``."""
     from learning_helpers import damped_split
 
-    from canonid.cli import main
     from canonid.kernel.dataset import Dataset, Trajectory
     from canonid.learning.training import TrainOptions, fit
-    from canonid.models.learned import load_function
 
+    folder = tmp_path_factory.mktemp("cubic")
     train, val = damped_split()
     opts = TrainOptions(epochs=3, batch_size=8, horizon=5, lr=1e-2, device="cpu")
     info = {"dt": 0.5, "input_names": ["u1"], "output_names": ["y1"]}
-    run = tmp_path / "run"
+    run = folder / "run"
     result = fit(
         train,
         val,
@@ -287,7 +289,21 @@ def test_a_trained_cubic_model_saves_loads_and_exports(tmp_path, capsys):
         run_dir=run,
         info=info,
     )
-    trained = result.model
+    as_record = lambda t: Trajectory(u=t.u, y=t.y, y_clean=t.y_clean)  # noqa: E731
+    data = Dataset(
+        splits={"train": tuple(map(as_record, train)), "val": tuple(map(as_record, val))},
+        dt=0.5,
+        input_names=("u1",),
+        output_names=("y1",),
+    ).save(folder / "data" / "dataset.npz")
+    return run, data, result.model
+
+
+def test_a_trained_cubic_model_saves_loads_and_exports(cubic_run, tmp_path, capsys):
+    from canonid.cli import main
+    from canonid.models.learned import load_function
+
+    run, data, trained = cubic_run
     assert trained.net.cubic_out is not None and torch.any(trained.net.cubic_out.weight != 0)
     loaded = Model.load(run)
     assert loaded.net.config()["cubic"] == 2
@@ -295,13 +311,6 @@ def test_a_trained_cubic_model_saves_loads_and_exports(tmp_path, capsys):
     u = np.random.default_rng(1).normal(size=(20, 1))
     np.testing.assert_array_equal(loaded.export().H(z, u), trained.export().H(z, u))
     # `canonid export` of the run on its data (given, as the library run records no recipe)
-    as_record = lambda t: Trajectory(u=t.u, y=t.y, y_clean=t.y_clean)  # noqa: E731
-    data = Dataset(
-        splits={"train": tuple(map(as_record, train)), "val": tuple(map(as_record, val))},
-        dt=0.5,
-        input_names=("u1",),
-        output_names=("y1",),
-    ).save(tmp_path / "data" / "dataset.npz")
     target = tmp_path / "cubic.casadi"
     assert main(["export", str(run), "--casadi", str(target), "--data", str(data)]) == 0
     assert "4 states" in capsys.readouterr().out
@@ -312,3 +321,23 @@ def test_a_trained_cubic_model_saves_loads_and_exports(tmp_path, capsys):
     np.testing.assert_allclose(
         np.asarray(x_next).ravel(), np.concatenate([z[0][2:], u[0], expected]), atol=1e-9
     )
+
+
+def test_analyze_says_why_a_cubic_runs_layer_norm_bound_is_infinite(cubic_run, tmp_path, capsys):
+    """``canonid analyze --run``'s γ_f line names the reason the layer-norm bound is ∞, taken from
+    the Estimate's details; the certified bound on the hull stays finite."""
+    import json
+
+    from canonid.cli import main
+
+    run, data, _ = cubic_run
+    out = tmp_path / "analysis"
+    argv = ["analyze", "--run", str(run), "--data", str(data), "--budget", "30", "--boxes", "40"]
+    assert main([*argv, "--out", str(out), "--no-progress"]) == 0
+    printed = capsys.readouterr().out
+    gamma = json.loads((out / "learned_analysis.json").read_text())["gamma_f"]
+    why = gamma["layer_norms"]["details"]["unbounded"]
+    assert why == "the slope 3 h² of its cubic branch is unbounded on the whole space"
+    assert f"∞ (product of layer norms: {why}); so γ_f ≤ " in printed, printed
+    assert "(product of layer norms, loose)" not in printed
+    assert gamma["layer_norms"]["value"] is None and np.isfinite(gamma["best_upper"])
