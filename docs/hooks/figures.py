@@ -140,6 +140,7 @@ _NO_SKIP = "3e-3, clip 1"
 #: the overflow tanks' full run at ℓ = 10 in the screen lines: the epoch it ended at, of how many
 _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of (\d+)"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
+HORIZON_STUDY = "Training horizon on validation"
 #: the data engine's default controller, a row of the "Data engine" section
 _DATAGEN_DEFAULT = "NMPC, fatrop-c (default)"
 _CANONID_CLUSTER = "canonid (LOCAL_CLUSTER_CONFIG)"
@@ -424,6 +425,18 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             ("pnlss", "PNLSS"),
         )
     },
+    # the same command on an AMD EPYC machine: the cubic test's ratio and the scores there
+    **{
+        f"benchmark/silverbox/amd/{what}": Cell(
+            "Standard benchmarks", _row(CPU="AMD EPYC"), column, pick=pick
+        )
+        for what, column, pick in (
+            ("multisine", "multisine [mV]", 0),
+            ("arrow-full", "arrow-full [mV]", 0),
+            ("arrow-no-extrapolation", "arrow-no-extrapolation [mV]", 0),
+            ("cubic-ratio", "cubic test: branch / plain loss on the held-out peaks", 2),
+        )
+    },
     # that run's CPU minutes, and those of the earlier run with ℓ = 10 given (no window screen)
     "benchmark/silverbox/cpu-min": Prose(
         "Standard benchmarks", r"Wall [\d.]+ min, CPU ([\d.]+) min"
@@ -540,6 +553,36 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "quick/train/batch_size": Code(_quick("train", "batch_size")),
     "quick/train/windows_per_epoch": Code(_quick("train", "windows_per_epoch")),
     "quick/train/lr": Code(_quick("train", "lr")),
+    # the training rollout length on validation (horizon_study.py): H = 10 against H = 50
+    **{
+        f"horizon/{system}/{what}": Cell(HORIZON_STUDY, _row(system=system), column)
+        for system in ("drone2d-id", "drone2d", "tank", "silverbox", "masses")
+        for what, column in (
+            ("ratio", "H = 10 / H = 50"),
+            ("cpu50", "CPU s, H = 50"),
+            ("cpu10", "CPU s, H = 10"),
+        )
+    },
+    **{
+        f"horizon/{system}/ramp": Cell(HORIZON_STUDY, _row(system=system, C="300"), "/ H = 50")
+        for system in ("drone2d-id", "tank")
+    },
+    # the informative drone data's candidates: validation beside the NMPC loop
+    **{
+        f"horizon-loop/{slug}/{what}": Cell(HORIZON_STUDY, _row(run=f"`{run}`"), column)
+        for slug, run in (
+            ("defaults", "runs/drone2d/id-def"),
+            ("h10", "runs/drone2d/id-h10"),
+            ("ramp300", "runs/hz/drone-id-c300"),
+            ("arx", "runs/drone2d/arx-l10-drone2d-id"),
+        )
+        for what, column in (
+            ("val100", "best validation loss (100 samples)"),
+            ("val20", "validation MSE, 20 samples"),
+            ("ratio", "learned / true tracking RMSE"),
+            ("px", "px change, learned / true"),
+        )
+    },
     # NMPC on drone models learned from the paper's and the informative drone data
     # (learned_mpc.py): learned / true tracking RMSE, loops out of X, step-response ratios
     **{
