@@ -662,10 +662,13 @@ def _gamma_words(g: dict[str, Any]) -> str:
     """A learned model's γ_f bracket (:meth:`LearnedGamma.to_dict`), each number labelled."""
     bb = g["branch_and_bound"]
     stop = bb["details"].get("stop", bb["method"])
+    # an infinite layer-norm bound says why (its Estimate's details), a finite one that it is loose
+    why = g["layer_norms"].get("details", {}).get("unbounded")
     return (
         f"sampled lower bound {_num(g['lower']['value'])}; certified upper bounds "
         f"{_num(bb['value'])} (interval branch-and-bound, {stop}) "
-        f"and {_num(g['layer_norms']['value'])} (product of layer norms, loose)"
+        f"and {_num(g['layer_norms']['value'])} (product of layer norms"
+        f"{f': {why}' if why else ', loose'})"
     )
 
 
