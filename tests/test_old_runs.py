@@ -26,8 +26,11 @@ FIXTURES = Path(__file__).resolve().parent / "fixtures" / "pre-namespace"
 EXPECTED = json.loads((FIXTURES / "expected.json").read_text(encoding="utf-8"))
 CSV_OPTIONS = ["--inputs", "u", "--outputs", "y", "--dt", "1", "--experiment-column", "run"]
 #: same weights, same data and the same arithmetic: equal up to the order of floating-point
-#: operations (the numbers agree to the last bit today)
+#: operations (the numbers agree to the last bit on the machine that wrote the fixtures)
 RTOL = 1e-9
+#: the networks' float32 arithmetic: the CPU's matrix kernels differ between CPUs (an AMD EPYC
+#: reproduces the fixtures' predictions to 1.7e-6 and their scores to 5e-9, relative)
+RTOL_NETWORK = 1e-5
 
 
 @pytest.fixture
@@ -61,7 +64,7 @@ def test_saved_models_predict_what_they_predicted(old, name, folder):
     assert model.window == expected["window"]
     test = Dataset.load(old / "data").split("test")[0]
     y = model.simulate(test.u, test.y[: model.window])
-    np.testing.assert_allclose(y[:, 0], expected["y"], rtol=RTOL, atol=0)
+    np.testing.assert_allclose(y[:, 0], expected["y"], rtol=RTOL_NETWORK, atol=0)
 
 
 @pytest.mark.parametrize("data", ["dataset", "csv"])
@@ -74,7 +77,7 @@ def test_evaluate_scores_the_old_run_as_the_old_code_did(old, data, capsys):
     expected = EXPECTED["evaluate"][data]
     assert metrics["data"]["n_trajectories"] == expected["n_trajectories"]
     for key in ("rollout_mse", "rmse", "nrmse", "fit_percent"):
-        assert metrics[key] == pytest.approx(expected[key], rel=RTOL), key
+        assert metrics[key] == pytest.approx(expected[key], rel=RTOL_NETWORK), key
 
 
 def test_training_resumes_from_the_old_checkpoint(old, capsys):
