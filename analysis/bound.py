@@ -313,14 +313,14 @@ def bound_along(
                 raise ShapeError(
                     f"states of trajectory {i} must be (>= {w.shape[0]}, {X.dim}), got {x.shape}"
                 )
-            ok &= np.all((x[starts] >= X.lo) & (x[starts] <= X.hi), axis=1)
+            ok &= X.contains_rows(x[starts])
         if inputs is not None and U is not None:
             u = np.asarray(inputs[i], dtype=np.float64)
             if u.ndim != 2 or u.shape[0] < w.shape[0] or u.shape[1] != U.dim:
                 raise ShapeError(
                     f"inputs of trajectory {i} must be (>= {w.shape[0]}, {U.dim}), got {u.shape}"
                 )
-            inside = np.all((u >= U.lo) & (u <= U.hi), axis=1)
+            inside = U.contains_rows(u)
             ok &= np.array([bool(inside[j : j + ell].all()) for j in starts], dtype=bool)
         parts["traj"].append(np.full(starts.size, i))
         parts["start"].append(starts)
@@ -381,7 +381,7 @@ def check_bound(
         pool = np.asarray(states, dtype=np.float64)
         if pool.ndim != 2 or pool.shape[1] != system.n_x or pool.shape[0] == 0:
             raise ShapeError(f"states must have shape (M, {system.n_x}), got {pool.shape}")
-        outside = ~np.all((pool >= X.lo) & (pool <= X.hi), axis=1)
+        outside = ~X.contains_rows(pool)
         if outside.any():
             raise SetError(
                 f"{int(outside.sum())} of {pool.shape[0]} given states lie outside X = {X}; "

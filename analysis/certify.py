@@ -46,7 +46,7 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,7 +60,7 @@ from canonid.analysis.network_enclosure import network_enclosure
 from canonid.kernel.network import ACTIVATIONS, CanonicalNet, Layer, ReducedCanonicalNet
 from canonid.models.learned import LearnedSystem
 
-__all__ = ["LearnedGamma", "layer_norm_bound", "learned_gamma"]
+__all__ = ["LearnedGamma", "layer_norm_bound", "layer_norm_words", "learned_gamma"]
 
 Progress = Callable[[str, float], None]
 
@@ -158,6 +158,13 @@ def layer_norm_bound(system: LearnedSystem) -> Estimate:
         seconds=time.perf_counter() - t0,
         details={"shift_norm": shift, **parts},
     )
+
+
+def layer_norm_words(layer_norms: Mapping[str, Any]) -> str:
+    """How a summary line names the layer-norm bound (:meth:`Estimate.to_dict` of
+    :func:`layer_norm_bound`): with the reason where it is infinite, else as loose."""
+    why = layer_norms.get("details", {}).get("unbounded")
+    return "product of layer norms" + (f": {why}" if why else ", loose")
 
 
 @dataclass(frozen=True)

@@ -124,7 +124,7 @@ def _quantiles(values: np.ndarray) -> dict[str, float | None]:
 def _in_set(points: np.ndarray | None, box: Box | None, count: int) -> np.ndarray:
     if points is None or box is None:
         return np.ones(count, dtype=bool)
-    return np.all((points >= box.lo) & (points <= box.hi), axis=1)
+    return box.contains_rows(points)
 
 
 @dataclass(frozen=True)

@@ -44,6 +44,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _results import write_section  # noqa: E402
 
+from canonid.kernel.io import atomic_write_json  # noqa: E402
+
 OUT = ROOT / "runs" / "horizon-study"
 SECTION = "Training horizon on validation"
 HORIZONS = (50, 10)
@@ -108,7 +110,7 @@ def run(system: str, horizon: int) -> None:
     subprocess.run([sys.executable, "-m", "canonid", *cmd[1:]], check=True, cwd=ROOT, env=env)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-    (OUT / f"{system}-h{horizon}.json").write_text(json.dumps({"cpu_seconds": cpu}))
+    atomic_write_json(OUT / f"{system}-h{horizon}.json", {"cpu_seconds": cpu})
 
 
 def _defaults_net(train, val, window: int) -> dict:
@@ -144,11 +146,13 @@ def ramp(system: str, curriculum: int) -> None:
         train_options("quick", device="cpu"), curriculum_epochs=curriculum
     )
     out = OUT / f"{system}-ramp{curriculum}"
+    if out.exists():  # a recorded run is not trained over
+        sys.exit(f"horizon_study.py ramp: {out} exists; move it away to train it again")
     cpu0 = time.process_time()
     fit(train, val, model="mlp", window=window, options=options,
         net_options=_defaults_net(train, val, window), run_dir=out)  # fmt: skip
-    (OUT / f"{system}-ramp{curriculum}.json").write_text(
-        json.dumps({"cpu_seconds": time.process_time() - cpu0})
+    atomic_write_json(
+        OUT / f"{system}-ramp{curriculum}.json", {"cpu_seconds": time.process_time() - cpu0}
     )
 
 

@@ -62,7 +62,7 @@ import numpy as np
 from _results import write_section
 
 from canonid.analysis.bound import bound_along
-from canonid.analysis.certify import learned_gamma
+from canonid.analysis.certify import layer_norm_words, learned_gamma
 from canonid.analysis.estimate import Budget
 from canonid.analysis.lipschitz import lipschitz_bracket
 from canonid.analysis.report import analyze
@@ -357,16 +357,8 @@ def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
 
 def learned_of(run_dir: Path, case: Case):
     run = learned_system(run_dir)
-    learned = LearnedSystem(
-        run.system.network,
-        dt=run.system.dt,
-        input_names=run.system.input_names,
-        output_names=run.system.output_names,
-        X=run.system.X,
-        U=case.system.U,  # the same input bounds for both controllers
-        W=run.system.W,
-    )
-    return run, learned
+    # the same input bounds for both controllers
+    return run, with_sets(run.system, run.system.X, case.system.U)
 
 
 def with_sets(learned: LearnedSystem, X: Box, U: Box) -> LearnedSystem:
@@ -376,9 +368,12 @@ def with_sets(learned: LearnedSystem, X: Box, U: Box) -> LearnedSystem:
         dt=learned.dt,
         input_names=learned.input_names,
         output_names=learned.output_names,
+        input_units=learned.input_units,
+        output_units=learned.output_units,
         X=X,
         U=U,
         W=learned.W,
+        name=learned.name,
     )
 
 
@@ -414,7 +409,7 @@ def loop_theory(
     errors = []
     for loop in loops:
         predicted = np.asarray(learned.h.map(len(loop.u))(loop.z.T, loop.u.T)).T
-        inside = np.all((loop.x >= true.X.lo) & (loop.x <= true.X.hi), axis=1)
+        inside = true.X.contains_rows(loop.x)
         errors.append(np.linalg.norm(predicted - loop.y, axis=1)[inside])
     error = np.concatenate(errors)
     return {
@@ -662,13 +657,10 @@ def _gamma_words(g: dict[str, Any]) -> str:
     """A learned model's γ_f bracket (:meth:`LearnedGamma.to_dict`), each number labelled."""
     bb = g["branch_and_bound"]
     stop = bb["details"].get("stop", bb["method"])
-    # an infinite layer-norm bound says why (its Estimate's details), a finite one that it is loose
-    why = g["layer_norms"].get("details", {}).get("unbounded")
     return (
         f"sampled lower bound {_num(g['lower']['value'])}; certified upper bounds "
         f"{_num(bb['value'])} (interval branch-and-bound, {stop}) "
-        f"and {_num(g['layer_norms']['value'])} (product of layer norms"
-        f"{f': {why}' if why else ', loose'})"
+        f"and {_num(g['layer_norms']['value'])} ({layer_norm_words(g['layer_norms'])})"
     )
 
 
@@ -848,7 +840,8 @@ def main() -> int:
             f"sampled lower bound {gamma.bracket.lower.value:.4g}; certified upper bounds "
             f"{gamma.bracket.upper.value:.4g} (interval branch-and-bound, "
             f"{gamma.bracket.upper.details.get('stop')}, {args.gamma_seconds:g} s) and "
-            f"{gamma.layer_norms.value:.4g} (product of layer norms, loose). The true tank's "
+            f"{gamma.layer_norms.value:.4g} ({layer_norm_words(gamma.layer_norms.to_dict())}). "
+            "The true tank's "
             f"γ_f on its X × U: [{tank_gamma.lower.value:.4g}, {tank_gamma.upper.value:.4g}] "
             "(state x, not the window z: a different quantity, set beside it).",
             "",

@@ -393,9 +393,9 @@ def _learned_gamma_line(gamma: Mapping[str, Any]) -> str:
     """The learned model's γ_f bracket in one line (``_learned_gamma_record``'s record)."""
     if not gamma.get("available"):
         return f"γ_f of the learned model: not computed ({gamma.get('why', 'no run')})"
-    # an infinite layer-norm bound says why (its Estimate's details), a finite one that it is loose
-    why = gamma["layer_norms"].get("details", {}).get("unbounded")
-    layer_norms = "product of layer norms" + (f": {why}" if why else ", loose")
+    from canonid.analysis.certify import layer_norm_words
+
+    layer_norms = layer_norm_words(gamma["layer_norms"])
     return (
         f"γ_f of the learned model (its state z, dim {gamma['state_dim']}, on the training "
         f"hull): sampled lower bound {_value(gamma['lower'])}, certified upper bound "

@@ -88,6 +88,11 @@ class Box:
         v = np.asarray(v, dtype=np.float64)
         return bool(np.all(v >= self.lo - atol) and np.all(v <= self.hi + atol))
 
+    def contains_rows(self, v: np.ndarray) -> np.ndarray:
+        """Per row of ``v`` (shape ``(N, dim)``): whether it lies in the box, ``(N,)`` bools."""
+        v = np.asarray(v, dtype=np.float64)
+        return np.all((v >= self.lo) & (v <= self.hi), axis=1)
+
     def clip(self, v: np.ndarray) -> np.ndarray:
         return np.clip(v, self.lo, self.hi)
 

@@ -122,3 +122,10 @@ def test_windows_stack_the_samples_they_name_and_the_premises_are_checked():
         bound_along(constants, [w], states=[x])  # states without X
     with pytest.raises(ShapeError):
         bound_along(constants, [w], states=[x[:4]], X=X)  # fewer states than noise samples
+
+
+def test_box_rows_are_inside_exactly_when_every_coordinate_is_including_the_faces():
+    box = Box([0.0, -1.0], [1.0, 1.0])
+    rows = np.array([[0.5, 0.0], [0.0, -1.0], [1.0, 1.0], [1.0001, 0.0], [0.5, -1.5]])
+    assert box.contains_rows(rows).tolist() == [True, True, True, False, False]
+    assert box.contains_rows(rows[:3]).all() == box.contains(rows[:3])
