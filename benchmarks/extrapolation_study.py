@@ -240,29 +240,38 @@ def run(system: str, variant: str, out: Path, deadline: float | None) -> None:
     write(True)
 
 
+def usual_setup(system: str) -> tuple[list, list, int, dict[str, Any]]:
+    """``system``'s usual training and validation parts, the window the defaults chose there
+    and Ours (MLP)'s network options with the feedthrough the defaults decide on them (the
+    plain network: ``cubic`` 0) — what the cubic test sees inside ``canonid train``."""
+    from canonid.kernel.dataset import Dataset
+    from canonid.learning.data import Normalisation
+    from canonid.learning.linear import feedthrough_test
+    from canonid.learning.presets import net_options
+
+    usual = Dataset.load(DATA / system / "dataset.npz")
+    train, val = list(usual.split("train")), list(usual.split("val"))
+    window = STUDY_SYSTEMS[system][1]
+    options = net_options("mlp", {"cubic": 0})
+    options["feedthrough"] = feedthrough_test(
+        train, val, Normalisation.fit(train), window=window
+    ).feedthrough
+    return train, val, window, options
+
+
 def decide(system: str) -> None:
     """canonid's own cubic test (:func:`canonid.learning.extrapolation.cubic_test`, the compressed
     schedule the defaults run) on ``system``'s usual training part, written to
     ``DECISIONS/SYSTEM.json``."""
     import torch
 
-    from canonid.kernel.dataset import Dataset
     from canonid.kernel.io import atomic_write_json
-    from canonid.learning.data import Normalisation
     from canonid.learning.extrapolation import cubic_test
-    from canonid.learning.linear import feedthrough_test
-    from canonid.learning.presets import net_options
     from canonid.learning.training import fit
     from canonid.profiles import train_options
 
     torch.set_num_threads(1)
-    usual = Dataset.load(DATA / system / "dataset.npz")
-    train, val = usual.split("train"), usual.split("val")
-    window = STUDY_SYSTEMS[system][1]
-    options = net_options("mlp", {"cubic": 0})
-    options["feedthrough"] = feedthrough_test(
-        train, val, Normalisation.fit(train), window=window
-    ).feedthrough
+    train, _, window, options = usual_setup(system)
     cpu0 = time.process_time()
     test = cubic_test(
         train,

@@ -24,7 +24,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
-from canonid.learning.extrapolation import CUBIC_GAIN, CUBIC_UNITS, HOLD_OUT, CubicTest
+from canonid.learning.extrapolation import (
+    CUBIC_GAIN,
+    CUBIC_SEEDS,
+    CUBIC_UNITS,
+    HOLD_OUT,
+    CubicTest,
+)
 from canonid.learning.screen import (
     FOLLOWUPS_DIR,
     SCREEN_FILE,
@@ -89,8 +95,9 @@ REQUEST_TEXT_FIELDS = ("window", "hidden", "weight_decay", "cubic", "max_window"
 CUBIC_HELP = (
     "Ours (MLP)'s cubic branch C (W x + b)³ beside the network, K units (0: none); default "
     "auto: hold out the training part's largest excursions (above "
-    f"{HOLD_OUT:g}× the largest), train briefly with {CUBIC_UNITS} units and without, and keep "
-    f"the branch when its loss on them is at most {CUBIC_GAIN:g}× the plain network's"
+    f"{HOLD_OUT:g}× the largest), train briefly with {CUBIC_UNITS} units and without, from "
+    f"{CUBIC_SEEDS} seeds each, and keep the branch when its best loss on them is at most "
+    f"{CUBIC_GAIN:g}× the plain network's best"
 )
 
 

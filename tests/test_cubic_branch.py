@@ -198,6 +198,36 @@ def test_the_test_does_not_run_when_the_peaks_leave_too_little_to_train() -> Non
     assert "not tested" in test.summary()
 
 
+def test_each_arm_keeps_its_best_seed_and_the_rule_compares_the_bests() -> None:
+    from types import SimpleNamespace
+
+    from canonid.learning.extrapolation import CUBIC_SEEDS, cubic_test
+    from canonid.learning.training import TrainOptions
+
+    # seed → held-out loss per arm: the cubic branch's one lucky seed (0.3) is not its best
+    # against the plain network's best (0.5) on its own; its best of three (0.35) decides
+    losses = {0: {7: 0.9, 8: 0.5, 9: 0.7}, 16: {7: 1.2, 8: 0.6, 9: 0.35}}
+    seen: list[tuple[int, int]] = []
+
+    def fit(*args, options, net_options, **kwargs):
+        seen.append((net_options["cubic"], options.seed))
+        return SimpleNamespace(best_val_loss=losses[net_options["cubic"]][options.seed])
+
+    opts = TrainOptions(epochs=20, horizon=6, val_horizon=10, seed=7)
+    test = cubic_test(_bursty(1, 2, 900), window=3, options=opts, net_options={}, fit=fit)
+    assert CUBIC_SEEDS == 3 and test.seeds == (7, 8, 9)
+    assert seen == [(0, 7), (0, 8), (0, 9), (16, 7), (16, 8), (16, 9)]
+    assert (test.plain_loss, test.cubic_loss) == (0.5, 0.35) and test.units == CUBIC_UNITS
+    assert test.plain_losses == (0.9, 0.5, 0.7) and test.cubic_losses == (1.2, 0.6, 0.35)
+    assert CubicTest.from_dict(test.to_dict()) == test
+    assert "best of 3 seeds" in test.summary()
+    # a run recorded before the test had seeds reads back as one pair of losses
+    old = {k: v for k, v in test.to_dict().items() if k not in ("plain_losses", "cubic_losses")}
+    del old["seeds"]
+    before = CubicTest.from_dict(old)
+    assert before.seeds == () and "best of" not in before.summary()
+
+
 def test_a_short_training_that_fails_leaves_the_plain_network(caplog) -> None:
     from types import SimpleNamespace
 

@@ -114,6 +114,10 @@ class Code(NamedTuple):
         return str(self.get())
 
 
+#: the section of the cubic test across seeds (benchmarks/cubic_seeds.py)
+SEEDS_SECTION = "Cubic test across seeds"
+
+
 def _row(**cells: str) -> tuple[tuple[str, str], ...]:
     return tuple(cells.items())
 
@@ -533,6 +537,24 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         f"cubic/decision/{system}": Cell("Extrapolation", _row(system=system), "ratio", nth=1)
         for system in ("silverbox", "masses", "silverbox-3k", "silverbox-10k", "tank", "drone2d")
     },
+    # the cubic test across seeds (cubic_seeds.py): each seed's ratio, and how often a rule
+    # agrees with the full runs' verdict on the worst system
+    **{
+        f"cubic-seeds/{system}/median": Cell(SEEDS_SECTION, _row(system=system), "median")
+        for system in ("silverbox", "tank", "drone2d")
+    },
+    "cubic-seeds/silverbox/seeds": Cell(SEEDS_SECTION, _row(system="silverbox"), "seeds"),
+    **{
+        f"cubic-seeds/worst/{pool}{k}": Cell(
+            SEEDS_SECTION,
+            _row(system="**agreeing with the verdict, worst system**"),
+            f"{pool}, k = {k}",
+        )
+        for pool, k in (("min", 1), ("min", 3))
+    },
+    "cubic-seeds/silverbox/min1": Cell(SEEDS_SECTION, _row(system="silverbox"), "min, k = 1"),
+    "cubic-seeds/silverbox/min3": Cell(SEEDS_SECTION, _row(system="silverbox"), "min, k = 3"),
+    "code/cubic-seeds": Code(lambda: _extrapolation().CUBIC_SEEDS),
     "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
     "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
     "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
