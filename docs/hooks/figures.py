@@ -429,17 +429,24 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             ("pnlss", "PNLSS"),
         )
     },
-    # the same command on an AMD EPYC machine: the cubic test's ratio and the scores there
+    # the runs of the same command side by side: this one, and the Intel and AMD runs made when
+    # the cubic test trained one seed per network (its ratio and the scores of each)
     **{
-        f"benchmark/silverbox/amd/{what}": Cell(
-            "Standard benchmarks", _row(CPU="AMD EPYC"), column, pick=pick
+        f"benchmark/silverbox/{name}{what}": Cell(
+            "Standard benchmarks", _row(CPU=cpu), column, pick=pick
+        )
+        for name, cpu in (
+            ("", "AMD EPYC, this run"),
+            ("amd/", "AMD EPYC"),
+            ("intel/", "Intel Xeon"),
         )
         for what, column, pick in (
             ("multisine", "multisine [mV]", 0),
             ("arrow-full", "arrow-full [mV]", 0),
             ("arrow-no-extrapolation", "arrow-no-extrapolation [mV]", 0),
-            ("cubic-ratio", "cubic test: branch / plain loss on the held-out peaks", 2),
+            ("cubic-ratio", "branch / plain loss on the held-out peaks", 2),
         )
+        if name or what == "cubic-ratio"  # this run's scores are the main table's
     },
     # that run's CPU minutes, and those of the earlier run with ℓ = 10 given (no window screen)
     "benchmark/silverbox/cpu-min": Prose(
