@@ -95,8 +95,8 @@ REQUEST_TEXT_FIELDS = ("window", "hidden", "weight_decay", "cubic", "max_window"
 CUBIC_HELP = (
     "Ours (MLP)'s cubic branch C (W x + b)³ beside the network, K units (0: none); default "
     "auto: hold out the training part's largest excursions (above "
-    f"{HOLD_OUT:g}× the largest), train briefly with {CUBIC_UNITS} units and without, from "
-    f"{CUBIC_SEEDS} seeds each, and keep the branch when its best loss on them is at most "
+    f"{HOLD_OUT:g}× the largest), train briefly with {CUBIC_UNITS} units and without, from up "
+    f"to {CUBIC_SEEDS} seeds each, and keep the branch when its best loss on them is at most "
     f"{CUBIC_GAIN:g}× the plain network's best"
 )
 

@@ -13,10 +13,11 @@ and spoils a saturating tank. Which of the two a record needs is decided by the 
   (pieces of at least ℓ + 1 + the longer of the training and validation rollouts);
 * :func:`cubic_test` — when those pieces hold at least :data:`MIN_TRAIN_SHARE` of the
   training samples — trains the plain network and the one with :data:`CUBIC_UNITS` cubic units
-  briefly on that split (the window screen's share of the epochs), each from :data:`CUBIC_SEEDS`
-  seeds, and keeps the branch when its best loss on the held-out peaks over those seeds is at
-  most :data:`CUBIC_GAIN` × the plain network's best. One pair of such short trainings decides
-  by the seed as much as by the record; the best of three does not.
+  briefly on that split (the window screen's share of the epochs), each from up to
+  :data:`CUBIC_SEEDS` seeds, and keeps the branch when its best loss on the held-out peaks over
+  those seeds is at most :data:`CUBIC_GAIN` × the plain network's best. One pair of such short
+  trainings decides by the seed as much as by the record, unless its ratio is far from the
+  threshold (:data:`CUBIC_MARGIN`, :func:`decisive`): then the first pair decides alone.
 
 The validation part and the test part play no part: the held-out peaks come from the training
 part. How the constants were chosen, on validation only: benchmarks/RESULTS.md, "Extrapolation".
@@ -39,6 +40,7 @@ from canonid.learning.window_screen import SCREEN_FRACTION, screen_options
 
 __all__ = [
     "CUBIC_GAIN",
+    "CUBIC_MARGIN",
     "CUBIC_SEEDS",
     "CUBIC_UNITS",
     "HOLD_OUT",
@@ -46,6 +48,7 @@ __all__ = [
     "CubicTest",
     "HeldOutPeaks",
     "cubic_test",
+    "decisive",
     "held_out_peaks",
     "keeps_cubic",
 ]
@@ -58,10 +61,14 @@ HOLD_OUT = 0.7
 CUBIC_UNITS = 16
 #: the branch is kept when its best held-out loss is at most this share of the plain network's
 CUBIC_GAIN = 0.8
-#: each arm trains from this many seeds (the run's seed and the next ones) and keeps its best:
-#: chosen on the held-out peaks of six systems over 8–16 seeds (benchmarks/RESULTS.md, "Cubic
-#: test across seeds")
+#: each arm trains from up to this many seeds (the run's seed and the next ones) and keeps its
+#: best: chosen on the held-out peaks of six systems over 8–16 seeds (benchmarks/RESULTS.md,
+#: "Cubic test across seeds")
 CUBIC_SEEDS = 3
+#: the first pair decides alone when its ratio is this factor beyond the threshold, either side
+#: (the tank's pairs differ 4–14×): chosen in the same study, the smallest margin that decides
+#: as the best of three seeds does on every system there
+CUBIC_MARGIN = 3.0
 #: the test runs only when the pieces between the peaks hold at least this share of the
 #: training samples (the records of the study that chose the rule kept 44–98 %)
 MIN_TRAIN_SHARE = 0.4
@@ -152,7 +159,7 @@ class CubicTest:
         epochs: the epochs of each short training.
         plain_losses, cubic_losses: each seed's best held-out loss, in the order of ``seeds``
             (``None``: that training failed); empty when the test did not run.
-        seeds: the seeds each arm trained from.
+        seeds: the seeds each arm trained from (one when the first pair was decisive).
         reason: why the test did not run (records too short), else ``None``.
         split: :meth:`HeldOutPeaks.to_dict` of the split, when there was one.
 
@@ -222,8 +229,9 @@ def cubic_test(
     """Decide the cubic branch on ``train``'s held-out peaks (see the module docstring).
 
     ``options`` are the full run's :class:`~canonid.learning.training.TrainOptions`
-    (compressed here to the window screen's share; each arm trains from ``options.seed`` and the
-    next :data:`CUBIC_SEEDS` − 1 seeds); ``net_options`` the network's, resolved but for
+    (compressed here to the window screen's share; the arms train pair by pair from
+    ``options.seed`` on, up to :data:`CUBIC_SEEDS` pairs, one when the first is
+    :func:`decisive`); ``net_options`` the network's, resolved but for
     ``cubic``; ``fit`` is :func:`canonid.learning.training.fit`, given by it (this module does
     not import its caller).
     """
@@ -243,31 +251,14 @@ def cubic_test(
             f"samples, under {MIN_TRAIN_SHARE:.0%}"
         )
         return CubicTest(0, None, None, opts.epochs, reason, split.to_dict())
-    seeds = tuple(opts.seed + i for i in range(CUBIC_SEEDS))
-    arms: list[tuple[float | None, ...]] = []
-    for units in (0, CUBIC_UNITS):
-        losses: list[float | None] = []
-        for seed in seeds:
-            try:
-                loss = fit(
-                    split.train,
-                    split.val,
-                    model=model,
-                    window=window,
-                    options=dataclasses.replace(opts, seed=seed),
-                    net_options={**net_options, "cubic": units},
-                ).best_val_loss
-            except (ArithmeticError, RuntimeError, ValueError) as exc:  # a failed training
-                log.warning(
-                    "cubic test: the network with %d cubic units (seed %d) failed: %s",
-                    units,
-                    seed,
-                    exc,
-                )
-                loss = math.nan
-            losses.append(loss if math.isfinite(loss) else None)
-        arms.append(tuple(losses))
-    plain, cubic = (_best(losses) for losses in arms)
+    plain_losses: list[float | None] = []
+    cubic_losses: list[float | None] = []
+    for seed in range(opts.seed, opts.seed + CUBIC_SEEDS):
+        for units, losses in ((0, plain_losses), (CUBIC_UNITS, cubic_losses)):
+            losses.append(_short_loss(fit, split, model, window, opts, net_options, units, seed))
+        if seed == opts.seed and decisive(plain_losses[0], cubic_losses[0]):
+            break
+    plain, cubic = _best(plain_losses), _best(cubic_losses)
     return CubicTest(
         CUBIC_UNITS if keeps_cubic(plain, cubic) else 0,
         plain,
@@ -275,10 +266,47 @@ def cubic_test(
         opts.epochs,
         None,
         split.to_dict(),
-        plain_losses=arms[0],
-        cubic_losses=arms[1],
-        seeds=seeds,
+        plain_losses=tuple(plain_losses),
+        cubic_losses=tuple(cubic_losses),
+        seeds=tuple(range(opts.seed, opts.seed + len(plain_losses))),
     )
+
+
+def decisive(plain: float | None, cubic: float | None) -> bool:
+    """Whether one pair of short trainings decides alone: its ratio lies beyond
+    :data:`CUBIC_MARGIN` × the threshold on either side."""
+    if plain is None or cubic is None:
+        return False
+    ratio = cubic / plain
+    return ratio >= CUBIC_GAIN * CUBIC_MARGIN or ratio <= CUBIC_GAIN / CUBIC_MARGIN
+
+
+def _short_loss(
+    fit: Callable[..., Any],
+    split: HeldOutPeaks,
+    model: str,
+    window: int,
+    opts: Any,
+    net_options: Mapping[str, Any],
+    units: int,
+    seed: int,
+) -> float | None:
+    """One short training's best loss on the held-out peaks (``None``: failed or not finite)."""
+    try:
+        loss = fit(
+            split.train,
+            split.val,
+            model=model,
+            window=window,
+            options=dataclasses.replace(opts, seed=seed),
+            net_options={**net_options, "cubic": units},
+        ).best_val_loss
+    except (ArithmeticError, RuntimeError, ValueError) as exc:  # a failed short training
+        log.warning(
+            "cubic test: the network with %d cubic units (seed %d) failed: %s", units, seed, exc
+        )
+        return None
+    return loss if math.isfinite(loss) else None
 
 
 def _best(losses: Sequence[float | None]) -> float | None:

@@ -73,6 +73,8 @@ from hypothesis import strategies as st  # noqa: E402
 from canonid.kernel.dataset import Trajectory  # noqa: E402
 from canonid.learning.extrapolation import (  # noqa: E402
     CUBIC_GAIN,
+    CUBIC_MARGIN,
+    CUBIC_SEEDS,
     CUBIC_UNITS,
     HOLD_OUT,
     CubicTest,
@@ -216,7 +218,7 @@ def test_each_arm_keeps_its_best_seed_and_the_rule_compares_the_bests() -> None:
     opts = TrainOptions(epochs=20, horizon=6, val_horizon=10, seed=7)
     test = cubic_test(_bursty(1, 2, 900), window=3, options=opts, net_options={}, fit=fit)
     assert CUBIC_SEEDS == 3 and test.seeds == (7, 8, 9)
-    assert seen == [(0, 7), (0, 8), (0, 9), (16, 7), (16, 8), (16, 9)]
+    assert seen == [(0, 7), (16, 7), (0, 8), (16, 8), (0, 9), (16, 9)]  # pair by pair
     assert (test.plain_loss, test.cubic_loss) == (0.5, 0.35) and test.units == CUBIC_UNITS
     assert test.plain_losses == (0.9, 0.5, 0.7) and test.cubic_losses == (1.2, 0.6, 0.35)
     assert CubicTest.from_dict(test.to_dict()) == test
@@ -226,6 +228,34 @@ def test_each_arm_keeps_its_best_seed_and_the_rule_compares_the_bests() -> None:
     del old["seeds"]
     before = CubicTest.from_dict(old)
     assert before.seeds == () and "best of" not in before.summary()
+
+
+@pytest.mark.parametrize(
+    ("cubic_first", "pairs", "units"),
+    [
+        (CUBIC_GAIN * CUBIC_MARGIN, 1, 0),  # far above the threshold: the plain network, at once
+        (CUBIC_GAIN / CUBIC_MARGIN, 1, CUBIC_UNITS),  # far below: the branch, at once
+        (CUBIC_GAIN * CUBIC_MARGIN * 0.99, CUBIC_SEEDS, 0),  # inside the margin: all the seeds
+        (CUBIC_GAIN / CUBIC_MARGIN * 1.01, CUBIC_SEEDS, CUBIC_UNITS),
+    ],
+)
+def test_a_first_pair_far_from_the_threshold_decides_alone(cubic_first, pairs, units) -> None:
+    from types import SimpleNamespace
+
+    from canonid.learning.extrapolation import cubic_test, decisive
+    from canonid.learning.training import TrainOptions
+
+    def fit(*args, options, net_options, **kwargs):
+        if not net_options["cubic"]:
+            return SimpleNamespace(best_val_loss=1.0)
+        return SimpleNamespace(best_val_loss=cubic_first if options.seed == 0 else 2.0)
+
+    opts = TrainOptions(epochs=20, horizon=6, val_horizon=10)
+    test = cubic_test(_bursty(1, 2, 900), window=3, options=opts, net_options={}, fit=fit)
+    assert decisive(1.0, cubic_first) == (pairs == 1)
+    assert test.seeds == tuple(range(pairs)) and len(test.cubic_losses) == pairs
+    assert test.units == units
+    assert not decisive(None, 0.01) and not decisive(1.0, None)  # a failed arm decides nothing
 
 
 def test_a_short_training_that_fails_leaves_the_plain_network(caplog) -> None:

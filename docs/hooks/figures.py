@@ -562,6 +562,7 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "cubic-seeds/silverbox/min1": Cell(SEEDS_SECTION, _row(system="silverbox"), "min, k = 1"),
     "cubic-seeds/silverbox/min3": Cell(SEEDS_SECTION, _row(system="silverbox"), "min, k = 3"),
     "code/cubic-seeds": Code(lambda: _extrapolation().CUBIC_SEEDS),
+    "code/cubic-margin": Code(lambda: f"{_extrapolation().CUBIC_MARGIN:g}"),
     "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
     "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
     "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
