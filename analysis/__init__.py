@@ -10,6 +10,8 @@ Every estimate says whether it is a lower bound, an upper bound or an estimate
 * :mod:`canonid.analysis.bound` — Proposition 2, its Monte-Carlo check and its value along
   recorded trajectories;
 * :mod:`canonid.analysis.learned` — residual and state-probe checks of learned regressors;
+* :mod:`canonid.analysis.residuals` — prediction residuals against an instrument (the recorded
+  excitation, or prewhitened inputs): the correlation test of a model's input response;
 * :mod:`canonid.analysis.report` — everything for a range of windows, JSON, table, figure.
 
 Certified bounds rest on :mod:`canonid.analysis.interval` (outward-rounded interval arithmetic, arb
@@ -41,6 +43,8 @@ _EXPORTS = {
     "lipschitz_lower": "canonid.analysis.lipschitz",
     "lipschitz_upper": "canonid.analysis.lipschitz",
     "Horizon": "canonid.analysis.maps",
+    "CorrelationTest": "canonid.analysis.residuals",
+    "correlation_test": "canonid.analysis.residuals",
     "alpha_bracket": "canonid.analysis.observability",
     "alpha_lower": "canonid.analysis.observability",
     "alpha_upper": "canonid.analysis.observability",

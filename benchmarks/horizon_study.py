@@ -257,18 +257,26 @@ def loop_rows(loops: list[Path]) -> list[str]:
             info = json.loads((folder / "config.json").read_text())["info"]
             recipe = json.loads((folder / "run.json").read_text())
             best = info.get("training", {}).get("best_val_loss")
-            rows = res["rows"]
-            ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
-            left = len(rows["learned model"]["left_X"])
-            px = next(iter(res["responses"].values()))["rest"]["ratios"][0]
+            ratio, left, loops_run, px = loop_figures(res)
             val20 = _val20(folder)
             lines.append(
                 f"| {_training(info, recipe)} | `{res['run']}` | "
                 f"{'-' if best is None else f'{best:.4g}'} | "
                 f"{'-' if val20 is None else f'{val20:.3g}'} | {ratio:.2f} | {left} of "
-                f"{len(rows['learned model']['rmses'])} | {px:.3g} |"
+                f"{loops_run} | {px:.3g} |"
             )
     return lines
+
+
+def loop_figures(res: dict) -> tuple[float, int, int, float]:
+    """What one drone entry of ``learned_mpc.py --json`` measured: the learned / true tracking
+    RMSE, the learned loops that left X, the loops run, and the learned / true px change after
+    the first judged step (the rotor difference) from rest."""
+    rows = res["rows"]
+    ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
+    left = len(rows["learned model"]["left_X"])
+    px = next(iter(res["responses"].values()))["rest"]["ratios"][0]
+    return ratio, left, len(rows["learned model"]["rmses"]), px
 
 
 def record(short_files: list[Path], loops: list[Path], write: bool) -> int:

@@ -32,7 +32,13 @@ import numpy as np
 
 from canonid.kernel.errors import OptionError
 
-__all__ = ["InputDesign", "Multisine", "RandomBinary", "design_from_options"]
+__all__ = [
+    "InputDesign",
+    "Multisine",
+    "RandomBinary",
+    "design_from_description",
+    "design_from_options",
+]
 
 
 def _amplitudes(amplitude: float | Sequence[float]) -> tuple[float, ...]:
@@ -183,3 +189,24 @@ def design_from_options(
     if clock is None:
         raise OptionError("--excitation prbs needs --clock N (samples each level is held)")
     return RandomBinary(clock=clock, amplitude=tuple(_amplitudes(amplitude)))
+
+
+def design_from_description(description: Any) -> InputDesign:
+    """The design whose ``describe()`` is ``description`` (as a dataset's
+    ``metadata["generation"]["design"]`` records it); refuses anything else."""
+    if not isinstance(description, dict):
+        raise OptionError(f"a design description must be an object, got {description!r:.60}")
+    kind = description.get("kind")
+    if kind not in EXCITATION_KINDS:
+        raise OptionError(f"design kind must be one of {', '.join(EXCITATION_KINDS)}, got {kind!r}")
+    try:
+        rms = description["rms"]
+        amplitude: float | tuple[float, ...] = tuple(rms) if isinstance(rms, list) else rms
+        if kind == "multisine":
+            low, high = description["band_hz"]
+            return Multisine(
+                band=(low, high), lines=description["lines_per_input"], amplitude=amplitude
+            )
+        return RandomBinary(clock=description["clock_samples"], amplitude=amplitude)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise OptionError(f"design description {description} is incomplete: {exc}") from None

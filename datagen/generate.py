@@ -66,12 +66,12 @@ import numpy as np
 
 from canonid.datagen.chunks import cut_chunks
 from canonid.datagen.controllers.base import Controller
-from canonid.datagen.excitation import InputDesign
+from canonid.datagen.excitation import InputDesign, design_from_description
 from canonid.datagen.informativeness import Informativeness, measure_informativeness
 from canonid.datagen.scenarios import ReferenceSampler, Scenario, get_scenario
-from canonid.datagen.simulate import Excitation, noise_box, simulate_closed_loop
+from canonid.datagen.simulate import Excitation, flight_draws, noise_box, simulate_closed_loop
 from canonid.kernel.dataset import Dataset, Trajectory
-from canonid.kernel.errors import DataError, ShapeError
+from canonid.kernel.errors import DataError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_json, read_json
 from canonid.models.base import System
 from canonid.models.registry import get_system
@@ -79,11 +79,14 @@ from canonid.models.registry import get_system
 __all__ = [
     "FLIGHTS_PER_TASK",
     "SPLIT_CODES",
+    "FlightExcitation",
     "FlightJob",
     "FlightResult",
     "GenerationConfig",
     "GenerationResult",
     "JobRunner",
+    "dataset_excitation",
+    "flight_excitation",
     "flight_seed",
     "generate_dataset",
     "is_loose",
@@ -261,6 +264,36 @@ class GenerationConfig:
             **({} if self.references is None else {"references": self.references}),
         }
 
+    @classmethod
+    def from_json(cls, data: Any) -> GenerationConfig:
+        """The configuration that :meth:`to_json` wrote (a dataset's
+        ``metadata["generation"]``); raises :class:`DataError` when ``data`` is not one, or
+        when the configuration read back does not write the same JSON."""
+        if not isinstance(data, dict) or "system" not in data:
+            raise DataError(f"not a generation configuration: {data!r:.80}")
+        noise = data.get("noise")
+        try:
+            config = cls(
+                system=data["system"],
+                seed=data.get("seed", 0),
+                counts=data.get("counts", {}),
+                noise=tuple(noise) if isinstance(noise, list) else noise,
+                controller_options=data.get("controller_options", {}),
+                T=data.get("T"),
+                design=None
+                if data.get("design") is None
+                else design_from_description(data["design"]),
+                references=data.get("references"),
+            )
+        except (ShapeError, OptionError, TypeError) as exc:
+            raise DataError(f"generation configuration {data!r:.80} is not valid: {exc}") from None
+        if config.to_json() != data:
+            raise DataError(
+                f"generation configuration {data!r:.80} does not read back as itself "
+                f"({config.to_json()!r:.80})"
+            )
+        return config
+
 
 @dataclass(frozen=True)
 class FlightJob:
@@ -364,18 +397,105 @@ def _controller_for(config: GenerationConfig) -> Controller:
     return cache[key]
 
 
+def _excitation(config: GenerationConfig, split: str, index: int) -> Excitation:
+    """The Gaussian excitation and loose-step settings of flight ``index`` of ``split``."""
+    scenario = config.scenario
+    loose = is_loose(split, index, scenario.loose_fraction)
+    return Excitation(
+        std=scenario.excitation_std,
+        loose_probability=scenario.loose_probability if loose else 0.0,
+        loose_std=scenario.loose_std,
+    )
+
+
+def _design_signal(
+    config: GenerationConfig, design_seq: np.random.SeedSequence
+) -> np.ndarray | None:
+    """The input design's ``(T, n_u)`` signal drawn from the flight's third child seed."""
+    design, system = config.input_design, config.true_system
+    if design is None:
+        return None
+    return design.signal(np.random.default_rng(design_seq), config.steps, system.dt, system.n_u)
+
+
+@dataclass(frozen=True)
+class FlightExcitation:
+    """The known signals that the data engine added to one flight's commands, regenerated from
+    the flight's seed by the same calls that drew them (:func:`flight_excitation`).
+
+    Attributes:
+        gaussian: the Gaussian excitation ``e`` ``(T, n_u)`` (zeros when the scenario has none).
+        design: the input design's signal ``d`` ``(T, n_u)``, or ``None`` without a design.
+    """
+
+    gaussian: np.ndarray
+    design: np.ndarray | None
+
+    @property
+    def total(self) -> np.ndarray:
+        """``e + d``: what was added to the command before clipping to U (``u = clip(c + e + d,
+        U)``, :mod:`canonid.datagen.simulate`)."""
+        return self.gaussian if self.design is None else self.gaussian + self.design
+
+
+def flight_excitation(
+    config: GenerationConfig, split: str, index: int, attempt: int = 0
+) -> FlightExcitation:
+    """The excitation of flight ``index`` of ``split`` (its ``attempt``, the third entry of its
+    ``info["spawn_key"]``), drawn again from the flight's seed sequence: child 1 through
+    :func:`canonid.datagen.simulate.flight_draws` (the Gaussian ``e``), child 2 through the
+    design (``d``), as :func:`run_flight` drew them. Loose steps (training flights) replace the
+    controller's command but not ``e + d``, which is added to every command."""
+    system = config.true_system
+    seq = flight_seed(config.seed, split, index, attempt)
+    _, simulation_seq, design_seq = seq.spawn(3)
+    _, gaussian, _, _ = flight_draws(
+        np.random.default_rng(simulation_seq),
+        config.steps,
+        box=noise_box(system, config.noise),
+        n_u=system.n_u,
+        excitation=_excitation(config, split, index),
+    )
+    return FlightExcitation(gaussian=gaussian, design=_design_signal(config, design_seq))
+
+
+def dataset_excitation(dataset: Dataset, split: str) -> list[FlightExcitation]:
+    """The excitation of every trajectory of ``split`` of a dataset that ``canonid generate``
+    wrote, regenerated from the configuration and seeds its metadata records
+    (:func:`flight_excitation`; a chunk or a validation tail gets the samples of its flight that
+    it holds). Raises :class:`DataError` for data from elsewhere."""
+    metadata = dataset.metadata
+    if metadata.get("source") != "canonid generate":
+        raise DataError(
+            "the excitation can be regenerated only for datasets written by canonid generate "
+            f"(metadata 'source' is {metadata.get('source')!r}); record your own instead"
+        )
+    config = GenerationConfig.from_json(metadata.get("generation"))
+    out = []
+    for i, tr in enumerate(dataset.split(split)):
+        info = tr.info
+        key = info.get("spawn_key")
+        if not (isinstance(key, list) and len(key) == 3 and "split" in info and "index" in info):
+            raise DataError(f"split {split!r}, trajectory {i}: info has no flight seed")
+        flight = flight_excitation(config, info["split"], int(info["index"]), int(key[2]))
+        start = int(info.get("chunk_start", (info.get("samples") or [0])[0]))
+        cut = slice(start, start + tr.T)
+        out.append(
+            FlightExcitation(
+                gaussian=flight.gaussian[cut],
+                design=None if flight.design is None else flight.design[cut],
+            )
+        )
+    return out
+
+
 def run_flight(job: FlightJob) -> FlightResult:
     """Simulate one flight, regenerating it with the next seed while it fails (module docs)."""
     config, scenario = job.config, job.config.scenario
     system, controller = config.true_system, _controller_for(config)
     noise = noise_box(system, config.noise)
     loose = is_loose(job.split, job.index, scenario.loose_fraction)
-    excitation = Excitation(
-        std=scenario.excitation_std,
-        loose_probability=scenario.loose_probability if loose else 0.0,
-        loose_std=scenario.loose_std,
-    )
-    design = config.input_design
+    excitation = _excitation(config, job.split, job.index)
     allowed = int(scenario.max_failure_fraction * config.steps)
     replaced: list[dict[str, Any]] = []
     for attempt in range(scenario.max_attempts):
@@ -384,10 +504,7 @@ def run_flight(job: FlightJob) -> FlightResult:
         reference = config.reference_sampler(
             system, np.random.default_rng(reference_seq), config.steps
         )
-        signal = None
-        if design is not None:
-            rng = np.random.default_rng(design_seq)
-            signal = design.signal(rng, config.steps, system.dt, system.n_u)
+        signal = _design_signal(config, design_seq)
         loop = simulate_closed_loop(
             system,
             controller,

@@ -38,7 +38,7 @@ from canonid.kernel.validate import as_matrix, as_vector
 from canonid.models.base import System
 from canonid.models.sets import Box
 
-__all__ = ["ClosedLoop", "Excitation", "noise_box", "simulate_closed_loop"]
+__all__ = ["ClosedLoop", "Excitation", "flight_draws", "noise_box", "simulate_closed_loop"]
 
 
 @dataclass(frozen=True)
@@ -129,6 +129,29 @@ def noise_box(system: System, level: float | tuple[float, ...] | None) -> Box:
     return box
 
 
+def flight_draws(
+    rng: np.random.Generator,
+    T: int,
+    *,
+    box: Box,
+    n_u: int,
+    excitation: Excitation | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The random numbers of one flight, drawn from ``rng`` in the module's fixed order: the
+    noise ``w`` ``(T, n_y)`` uniform in ``box``, the Gaussian excitation ``e`` ``(T, n_u)``, the
+    loose-step mask ``(T,)`` and the loose perturbations ``(T, n_u)``.
+
+    :func:`simulate_closed_loop` draws through this function, so a fresh generator of the same
+    seed gives back the very ``e`` a flight applied (:func:`canonid.datagen.generate.
+    flight_excitation`)."""
+    exc = excitation or Excitation()
+    w = box.lo + (box.hi - box.lo) * rng.random((T, box.dim))
+    e = exc.std * rng.standard_normal((T, n_u))
+    loose = np.less(rng.random(T), exc.loose_probability)
+    kicks = exc.loose_std * rng.standard_normal((T, n_u))
+    return w, e, loose, kicks
+
+
 def simulate_closed_loop(
     system: System,
     controller: Controller,
@@ -164,12 +187,7 @@ def simulate_closed_loop(
     box = system.W if noise is None else noise
     if box.dim != system.n_y:
         raise SetError(f"noise box has dimension {box.dim}, expected n_y = {system.n_y}")
-    exc = excitation or Excitation()
-
-    w = box.lo + (box.hi - box.lo) * rng.random((T, system.n_y))
-    e = exc.std * rng.standard_normal((T, system.n_u))
-    loose = np.less(rng.random(T), exc.loose_probability)
-    kicks = exc.loose_std * rng.standard_normal((T, system.n_u))
+    w, e, loose, kicks = flight_draws(rng, T, box=box, n_u=system.n_u, excitation=excitation)
     if input_signal is not None:
         e = e + as_matrix(
             np.asarray(input_signal, dtype=np.float64), system.n_u, "input signal", rows=T

@@ -39,7 +39,14 @@ from canonid.kernel.errors import ShapeError
 from canonid.kernel.io import jsonable
 from canonid.learning.model import Model
 
-__all__ = ["Evaluation", "Scores", "default_n_init", "evaluate", "simulate_records"]
+__all__ = [
+    "Evaluation",
+    "Scores",
+    "default_n_init",
+    "evaluate",
+    "kstep_residuals",
+    "simulate_records",
+]
 
 #: samples of initialisation of the simulation scores when the records are long enough
 N_INIT = 50
@@ -187,6 +194,45 @@ def simulate_records(model: Model, records: Sequence[Trajectory], n_init: int) -
         pred = model.predict(u, y0)
         for j, i in enumerate(group):
             out[i] = pred[j, : records[i].T - n_init]
+    return out
+
+
+def kstep_residuals(
+    model: Model, records: Sequence[Trajectory], horizons: Sequence[int]
+) -> dict[int, list[np.ndarray]]:
+    """The k-step-ahead prediction residuals ``ε_k[t] = y[t] − ŷ(t | y up to t−k, u)`` of each
+    record, for every ``k`` in ``horizons``.
+
+    ``ŷ(t | t−k)`` is the model's open-loop rollout burnt in on the measured samples
+    ``t−k−ℓ+1 … t−k`` and run under the recorded inputs to sample ``t`` (its k-th predicted
+    step). With ``H = max(horizons)`` every record gives the rows ``t = ℓ+H−1 … T−1`` for every
+    ``k`` (the same rows, so the horizons line up; the first ``ℓ+H−1`` samples are skipped),
+    an array ``(T − ℓ − H + 1, n_y)`` per record; a record of ``T ≤ ℓ+H−1`` samples gives an
+    empty one. One batch of rollouts of ``H`` steps, one from every start, gives all the
+    horizons (the inputs are padded past the record's end with its last row: the models are
+    causal, so the padding reaches no prediction that is kept).
+    """
+    records = as_trajectories(records, what="records")
+    ks = sorted({int(k) for k in horizons})
+    if not ks or ks[0] < 1:
+        raise ShapeError(f"horizons must be integers >= 1, got {list(horizons)}")
+    ell, H = model.window, ks[-1]
+    out: dict[int, list[np.ndarray]] = {k: [] for k in ks}
+    for tr in records:
+        first = ell + H - 1  # the first row every horizon has
+        if tr.T <= first:
+            for k in ks:
+                out[k].append(np.zeros((0, tr.n_y)))
+            continue
+        starts = range(tr.T - ell)  # window s … s+ℓ−1 predicts samples s+ℓ … s+ℓ+H−1
+        u = np.pad(tr.u, ((0, H - 1), (0, 0)), mode="edge")
+        pred = model.predict(
+            np.stack([u[s : s + ell + H] for s in starts]),
+            np.stack([tr.y[s : s + ell] for s in starts]),
+        )  # (T − ℓ, H, n_y): pred[s, j] is the (j+1)-step prediction of sample s + ℓ + j
+        t = np.arange(first, tr.T)
+        for k in ks:
+            out[k].append(tr.y[t] - pred[t - ell - k + 1, k - 1])
     return out
 
 

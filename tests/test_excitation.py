@@ -234,3 +234,82 @@ def test_generate_command_refuses_design_options_without_excitation(tmp_path, ca
     assert code != 0
     assert "--amplitude, --band, --lines and --clock need --excitation" in capsys.readouterr().err
     assert not (tmp_path / "d").exists()
+
+
+# ---------------------------------------------------------------------------- the excitation, again
+def test_the_drawn_excitation_is_the_one_a_flight_applied():
+    """Under a feedforward command ``r``, the applied input is ``clip(r + (e + d), U)`` with the
+    ``e`` that :func:`flight_draws` gives back from a generator of the same seed."""
+    from canonid.datagen.controllers.feedforward import Feedforward
+    from canonid.datagen.simulate import Excitation, flight_draws, simulate_closed_loop
+    from canonid.models.registry import get_system
+
+    system, T = get_system("tank"), 200
+    rng = np.random.default_rng(4)
+    reference = rng.uniform(1.0, 5.0, size=(T, 1))
+    d = RandomBinary(clock=5, amplitude=0.5).signal(rng, T, system.dt, 1)
+    excitation = Excitation(std=0.3)
+    loop = simulate_closed_loop(
+        system,
+        Feedforward(1),
+        reference,
+        x0=np.array([1.0, 1.0]),
+        rng=np.random.default_rng(9),
+        excitation=excitation,
+        clip_input=True,
+        input_signal=d,
+    )
+    _, e, _, _ = flight_draws(
+        np.random.default_rng(9), T, box=system.W, n_u=1, excitation=excitation
+    )
+    np.testing.assert_array_equal(loop.u, system.U.clip(reference + (e + d)))
+
+
+def test_a_generated_flight_gives_back_its_design_signal(tmp_path):
+    """The chain of masses is driven open loop by its multisine alone (zero reference, no
+    Gaussian excitation): every unclipped input is the regenerated signal, to the bit."""
+    from canonid.datagen.generate import dataset_excitation, flight_excitation
+
+    config = GenerationConfig(
+        system="masses-id", seed=3, counts={"train": 1, "val": 1, "test": 0}, T=1000
+    )
+    generate_dataset(config, tmp_path)
+    data = Dataset.load(tmp_path)
+    (flight,) = data.split("val")
+    regenerated = flight_excitation(config, "val", 0)
+    assert regenerated.design is not None and not regenerated.gaussian.any()
+    free = np.all(np.abs(flight.u) < 20.0, axis=1)
+    assert free.mean() > 0.9
+    np.testing.assert_array_equal(flight.u[free], regenerated.total[free])
+    (again,) = dataset_excitation(data, "val")
+    np.testing.assert_array_equal(again.total, regenerated.total)
+
+
+def test_a_configuration_reads_back_from_its_json():
+    from canonid.datagen.generate import GenerationConfig as Config
+
+    designed = Config(
+        system="drone2d",
+        seed=7,
+        counts={"train": 3, "val": 1, "test": 0},
+        noise=(0.01, 0.002, 0.005),
+        T=90,
+        design=Multisine(band=(0.1, 5.0), lines=4, amplitude=(2.0, 3.0)),
+        references="steps",
+    )
+    for config in (designed, Config(system="drone2d-id"), Config(system="tank", noise=0.005)):
+        assert Config.from_json(config.to_json()).to_json() == config.to_json()
+    prbs = Config(system="tank", design=RandomBinary(clock=3, amplitude=0.5))
+    assert Config.from_json(prbs.to_json()).design == prbs.design
+
+
+def test_regenerating_the_excitation_refuses_data_from_elsewhere():
+    from canonid.datagen.excitation import design_from_description
+    from canonid.datagen.generate import dataset_excitation
+    from canonid.kernel.errors import DataError
+
+    data = Dataset.from_arrays(np.zeros((10, 1)), np.zeros((10, 1)), dt=0.1)
+    with pytest.raises(DataError, match="only for datasets written by canonid generate"):
+        dataset_excitation(data, "train")
+    with pytest.raises(OptionError, match="design kind must be one of multisine, prbs"):
+        design_from_description({"kind": "chirp"})

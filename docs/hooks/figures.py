@@ -145,6 +145,7 @@ _NO_SKIP = "3e-3, clip 1"
 _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of (\d+)"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 HORIZON_STUDY = "Training horizon on validation"
+EXCITATION_CHECK = "Residuals against the excitation"
 #: the data engine's default controller, a row of the "Data engine" section
 _DATAGEN_DEFAULT = "NMPC, fatrop-c (default)"
 _CANONID_CLUSTER = "canonid (LOCAL_CLUSTER_CONFIG)"
@@ -612,6 +613,22 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             ("ratio", "learned / true tracking RMSE"),
             ("px", "px change, learned / true"),
         )
+    },
+    # residuals against the excitation (excitation_check.py): correlations outside the 99 %
+    # band at k = 1 (of 6) and k = 10 (of 60), per run and for the noise itself
+    **{
+        f"excitation/{slug}/k{k}": Cell(
+            EXCITATION_CHECK, _row(run=run, k=str(k)), "excitation e + d, AR(10)"
+        )
+        for slug, run in (
+            ("noise", "noise y − y_clean (reference: uses the true outputs)"),
+            ("defaults", "`runs/drone2d/id-def`"),
+            ("ramp300", "`runs/hz/drone-id-c300`"),
+            ("linear-arx", "`runs/drone2d/id-arx`"),
+            ("h10", "`runs/drone2d/id-h10`"),
+            ("arx", "`runs/drone2d/arx-l10-drone2d-id`"),
+        )
+        for k in (1, 10)
     },
     # NMPC on drone models learned from the paper's and the informative drone data
     # (learned_mpc.py): learned / true tracking RMSE, loops out of X, step-response ratios
