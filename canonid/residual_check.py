@@ -264,9 +264,10 @@ def check_residuals(request: ResidualRequest) -> ResidualCheck:
     ell, top = model.window, max(horizons)
     first = ell + top - 1
     needed = first + PREWHITEN + top + 1  # rows past the filter's start at the longest lag
-    if not any(tr.T >= needed for tr in records):
+    longest = max((tr.T for tr in records), default=0)  # 0: an empty split
+    if longest < needed:
         raise DataError(
-            f"{data_path} [{name}]: records of at most {max(tr.T for tr in records)} samples; "
+            f"{data_path} [{name}]: records of at most {longest} samples; "
             f"the check at k = {top} needs one of {needed} or more (ℓ + k − 1 skipped, "
             f"AR({PREWHITEN}) prewhitening, lags up to k); give a smaller K"
         )
