@@ -55,9 +55,15 @@ import numpy as np  # noqa: E402
 from _results import write_section  # noqa: E402
 from horizon_study import loop_figures  # noqa: E402
 
-from canonid.analysis.residuals import CorrelationTest, correlation_test  # noqa: E402
+from canonid.analysis.residuals import CorrelationTest  # noqa: E402
 from canonid.kernel.dataset import Dataset  # noqa: E402
 from canonid.kernel.io import atomic_write_json  # noqa: E402
+from canonid.residual_check import (  # noqa: E402
+    CONFIDENCE,
+    PREWHITEN,
+    generated_excitation,
+    residual_tests,
+)
 
 SECTION = "Residuals against the excitation"
 DATA = "runs/data/drone2d-id-small"
@@ -74,8 +80,7 @@ LOOPS = (
     "runs/horizon-study/loop-linear-arx.json",
 )
 HORIZONS = (1, 10, 20)
-CONFIDENCE = 0.99
-ORDER = 10  # AR order of the prewhitening filters
+ORDER = PREWHITEN  # AR order of the prewhitening filters (canonid evaluate --residuals's)
 #: the instruments of the table: label → (signal name, prewhitening order)
 INSTRUMENTS = {
     "excitation e + d, AR(10)": ("excitation", ORDER),
@@ -103,23 +108,22 @@ def tests_for(
     names: dict[str, tuple[str, ...]],
     output_names: tuple[str, ...],
 ) -> dict[int, dict[str, CorrelationTest]]:
-    """Every (horizon, instrument) test of one model's residuals."""
-    out: dict[int, dict[str, CorrelationTest]] = {}
-    for k, eps in residuals.items():
-        out[k] = {}
-        for label, (signal, order) in INSTRUMENTS.items():
-            out[k][label] = correlation_test(
-                eps,
-                signals[signal],
-                lags=range(1, k + 1),
-                confidence=CONFIDENCE,
-                prewhiten=order,
-                null_lags=k + window - 1 + order,
-                what=signal,
-                instrument_names=names[signal],
-                output_names=output_names,
-            )
-    return out
+    """Every (horizon, instrument) test of one model's residuals (the settings of ``canonid
+    evaluate --residuals``: :func:`canonid.residual_check.residual_tests`)."""
+    by_label = {
+        label: residual_tests(
+            residuals,
+            signals[signal],
+            window,
+            prewhiten=order,
+            confidence=CONFIDENCE,
+            what=signal,
+            instrument_names=names[signal],
+            output_names=output_names,
+        )
+        for label, (signal, order) in INSTRUMENTS.items()
+    }
+    return {k: {label: by_label[label][k] for label in INSTRUMENTS} for k in residuals}
 
 
 def cell(test: CorrelationTest) -> str:
@@ -150,7 +154,7 @@ def main() -> int:
 
     import torch
 
-    from canonid.datagen.generate import GenerationConfig, dataset_excitation
+    from canonid.datagen.generate import GenerationConfig
     from canonid.learning.evaluate import kstep_residuals
     from canonid.learning.model import Model
 
@@ -159,7 +163,9 @@ def main() -> int:
     data = Dataset.load(ROOT / args.data)
     val = data.split("val")
     replay = replay_check(data)
-    excitation = [flight.total for flight in dataset_excitation(data, "val")]
+    excitation = generated_excitation(data, "val")
+    if excitation is None:
+        raise SystemExit(f"{args.data}: no excitation to regenerate (not canonid generate data)")
     config = GenerationConfig.from_json(data.metadata["generation"])
     box = config.true_system.U
     applied = np.concatenate([tr.u for tr in val])
@@ -177,10 +183,7 @@ def main() -> int:
         ell = model.window
         first = ell + first_row
         residuals = kstep_residuals(model, val, HORIZONS)
-        signals = {
-            "excitation": [e[first:] for e in excitation],
-            "inputs": [tr.u[first:] for tr in val],
-        }
+        signals = {"excitation": excitation, "inputs": [tr.u for tr in val]}
         tests = tests_for(residuals, signals, ell, names, data.output_names)
         if not noise_done:  # the reference row: the noise on the same rows
             noise = {k: [tr.y[first:] - tr.y_clean[first:] for tr in val] for k in HORIZONS}

@@ -282,6 +282,7 @@ COMMAND_APPLICATION = {
     "canonid.profiles",
     "canonid.reduction",
     "canonid.reproduce",
+    "canonid.residual_check",
     "canonid.scoring",
     "canonid.systems",
     "canonid.theory",

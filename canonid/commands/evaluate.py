@@ -1,5 +1,4 @@
-"""``canonid evaluate`` — score a trained run on test data, beside what training wrote
-(:func:`canonid.scoring.score_run`)."""
+"""``canonid evaluate``: score a run (:mod:`canonid.scoring`) or check its residuals."""
 
 from __future__ import annotations
 
@@ -7,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from canonid.commands import _options
+from canonid.residual_check import JSON_HELP, RESIDUALS_HELP, ResidualRequest, check_residuals
 from canonid.scoring import EvaluateRequest, score_run
 
 
@@ -49,9 +49,14 @@ def register(p: argparse.ArgumentParser) -> None:
         "minus one, or what the data name; the rule of canonid.evaluate too)",
     )
     _options.add_figure_format(p)
+    p.add_argument("--residuals", nargs="?", const=10, type=int, metavar="K", help=RESIDUALS_HELP)
+    p.add_argument("--json", type=Path, metavar="FILE", help=JSON_HELP)
     _options.add_data_options(p, recorded=True)
 
 
 def run(args: argparse.Namespace) -> int:
-    print(score_run(_options.request(EvaluateRequest, args)).summary())
+    if args.residuals is None and args.json is None:
+        print(score_run(_options.request(EvaluateRequest, args)).summary())
+    else:  # the check refuses --json without --residuals, and the scoring options
+        print(check_residuals(_options.request(ResidualRequest, args)).summary())
     return 0
