@@ -648,6 +648,19 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         )
         for k in (1, 10)
     },
+    # the check's blind test on six more seeds (hand-added table): its count, the loop after it
+    **{
+        f"excitation/blind/{run}/{what}": Cell(
+            EXCITATION_CHECK, _row(**{"blind run": f"`{run}`"}), column
+        )
+        for run in ("id-def-s1", "id-h10-s1", "id-h10-s2", "id-h10-s3", "id-h10-s4", "id-h10-s5")
+        for what, column in (
+            ("k10", "excitation, AR(10), k = 10: outside / 60"),
+            ("ratio", "blind loop RMSE ratio"),
+            ("px", "blind px learned / true"),
+            ("val", "best validation loss (epoch)"),
+        )
+    },
     # NMPC on drone models learned from the paper's and the informative drone data
     # (learned_mpc.py): learned / true tracking RMSE, loops out of X, step-response ratios
     **{
