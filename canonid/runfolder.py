@@ -600,13 +600,14 @@ def run_data(recipe: Recipe) -> tuple[Dataset, str]:
         )
     elif "val" not in dataset.splits:
         dataset = split_train_val(dataset, val_fraction=recipe.val_fraction)
-    return dataset, "test" if "test" in dataset.splits else "val"
+    # an empty test split (``canonid generate --n-test 0``) scores like none: on validation
+    return dataset, "test" if dataset.splits.get("test") else "val"
 
 
 def pick_split(dataset: Dataset, name: str | None, *, where: str) -> tuple[str, list[Trajectory]]:
-    """Split ``name``; by default ``test`` if present, else the only split there is."""
+    """Split ``name``; by default ``test`` if it holds records, else the only split there is."""
     if name is None:
-        if "test" in dataset.splits:
+        if dataset.splits.get("test"):
             name = "test"
         elif len(dataset.splits) == 1:
             name = next(iter(dataset.splits))

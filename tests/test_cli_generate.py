@@ -38,3 +38,16 @@ def test_bad_input_is_one_line(args, message, tmp_path, capsys):
     err = capsys.readouterr().err
     assert message in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "x").exists()  # nothing half-written
+
+
+def test_a_dataset_without_test_flights_trains_and_scores_on_validation(tmp_path, capsys):
+    data, run = tmp_path / "tank", tmp_path / "run"
+    argv = ["generate", "tank", "--out", str(data), "--n-train", "2", "--n-val", "1"]
+    assert main([*argv, "--n-test", "0", "--seed", "5", "--no-progress"]) == 0
+    assert Dataset.load(data).counts()["test"] == 0
+    train = ["train", str(data), "--window", "3", "--epochs", "1", "--hidden", "8"]
+    assert main([*train, "--cubic", "0", "--no-progress", "--out", str(run)]) == 0
+    printed = capsys.readouterr().out
+    assert f"on {data} [val]" in printed  # the empty test split is not the one scored
+    assert main(["evaluate", str(run)]) == 0
+    assert "[val]" in capsys.readouterr().out
