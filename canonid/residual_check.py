@@ -64,9 +64,9 @@ DEFAULT_K = 10
 #: what the check prints when the instrument is the inputs
 INPUTS_NOTE = (
     "note: no recorded excitation in these data, so the instrument is the inputs (prewhitened); "
-    "in closed loop they carry the noise and this test can flag a correct model "
-    "(tests/test_residuals.py shows it on a linear loop): the excitation you added to the "
-    "commands, recorded, is the instrument to use (Python route: docs/identifying-for-control.md)"
+    "in closed loop they carry the noise and this test can flag a correct model: the excitation "
+    "you added to the commands, recorded, is the instrument to use (docs: Identifying for "
+    "control, the Python route)"
 )
 
 #: ``canonid evaluate --residuals [K]``'s help
@@ -77,8 +77,8 @@ RESIDUALS_HELP = (
     f"AR({PREWHITEN}), {CONFIDENCE * 100:.0f}%% band per correlation; one line per k = "
     + ", ".join(map(str, DEFAULT_HORIZONS))
     + f" and K (default {DEFAULT_K}; e.g. your controller's horizon): correlations outside the "
-    "band, the null's share, the largest |r|/band, the count per output. Estimates; writes "
-    "nothing to RUN"
+    "band, the null's share, the largest |r|/band, the count per output; on the validation "
+    "split unless --split names another. Estimates; writes nothing to RUN"
 )
 #: ``canonid evaluate --json FILE``'s help
 JSON_HELP = "with --residuals: also write its result to FILE, a new file (default: none written)"
@@ -260,6 +260,9 @@ def check_residuals(request: ResidualRequest) -> ResidualCheck:
     dataset, data_path, split = scoring_data(
         request.run, request.data, request.data_options, split=request.split, model=model.info
     )
+    # a check that chooses a model reads validation data by default, never the test part unasked
+    if split is None and dataset.splits.get("val"):
+        split = "val"
     name, records = pick_split(dataset, split, where=data_path)
     ell, top = model.window, max(horizons)
     first = ell + top - 1

@@ -53,6 +53,13 @@ def test_the_check_reads_the_regenerated_excitation_and_writes_nothing_to_the_ru
     assert sorted(p.name for p in run.iterdir()) == before  # no evaluations folder
 
 
+def test_without_split_the_check_reads_validation_not_test(trained, capsys):
+    data, run = trained
+    capsys.readouterr()
+    assert main(["evaluate", str(run), "--data", str(data), "--residuals"]) == 0
+    assert "[val], 2 records" in capsys.readouterr().out  # the data have a test split too
+
+
 def test_json_is_the_typed_result_and_is_not_overwritten(trained, tmp_path, capsys):
     _, run = trained
     target = tmp_path / "check.json"
