@@ -277,17 +277,16 @@ def correlation_test(
     correlation = np.empty((n_s, n_y, lag_arr.size))
     band = np.empty_like(correlation)
     factor = np.empty((n_s, n_y))
-    samples = 0
+    # records too short for the filter drop out
+    kept = [(e, s) for e, s in zip(eps, sig) if e.shape[0] > prewhiten]
+    samples = sum(e.shape[0] - prewhiten for e, _ in kept)
     for j in range(n_s):
-        # channel j's filter applied to its instrument and to every residual output; records
-        # too short for the filter drop out
-        kept = [(e, s) for e, s in zip(eps, sig) if e.shape[0] > prewhiten]
+        # channel j's filter applied to its instrument and to every residual output
         ew = [_whiten(e, coefficients[j]) for e, _ in kept]
         sw = [_whiten(s[:, j : j + 1], coefficients[j]) for _, s in kept]
         ew = [e - e.mean(axis=0) for e in ew]
         sw = [s - s.mean(axis=0) for s in sw]
-        rows = sum(e.shape[0] for e in ew)
-        samples = rows
+        rows = samples
         e_var = sum((e**2).sum(axis=0) for e in ew) / rows
         s_var = float(sum((s**2).sum() for s in sw)) / rows
         raw = np.concatenate([s[:, j] - s[:, j].mean() for _, s in kept])
@@ -299,10 +298,8 @@ def correlation_test(
             )
         p_hat = np.ones(n_y)
         for m in range(1, null_lags + 1):
-            e_auto = np.array(
-                [sum(float(e[m:, i] @ e[: e.shape[0] - m, i]) for e in ew) for i in range(n_y)]
-            )
-            s_auto = sum(float(s[m:, 0] @ s[: s.shape[0] - m, 0]) for s in sw)
+            e_auto = np.diag(_lagged_sum(ew, ew, m)[0])
+            s_auto = float(_lagged_sum(sw, sw, m)[0][0, 0])
             p_hat = p_hat + 2.0 * (e_auto / (rows * e_var)) * (s_auto / (rows * s_var))
         if np.any(p_hat <= 0):
             raise DataError(

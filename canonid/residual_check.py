@@ -192,8 +192,9 @@ class ResidualCheck:
         )
         out = [
             f"residual check of {self.run} ({self.model}, ℓ = {self.window}) on {self.data} "
-            f"[{self.split}], {self.records} records: k-step-ahead residuals on rows t = "
-            f"{self.first_row} … T − 1 against {source}, prewhitened by "
+            f"[{self.split}], {self.records} record{'' if self.records == 1 else 's'}: "
+            f"k-step-ahead residuals on rows t = {self.first_row} … T − 1 against {source}, "
+            "prewhitened by "
             f"AR({any_test.prewhitening}), at lags 1 … k"
         ]
         if self.instrument == "inputs":
