@@ -249,6 +249,12 @@ def main() -> int:
     args = parser.parse_args()
     if args.deepsi_child is not None:
         return deepsi_child(DATA, args.deepsi_iterations, args.deepsi_child)
+    if (args.only is not None or args.record) and not (RUNS / CPU_FILE).is_file():
+        # checked before training: --only merges into the full run's records, --record reads them
+        parser.error(
+            f"{RUNS / CPU_FILE} not found: --only and --record need the runs of a full "
+            "`python bench_overflow_tanks.py` in that folder"
+        )
     if args.only is not None:
         seconds = canonid_train(args.only, _extra(args.only), DATA)
         # read after training: another --only may have written its time meanwhile
