@@ -11,6 +11,10 @@ Writes the section "Training throughput" of benchmarks/RESULTS.md.
   two threads, larger batches (more window-steps per second, fewer optimiser steps per epoch),
   ``torch.compile`` of the regressor; and for evaluation, the 100-step rollouts batched (all
   start times at once) against one at a time.
+* Hand-written back-propagation: the training step of canonid's default Ours (MLP) (3 × 256
+  SiLU, affine skip, residual, feedthrough; with and without the 16-unit cubic branch), batch 32
+  as in the quick profile, by autograd through the step-by-step rollout against
+  :mod:`canonid.learning.nets.mlp_bptt`, in the same round-robin.
 * Time to target: Ours (MLP) with the quick profile on the tank; the epoch and wall time at
   which the validation rollout MSE (physical units, against the measured outputs) first comes
   within 4×, 2×, 1.5×, 1.1× and 1× of the run's final best.
@@ -92,6 +96,52 @@ def _net(name: str):
     return build_net(name, window=WINDOW, n_u=1, n_y=1, residual=True)
 
 
+def _default_mlp(cubic: int, bptt: bool):
+    """canonid train's Ours (MLP) on a SISO record (quick profile), its rollout either way."""
+    torch.manual_seed(0)
+    net = build_net(
+        "mlp",
+        window=WINDOW,
+        n_u=1,
+        n_y=1,
+        residual=True,
+        feedthrough=True,
+        activation="silu",
+        linear="skip",
+        cubic=cubic,
+    )
+    net.bptt = bptt
+    return net
+
+
+def hand_written(bank, seconds: float, rounds: int) -> str:
+    batch = train_options("quick").batch_size
+    pairs = [
+        (
+            cubic,
+            Variant("autograd", _default_mlp(cubic, False), bank, batch=batch),
+            Variant("hand-written", _default_mlp(cubic, True), bank, batch=batch),
+        )
+        for cubic in (0, 16)
+    ]
+    measure_all([v for _, a, b in pairs for v in (a, b)], seconds, rounds)
+    rows = [
+        f"| network (batch {batch}, H = {HORIZON}, 1 thread) | autograd: ms per step | "
+        "hand-written: ms per step | speed-up [×] |",
+        "|---|---:|---:|---:|",
+    ]
+    for cubic, a, b in pairs:
+        name = "3 × 256 SiLU, skip, residual" + (f", {cubic} cubic units" if cubic else "")
+        slow, fast = 1e3 / max(a.rates), 1e3 / max(b.rates)
+        rows.append(f"| {name} | {slow:.1f} | {fast:.1f} | **{slow / fast:.2f}** |")
+    return "\n".join(rows)
+
+
+def _autograd(net):
+    net.bptt = False
+    return net
+
+
 def throughput(bank, seconds: float, rounds: int) -> str:
     windows_per_epoch = train_options("quick").windows_per_epoch
     variants = [Variant(name, _net(name), bank) for name in model_names()]
@@ -112,6 +162,11 @@ def throughput(bank, seconds: float, rounds: int) -> str:
 def accelerations(bank, seconds: float, rounds: int) -> str:
     variants = [
         Variant("baseline: 1 thread, eager, batch 16", _net("mlp"), bank),
+        Variant(
+            "autograd through the step-by-step rollout, batch 16",
+            _autograd(_net("mlp")),
+            bank,
+        ),
         Variant("2 threads, batch 16", _net("mlp"), bank, threads=2),
         Variant("1 thread, batch 64", _net("mlp"), bank, batch=64),
         Variant("1 thread, batch 256", _net("mlp"), bank, batch=256),
@@ -227,7 +282,11 @@ def main() -> int:
         "### Throughput per model (1 thread, batch 16)",
         throughput(bank, seconds, rounds),
         "### Accelerations tried",
+        "Baseline: Ours (MLP) as `_net` builds it (ReLU, no affine path), trained by the "
+        "hand-written back-propagation (canonid's default since 2026-11-27).",
         accelerations(bank, seconds, rounds),
+        "### Hand-written back-propagation",
+        hand_written(bank, seconds, rounds),
         batched_rollouts(ds),
         "### Time to target on the tank",
         time_to_target(ds),

@@ -354,6 +354,19 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             ("compile", "torch.compile(regressor), batch 16"),
         )
     },
+    # bench_training.py: the default network's training step, hand-written back-propagation
+    # against autograd through the step-by-step rollout (speed-up), with and without the branch
+    **{
+        f"training/bptt/{name}": Cell(
+            "Training throughput",
+            _row(**{"network (batch 32, H = 50, 1 thread)": network}),
+            "speed-up [×]",
+        )
+        for name, network in (
+            ("plain", "3 × 256 SiLU, skip, residual"),
+            ("cubic", "3 × 256 SiLU, skip, residual, 16 cubic units"),
+        )
+    },
     "training/batched-evaluation": Prose(
         "Training throughput", r"\((\d+)× slower; `evaluate` batches them\)"
     ),

@@ -10,6 +10,7 @@ from torch import nn
 
 from canonid.kernel.errors import ShapeError
 from canonid.learning.nets.base import CanonicalModel, mlp
+from canonid.learning.nets.mlp_bptt import bptt_rollout, uses_bptt
 
 __all__ = ["OursMLP"]
 
@@ -37,6 +38,10 @@ class OursMLP(CanonicalModel):
     name = "mlp"
     label = "Ours (MLP)"
     hidden_option = "hidden"
+    #: training rollouts (gradients of the weights recorded) run the hand-written
+    #: back-propagation of :mod:`canonid.learning.nets.mlp_bptt`; ``False``: autograd records
+    #: :meth:`CanonicalModel.rollout` step by step (benchmarks/bench_training.py compares both)
+    bptt: bool = True
 
     def __init__(
         self,
@@ -68,6 +73,14 @@ class OursMLP(CanonicalModel):
         last = self.net[-1]
         assert isinstance(last, nn.Linear)
         return last
+
+    def rollout(
+        self, u_past: torch.Tensor, y_past: torch.Tensor, u_future: torch.Tensor
+    ) -> torch.Tensor:
+        if uses_bptt(self, u_past, y_past, u_future):
+            self._check_rollout_args(u_past, y_past, u_future)
+            return bptt_rollout(self, u_past, y_past, u_future)
+        return super().rollout(u_past, y_past, u_future)
 
     def regress(self, z: torch.Tensor, u: torch.Tensor) -> torch.Tensor:
         x = self._head_input(z, u)
