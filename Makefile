@@ -28,12 +28,13 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(VENV)/bin/canonid reproduce --profile quick --systems tank --out $(DEMO_OUT) --workers $(DEMO_WORKERS) --resume
 
-# pytest exits 5 when it collects no test; that is not a failure of the suite.
+# pytest exits 5 when it collects no test; that is not a failure of the suite. -n auto: one
+# worker process per core (pytest-xdist); every test is independent of the others' order.
 test: $(STAMP)
-	$(PY) -m pytest -q; rc=$$?; if [ $$rc -eq 5 ]; then exit 0; else exit $$rc; fi
+	$(PY) -m pytest -q -n auto; rc=$$?; if [ $$rc -eq 5 ]; then exit 0; else exit $$rc; fi
 
 test-fast: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -n auto -m "not slow"
 
 # mypy reads canonid from build/mypy-src, links shaped like the installed package (pyproject's
 # [tool.mypy] says why); its messages name files through those links.
