@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import torch
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from learning_helpers import damped_split
 
@@ -25,6 +25,8 @@ def _net(seed: int = 0, **options) -> OursMLP:
     with torch.no_grad():
         for p in net.parameters():  # zero-started layers (cubic output, skip) get weights too
             p.normal_(0.0, 0.3)
+        if net.cubic_out is not None:  # small, as after training: iterated cubes run away
+            net.cubic_out.weight.normal_(0.0, 0.05)
         net.residual_scale.uniform_(0.2, 1.5)
     return net
 
@@ -76,6 +78,9 @@ def test_predictions_and_weight_gradients_equal_autograds(
     u = torch.randn(batch, window + horizon, n_u, generator=gen, dtype=torch.float64)
     y = torch.randn(batch, window + horizon, n_y, generator=gen, dtype=torch.float64)
     (pred_a, grads_a), (pred_b, grads_b) = _both(net, u, y, window)
+    # a rollout that runs away (the cube of a cube …) overflows both ways alike; not a model
+    # training would keep
+    assume(bool(pred_a.abs().max() < 1e3) and all(bool(g.isfinite().all()) for g in grads_a))
     torch.testing.assert_close(pred_b, pred_a, rtol=1e-12, atol=1e-12)
     names = [name for name, _ in net.named_parameters()]
     for name, ga, gb in zip(names, grads_a, grads_b, strict=True):
