@@ -1,11 +1,13 @@
 """Cascaded tanks with overflow: the closed-form equilibria below and at the rim, the rim and the
 sensor as hard caps, water conserved, the discretisation's convergence, and the benchmark-shaped
 scenario (one training and one test record, validation the training record's tail, same seed →
-same bytes)."""
+same bytes); benchmarks/bench_overflow_tanks.py's refusal to train without its records."""
 
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -161,3 +163,28 @@ def test_canonid_generate_writes_it_and_says_how_validation_was_cut(tmp_path, ca
     printed = capsys.readouterr().out
     assert "validation: the last 20% of every training flight" in printed
     assert Dataset.load(out).counts() == {"train": 1, "val": 1, "test": 1}
+
+
+def test_overflow_benchmarks_only_stops_before_training_without_the_full_runs_records(
+    tmp_path, monkeypatch, capsys
+):
+    """``bench_overflow_tanks.py --only FOLDER`` merges one contestant into a full run's
+    records: without them it names the missing file and trains nothing."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_overflow_tanks as bench
+
+    monkeypatch.setattr(bench, "ROOT", tmp_path)
+    monkeypatch.setattr(bench, "RUNS", tmp_path / "runs" / "overflow-tanks")
+    trained = []
+    monkeypatch.setattr(bench, "canonid_train", lambda *a, **k: trained.append(a))
+    for argv in (["--only", "mlp-default"], ["--record"]):
+        monkeypatch.setattr(sys, "argv", ["bench_overflow_tanks.py", *argv])
+        try:
+            bench.main()
+        except SystemExit as exc:
+            assert exc.code == 2
+        else:
+            raise AssertionError("no error")
+        err = capsys.readouterr().err.strip().splitlines()[-1]
+        assert "cpu.json not found" in err and str(tmp_path) in err
+    assert trained == []

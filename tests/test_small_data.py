@@ -28,27 +28,3 @@ def test_the_cut_is_the_training_parts_first_samples_and_validates_their_last_fi
     assert [t.info["part"] for t in short.split("test")] == list(full.metadata["test_parts"])
     for cut_part, part in zip(short.split("test"), full.split("test"), strict=True):
         np.testing.assert_array_equal(cut_part.y, part.y)
-
-
-def test_overflow_benchmarks_only_stops_before_training_without_the_full_runs_records(
-    tmp_path, monkeypatch, capsys
-):
-    """``bench_overflow_tanks.py --only FOLDER`` merges one contestant into a full run's
-    records: without them it names the missing file and trains nothing."""
-    import bench_overflow_tanks as bench
-
-    monkeypatch.setattr(bench, "ROOT", tmp_path)
-    monkeypatch.setattr(bench, "RUNS", tmp_path / "runs" / "overflow-tanks")
-    trained = []
-    monkeypatch.setattr(bench, "canonid_train", lambda *a, **k: trained.append(a))
-    for argv in (["--only", "mlp-default"], ["--record"]):
-        monkeypatch.setattr(sys, "argv", ["bench_overflow_tanks.py", *argv])
-        try:
-            bench.main()
-        except SystemExit as exc:
-            assert exc.code == 2
-        else:
-            raise AssertionError("no error")
-        err = capsys.readouterr().err.strip().splitlines()[-1]
-        assert "cpu.json not found" in err and str(tmp_path) in err
-    assert trained == []
