@@ -121,7 +121,12 @@ def layer_norm_bound(system: LearnedSystem) -> Estimate:
     t0 = time.perf_counter()
     net = system.network
     reg = system.regressor
-    why = "a GRU regressor has no layer-norm bound" if reg.recurrent else _unbounded(net)
+    members = system.members if len(system.members) > 1 else ()
+    why = (
+        "a GRU regressor has no layer-norm bound"
+        if any(m.recurrent for m in (reg, *members))
+        else next((w for w in map(_unbounded, (net, *members)) if w is not None), None)
+    )
     if why is not None:
         return Estimate(
             quantity="gamma_f",
@@ -145,9 +150,11 @@ def layer_norm_bound(system: LearnedSystem) -> Estimate:
         value = _up(_up(encoder * middle) * decoder)
         parts: dict[str, Any] = {"encoder": encoder, "regressor_z": inner, "decoder": decoder}
     else:
-        inner = _regressor_z(reg, reg.z_std, reg.y_std)
+        # an ensemble's Ĥ is the mean of its members': its slope is at most the mean of theirs
+        inners = [_regressor_z(m, m.z_std, m.y_std) for m in (members or (reg,))]
+        inner = inners[0] if len(inners) == 1 else _up(_up(math.fsum(inners)) / len(inners))
         value = _up(math.sqrt(_up(shift + _up(inner * inner))))
-        parts = {"regressor_z": inner}
+        parts = {"regressor_z": inner, **({"members_regressor_z": inners} if members else {})}
     return Estimate(
         quantity="gamma_f",
         value=value,

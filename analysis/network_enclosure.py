@@ -208,8 +208,9 @@ class NetworkEnclosure:
 
 def network_enclosure(system: LearnedSystem) -> NetworkEnclosure | None:
     """The layer-wise enclosure of ``system`` when its regressor is an MLP and its state the
-    window ``z`` (not a reduced model), else ``None`` (the SX graph's enclosure applies)."""
+    window ``z`` (not a reduced model, not an ensemble), else ``None`` (the SX graph's enclosure
+    applies)."""
     net = system.network
-    if isinstance(net, CanonicalNet) and not net.recurrent:
+    if isinstance(net, CanonicalNet) and not net.recurrent and len(system.members) == 1:
         return NetworkEnclosure(net)
     return None

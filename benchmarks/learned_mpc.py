@@ -2,7 +2,8 @@
 
 The learned models are trained Ours (MLP) runs, or ARX runs (the affine path alone): ``--run``
 on tank data, ``--drone-run`` on planar-drone data, repeated for runs on several drone datasets
-(their rows are labelled by the model and the scenario that generated each run's data); built
+(their rows are labelled by the model and the scenario that generated each run's data), or
+``RUN+RUN+…`` for the mean of several runs (an ensemble); built
 as CasADi systems from their weights (:func:`canonid.learned.learned_system`). Per system both
 controllers are the same :class:`canonid.datagen.controllers.nmpc.NMPC` with an output reference
 (``track="output"``), the same horizon, weights, input bounds (the true system's U) and solver;
@@ -355,8 +356,14 @@ def rmse(case: Case, y: np.ndarray, flight, ell: int) -> float:
     return float(np.sqrt(np.mean((y[:, case.scored] - ref) ** 2)))
 
 
+def runs_of(run_dir: Path) -> list[Path]:
+    """The run folders of a ``--drone-run`` value: ``RUN`` or ``RUN+RUN+…``, an ensemble."""
+    return [Path(part) for part in str(run_dir).split("+")]
+
+
 def learned_of(run_dir: Path, case: Case):
-    run = learned_system(run_dir)
+    first, *members = runs_of(run_dir)
+    run = learned_system(first, members=members)
     # the same input bounds for both controllers
     return run, with_sets(run.system, run.system.X, case.system.U)
 
@@ -374,6 +381,7 @@ def with_sets(learned: LearnedSystem, X: Box, U: Box) -> LearnedSystem:
         U=U,
         W=learned.W,
         name=learned.name,
+        members=learned.members[1:],
     )
 
 
@@ -508,11 +516,13 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
     if case.name == "drone2d" and args.theory_seconds > 0:
         theory = loop_theory(case, run.system, learned, learned_loops, args)
     net = learned.regressor
-    recipe = json.loads((run_dir / "run.json").read_text())
+    recipes = [json.loads((part / "run.json").read_text()) for part in runs_of(run_dir)]
+    recipe = recipes[0]
+    mean = f", mean of {len(recipes)}" if len(recipes) > 1 else ""
     return {
         "run": str(run_dir),
         "system": case.name,
-        "model": model_label(recipe),
+        "model": model_label(recipe) + mean,
         "data": dataset_label(run),
         "window": ell,
         "hidden": [layer.n_out for layer in net.layers[:-1]],
@@ -520,7 +530,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
         "residual": learned.parameters["residual"],
         "affine": learned.parameters["affine"],
         "profile": run.model.info.get("profile"),
-        "command": " ".join(recipe["command"]),
+        "command": "`; `".join(" ".join(r["command"]) for r in recipes),
         "epochs": recipe["train_options"].get("epochs"),
         "samples": f"{ell} … {ell + min(flights[0].T - ell, limit or flights[0].T) - 1}",
         "references": len(flights),
@@ -720,7 +730,8 @@ def main() -> int:
         "--drone-run",
         type=Path,
         action="append",
-        help="an Ours (MLP) or ARX run on drone2d data (repeat it to compare several runs)",
+        help="an Ours (MLP) or ARX run on drone2d data (repeat it to compare several runs); "
+        "RUN+RUN+…: the mean of several runs of one window (an ensemble, one CasADi model)",
     )
     parser.add_argument("--references", type=int, default=10)
     parser.add_argument(

@@ -64,11 +64,16 @@ def _noise_box(dataset: Any, n_y: int) -> Box | None:
     return Box(box["lower"], box["upper"])
 
 
-def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
+def learned_system(
+    run_dir: Path, *, data: Path | None = None, members: Sequence[Path] = ()
+) -> LearnedRun:
     """The model of ``run_dir`` as a system (see the module docstring).
 
     ``data`` replaces the training data named in ``run_dir/run.json`` (its ``train`` split, or
-    all of it when it has no such split).
+    all of it when it has no such split). ``members``: further run folders of canonical models
+    of the same window and signals, e.g. other seeds; the system is then the mean of all of them
+    (:class:`~canonid.models.learned.LearnedSystem`, "Ensembles"), its sets from ``run_dir``'s
+    data.
 
     Raises:
         NotExportableError: the run's model is not a canonical model (or a reduced one).
@@ -94,6 +99,8 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
             list(splits["train"]) if "train" in splits else [t for s in splits.values() for t in s]
         )
     units = dataset.metadata.get("units", {}) if dataset.metadata else {}
+    nets = [_member_network(member, dataset, net.window) for member in members]
+    name = run_dir.name if not nets else f"mean of {run_dir.name} and {len(nets)} more"
     system = LearnedSystem.from_data(
         net,
         train,
@@ -103,9 +110,30 @@ def learned_system(run_dir: Path, *, data: Path | None = None) -> LearnedRun:
         input_units=[units.get("inputs", {}).get(n, "-") for n in dataset.input_names],
         output_units=[units.get("outputs", {}).get(n, "-") for n in dataset.output_names],
         W=_noise_box(dataset, model.n_y),
-        name=f"learned:{run_dir.name}",
+        name=f"learned:{name}",
+        members=nets,
     )
     return LearnedRun(run=run_dir, model=model, system=system, dataset=dataset, train=train)
+
+
+def _member_network(run_dir: Path, dataset: Any, window: int) -> Any:
+    """The canonical network of the ensemble member ``run_dir``, checked against the first run's
+    data (sampling time, signals) and window."""
+    from canonid.kernel.network import CanonicalNet
+    from canonid.scoring import check_signal_names
+
+    model = Model.load(run_dir)
+    net = model.export().network()  # refuses the non-canonical models first
+    check_compatible(dataset, model.info, where=str(run_dir))
+    check_signal_names(dataset, model.info, where=str(run_dir), explicit=False)
+    if not isinstance(net, CanonicalNet):
+        raise DataError(f"{run_dir}: a reduced model cannot be averaged with others")
+    if net.window != window:
+        raise DataError(
+            f"{run_dir}: window ℓ = {net.window}, the first run's is {window}; the models of an "
+            "ensemble share the window state"
+        )
+    return net
 
 
 def learned_checks(
@@ -161,21 +189,25 @@ class Exported:
         return "\n".join([self.headline, *(f"  wrote {path}" for path in self.files)])
 
 
-def export_casadi(run_dir: Path, target: Path, *, data: Path | None = None) -> Exported:
+def export_casadi(
+    run_dir: Path, target: Path, *, data: Path | None = None, members: Sequence[Path] = ()
+) -> Exported:
     """Write the canonical model of ``run_dir`` as the ``casadi.Function`` ``target``,
     ``learned_model(x, u) -> (x_next, y)`` (load it with ``casadi.Function.load``), and its
     description ``target.json`` (dimensions, names, units, ``dt``, the sets X, U, W, how the
     state is filled from measured data); a reduced model also gets its encoder
     ``encode(z) -> x`` beside it (suffix ``.encoder.casadi``). The sets come from ``data``
     (default: the run's training data). Only canonical models export (Ours (MLP), Ours (GRU) and
-    their reduced models). Returns :class:`Exported`: the model in one line, the files written."""
+    their reduced models). With ``members`` (further run folders, :func:`learned_system`) the
+    function is the mean of all the models. Returns :class:`Exported`: the model in one line, the
+    files written."""
     from canonid.models.learned import model_function, save_function
 
     if target.suffix != ".casadi":
         raise DataError(f"--casadi: expected a file name ending in .casadi, got {target}")
     described = target.with_name(target.name + ".json")
     _check_output(target, described)
-    learned = learned_system(run_dir, data=data)
+    learned = learned_system(run_dir, data=data, members=members)
     system = learned.system
     fun = model_function(system)
     reduced = system.reduced
@@ -184,6 +216,7 @@ def export_casadi(run_dir: Path, target: Path, *, data: Path | None = None) -> E
     description = {
         "format": "canonid-casadi-model",
         "run": str(run_dir),
+        **({"members": [str(run_dir), *map(str, members)]} if members else {}),
         "model": learned.model.name,
         "function": {
             "name": fun.name(),
@@ -207,8 +240,13 @@ def export_casadi(run_dir: Path, target: Path, *, data: Path | None = None) -> E
         for path in files:  # the files belong together: none is left without the others
             path.unlink(missing_ok=True)
         raise
+    what = (
+        f"the mean of {len(members) + 1} {learned.model.name} models"
+        if members
+        else (f"{learned.model.name} model")
+    )
     headline = (
-        f"{learned.model.name} model of {run_dir}: {system.n_x} states, {system.n_u} "
+        f"{what} of {', '.join(map(str, [run_dir, *members]))}: {system.n_x} states, {system.n_u} "
         f"input(s), {system.n_y} output(s), dt = {system.dt:g} s"
     )
     return Exported(headline, tuple(files))

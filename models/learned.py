@@ -20,6 +20,12 @@ and ``f``, ``h`` are the reduced model's step and output (see :mod:`canonid.kern
 Either way ``x[t]`` is filled from a measured window by :meth:`LearnedSystem.state_of_window` —
 the canonical state is measured by construction, no observer is needed.
 
+Ensembles. Canonical models of the same window and signals (e.g. trained from several seeds) can
+be one system whose ``Ĥ`` is the mean of theirs (``members``): the state is the same window
+``z_t``, each member applies its own normalisation, and ``f`` shifts in the mean output. A
+controller that plans with the mean cannot exploit one member's error where the others disagree
+with it (benchmarks/RESULTS.md, "NMPC on a learned model: ensembles").
+
 Sets (:meth:`LearnedSystem.from_data`): X is the box hull of the states of the training windows
 (every ``z_t`` of every training trajectory, or its encoding ``x̄``), U the hull of the training
 inputs, W the hull of the training noise ``y − y_clean`` when the data has clean outputs.
@@ -128,6 +134,9 @@ class LearnedSystem(System):
         input_units, output_units: their units (``"-"`` when not given).
         X, U, W: the sets (see :meth:`from_data` for the ones taken from the data).
         name: the system's name (e.g. the run folder's).
+        members: further canonical models of the same window and signals; ``Ĥ`` is then the
+            mean of ``net``'s and theirs (module docstring, "Ensembles"). ``net`` itself must
+            then be a :class:`CanonicalNet`.
     """
 
     description = "A trained canonical model (Ours (MLP/GRU), or reduced), from its weights"
@@ -145,6 +154,7 @@ class LearnedSystem(System):
         input_units: Sequence[str] | None = None,
         output_units: Sequence[str] | None = None,
         name: str = "learned",
+        members: Sequence[CanonicalNet] = (),
     ) -> None:
         if not isinstance(net, (CanonicalNet, ReducedCanonicalNet)):
             raise ShapeError(
@@ -153,6 +163,8 @@ class LearnedSystem(System):
             )
         self.network = net
         self.regressor = reg = net.regressor if isinstance(net, ReducedCanonicalNet) else net
+        #: the canonical models whose mean output this system is (``(net,)`` for one model)
+        self.members: tuple[CanonicalNet, ...] = _members(net, members, name)
         input_units = tuple(input_units or ("-",) * len(input_names))
         output_units = tuple(output_units or ("-",) * len(output_names))
         if (len(input_names), len(output_names)) != (reg.n_u, reg.n_y):
@@ -174,6 +186,8 @@ class LearnedSystem(System):
         self._z_mean, self._z_std = reg.z_mean, reg.z_std
         regressor = "GRU" if reg.recurrent else "MLP"
         branch = "" if reg.cubic is None else " with a cubic branch"
+        if len(self.members) > 1:
+            kind = f"mean of {len(self.members)} canonical models"
         super().__init__(
             name=name,
             dt=dt,
@@ -198,6 +212,8 @@ class LearnedSystem(System):
                 "activation": reg.layers[0].activation if len(reg.layers) > 1 else "linear",
                 # only with the branch, so that the description of a plain network is unchanged
                 **({"cubic": reg.cubic[0].n_out} if reg.cubic is not None else {}),
+                # only for an ensemble, for the same reason (the other entries are its first's)
+                **({"members": len(self.members)} if len(self.members) > 1 else {}),
             },
         )
         z = ca.SX.sym("z", reg.state_dim)
@@ -273,24 +289,33 @@ class LearnedSystem(System):
         return ca.vertcat(x[p:], u, y)
 
     def _h_expr(self, x: ca.SX, u: ca.SX) -> ca.SX:
-        reg = self.regressor
-        un = (u - reg.u_mean) / reg.u_std
         if isinstance(self.network, ReducedCanonicalNet):
+            reg = self.regressor
             zn = _skip(self.network.decoder, self.network.decoder_skip, x)
-        else:
-            zn = (x - self._z_mean) / self._z_std
-        return regressor_expr(reg, zn, un) * reg.y_std + reg.y_mean
+            return regressor_expr(reg, zn, (u - reg.u_mean) / reg.u_std) * reg.y_std + reg.y_mean
+        outputs = [
+            regressor_expr(m, (x - m.z_mean) / m.z_std, (u - m.u_mean) / m.u_std) * m.y_std
+            + m.y_mean
+            for m in self.members
+        ]
+        return outputs[0] if len(outputs) == 1 else sum(outputs[1:], outputs[0]) / len(outputs)
 
     # ------------------------------------------------------------------ numeric helpers
     def linearise(self, x: Any, u: Any) -> Linearisation:
         """:meth:`System.linearise`; for an MLP canonical model in numpy (same numbers, much
         faster for wide networks), else by CasADi."""
         net = self.network
-        if isinstance(net, ReducedCanonicalNet) or net.recurrent:
+        if isinstance(net, ReducedCanonicalNet) or any(m.recurrent for m in self.members):
             return super().linearise(x, u)
         xm = as_matrix(x, self.n_x, f"{self.name}: states x")
         um = as_matrix(u, self.n_u, f"{self.name}: inputs u", rows=xm.shape[0])
-        return _mlp_linearisation(net, xm, um)
+        parts = [_mlp_linearisation(m, xm, um) for m in self.members]
+        if len(parts) == 1:
+            return parts[0]
+        # f = [shift; u; Ĥ] is affine in Ĥ: the mean's values and Jacobians are the means
+        return Linearisation(
+            *(np.mean([getattr(lin, k) for lin in parts], axis=0) for k in _LINEARISATION)
+        )
 
     def state_of_window(self, z: Any) -> np.ndarray:
         """The state ``x[t]`` of a measured window ``z_t`` (physical,
@@ -307,6 +332,31 @@ class LearnedSystem(System):
             )
         out = np.asarray(self.encoder.map(za.shape[0])(za.T)).T.reshape(za.shape[0], self.n_x)
         return out[0] if single else out
+
+
+_LINEARISATION = ("f", "h", "f_x", "f_u", "h_x", "h_u")
+
+
+def _members(
+    net: CanonicalNet | ReducedCanonicalNet, members: Sequence[CanonicalNet], name: str
+) -> tuple[CanonicalNet, ...]:
+    """``(net, *members)`` checked to share the window and the signals (ShapeError if not)."""
+    if not members:
+        return (net,) if isinstance(net, CanonicalNet) else ()
+    if not isinstance(net, CanonicalNet):
+        raise ShapeError(f"{name}: an ensemble averages canonical models, not reduced ones")
+    for i, m in enumerate(members, start=2):
+        if not isinstance(m, CanonicalNet):
+            raise ShapeError(
+                f"{name}: ensemble member {i} is a {type(m).__name__}, expected a CanonicalNet"
+            )
+        mine, theirs = (m.window, m.n_u, m.n_y), (net.window, net.n_u, net.n_y)
+        if mine != theirs:
+            raise ShapeError(
+                f"{name}: ensemble member {i} has (ℓ, n_u, n_y) = {mine}, the first {theirs}: "
+                "the members must share the window state"
+            )
+    return (net, *members)
 
 
 def _forward_with_slopes(layer: Layer, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -231,3 +231,41 @@ def test_the_docs_examples_run(runs, tmp_path):
     )
     assert res.returncode == 0, res.stderr[-2000:]
     assert "apply u = [" in res.stdout
+
+
+def test_several_runs_export_as_their_mean(runs, tmp_path, capsys):
+    """`canonid export RUN RUN`: one function whose output is the mean of the runs' (another
+    seed of the same recipe), the runs named in the description; a run of another window or a
+    non-canonical model is refused in one line, before anything is written."""
+    data = runs / "data" / "dataset.npz"
+    second = tmp_path / "mlp-seed1"
+    argv = ["train", str(data), "--model", "mlp", "--window", str(ELL), "--residual"]
+    assert main([*argv, "--hidden", "8,8", "--seed", "1", "--out", str(second), *COMMON]) == 0
+    capsys.readouterr()
+    target = tmp_path / "mean.casadi"
+    assert main(["export", str(runs / "mlp"), str(second), "--casadi", str(target)]) == 0
+    assert "the mean of 2 mlp models" in capsys.readouterr().out
+    meta = json.loads((tmp_path / "mean.casadi.json").read_text())
+    assert (
+        meta["members"] == [str(runs / "mlp"), str(second)] and meta["parameters"]["members"] == 2
+    )
+    rng = np.random.default_rng(2)
+    z, u = rng.uniform(-1, 1, size=ELL * 2), rng.uniform(-1, 1, size=1)
+    mean = (Model.load(runs / "mlp").export().H(z, u) + Model.load(second).export().H(z, u)) / 2
+    x_next, y = _fresh_process(target, z, u)
+    np.testing.assert_allclose(y, mean, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(x_next, np.concatenate([z[2:], u, y]), rtol=0, atol=1e-12)
+
+    other = tmp_path / "mlp-l2"
+    argv[argv.index(str(ELL))] = "2"
+    assert main([*argv, "--hidden", "8,8", "--out", str(other), *COMMON]) == 0
+    capsys.readouterr()
+    for run, says in (
+        (other, "window ℓ = 2, the first run's is 3"),
+        (runs / "classic-gru", "only canonical models export"),
+    ):
+        bad = tmp_path / "bad" / "m.casadi"
+        assert main(["export", str(runs / "mlp"), str(run), "--casadi", str(bad)]) == 1
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and says in err and "Traceback" not in err
+        assert not bad.parent.exists()

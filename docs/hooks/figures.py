@@ -144,11 +144,17 @@ _NO_SKIP = "3e-3, clip 1"
 #: the overflow tanks' full run at ℓ = 10 in the screen lines: the epoch it ended at, of how many
 _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of (\d+)"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
+LEARNED_MPC_MEAN = "NMPC on a learned model: ensembles"
 HORIZON_STUDY = "Training horizon on validation"
 EXCITATION_CHECK = "Residuals against the excitation"
 #: the data engine's default controller, a row of the "Data engine" section
 _DATAGEN_DEFAULT = "NMPC, fatrop-c (default)"
 _CANONID_CLUSTER = "canonid (LOCAL_CLUSTER_CONFIG)"
+_LEARNED_MPC_MEANS = (  # key slug, the model cell of the ensembles section's goals table
+    ("single", "mlp, horizon 10"),
+    ("mean4", "mlp, horizon 10, mean of 4"),
+    ("mean6", "mlp, horizon 10, mean of 6"),
+)
 _LEARNED_MPC_RUNS = (  # key slug, the model and data cells of the section's goals table
     ("drone2d-id/mlp", "mlp", "drone2d-id"),
     ("drone2d-id/mlp-h10", "mlp, horizon 10", "drone2d-id"),
@@ -682,6 +688,18 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         for what, column in (
             ("ratio", ("learned / true tracking RMSE",)),
             ("left", ("learned loops that left X", True)),
+        )
+    },
+    # NMPC on the mean of several seeds (learned_mpc.py RUN+RUN+…): the goals table's cells
+    **{
+        f"learned-mpc-mean/{slug}/{what}": Cell(
+            LEARNED_MPC_MEAN, _row(model=model, data="drone2d-id", output="px"), *column
+        )
+        for slug, model in _LEARNED_MPC_MEANS
+        for what, column in (
+            ("ratio", ("learned / true tracking RMSE",)),
+            ("left", ("learned loops that left X", True)),
+            ("px", ("learned / true change, from rest",)),
         )
     },
     **{
