@@ -1,5 +1,6 @@
 """One job abstraction for the batches of :func:`canonid.runner.run_jobs`: Table-1 training,
-system analyses, reductions and the candidates of ``canonid train --window auto``.
+system analyses, reductions and the candidates of ``canonid train --window auto``; and the
+worker processes in which short trainings run side by side (:func:`candidate_pool`).
 
 A job is a frozen dataclass (picklable, so Dask can send it to a worker) with a ``name``, a
 ``folder``, a ``recipe()`` — everything that determines its result — and ``run()``, written here
@@ -33,6 +34,7 @@ import threading
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Iterator, Mapping
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -43,10 +45,13 @@ from canonid.kernel.io import atomic_write_json, jsonable, read_json, remove_sta
 
 __all__ = [
     "LOCK_FILE",
+    "POOL_MIN_STEPS",
     "RESULT_FILE",
     "Job",
     "JobOutcome",
     "StoredJob",
+    "available_cores",
+    "candidate_pool",
     "check_folder",
     "check_run_folder",
     "finished",
@@ -139,6 +144,67 @@ class torch_threads:
             import torch
 
             torch.set_num_threads(self.previous)
+
+
+#: the fewest optimiser steps per short training for which :func:`candidate_pool` starts worker
+#: processes: a worker imports torch first (a second or two of CPU), which a training of a few
+#: hundred steps of the default network repays many times, and a test's single-epoch one does not
+POOL_MIN_STEPS = 200
+
+
+def available_cores() -> int:
+    """The CPU cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@contextlib.contextmanager
+def candidate_pool(
+    threads: int | None, *, steps: int, candidates: int
+) -> Iterator[Executor | None]:
+    """Worker processes of one torch thread each, for independent short trainings that train
+    side by side (the window screen's candidates, the cubic test's arms): one per thread the run
+    may use (``threads``; default every core), at most ``candidates``; ``None`` — train them one
+    after the other in this process — with one thread or when each trains for fewer than
+    :data:`POOL_MIN_STEPS` optimiser steps (``steps``). A candidate in a worker gives what it
+    gives alone with ``--threads 1``. Workers start at the first candidate (spawned: a fresh
+    interpreter, no state of this one's threads) and stop when the block ends."""
+    workers = min(threads if threads is not None else available_cores(), candidates)
+    if workers < 2 or steps < POOL_MIN_STEPS:
+        yield None
+        return
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=multiprocessing.get_context("spawn"),
+        initializer=_one_thread,
+    )
+    try:
+        yield pool
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)  # Ctrl-C reaches the workers too
+        raise
+    pool.shutdown(wait=True)
+
+
+def _one_thread() -> None:
+    """A candidate worker's start: one torch thread (the cores are the workers'), and on Linux
+    the end of the worker with its parent (a killed command leaves no training running)."""
+    import torch
+
+    torch.set_num_threads(1)
+    if sys.platform.startswith("linux"):
+        import ctypes
+        import signal
+
+        try:  # prctl(PR_SET_PDEATHSIG, SIGTERM)
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGTERM)
+        except (AttributeError, OSError):  # no prctl here: the worker ends after its candidate
+            pass
 
 
 class Job(ABC, Generic[R]):

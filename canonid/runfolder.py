@@ -35,6 +35,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, TypeAlias, TypeVar
@@ -731,6 +732,7 @@ def train_run(
     eval_stride: int = 1,
     callback: Callable[[EpochReport], None] | None = None,
     figure_format: str = "png",
+    executor: Executor | None = None,
 ) -> RunResult:
     """Train the model of ``recipe`` into ``run_dir`` (or continue it from its checkpoint with
     ``resume``), write ``run.json``, the model, ``history.csv`` and the figures, and score it
@@ -742,7 +744,8 @@ def train_run(
     checkpoint leaves no recipe behind. The folder's lock is held throughout
     (:func:`canonid.jobs.run_folder_lock`); a new run records its data by absolute path and
     checksum (:meth:`RunSource.pinned`) and refuses a folder holding another run or the user's
-    own files.
+    own files. ``executor`` runs the cubic test's short trainings side by side
+    (:func:`canonid.jobs.candidate_pool`).
     """
     t0, cpu0 = time.perf_counter(), time.process_time()
     dataset, train, val, test_name, _ = load_splits(recipe)  # the loader's checks first
@@ -775,6 +778,7 @@ def train_run(
                 run_dir=run_dir,
                 resume=resume,
                 callback=callback,
+                executor=executor,
                 info={
                     "profile": recipe.profile,
                     "data": {"path": recipe.data, "splits": dataset.counts()},

@@ -17,8 +17,10 @@ loads when :func:`train` runs.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 from collections.abc import Callable, Mapping
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -557,7 +559,7 @@ def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | Non
     ``--window`` would."""
     import sys
 
-    from canonid.jobs import run_folder_lock, torch_threads
+    from canonid.jobs import candidate_pool, run_folder_lock, torch_threads
     from canonid.learning.screen import ScreenCandidate, screen_windows
     from canonid.runfolder import load_splits
 
@@ -577,20 +579,38 @@ def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | Non
                     file=sys.stderr,
                 )
 
-        with torch_threads(request.threads):
-            screen = screen_windows(
-                train_part,
-                val_part,
-                windows=windows,
-                model=base.model,
-                options=base.options(),
-                net_options=base.net_options,
-                progress=shown,
+        # the screen's candidates, then the chosen run's cubic test, side by side on the cores
+        steps, most = _short_steps(base), max(len(windows), _CUBIC_BATCH)
+        with candidate_pool(request.threads, steps=steps, candidates=most) as pool:
+            with torch_threads(request.threads):
+                screen = screen_windows(
+                    train_part,
+                    val_part,
+                    windows=windows,
+                    model=base.model,
+                    options=base.options(),
+                    net_options=base.net_options,
+                    progress=shown,
+                    executor=pool,
+                )
+            screen.write(run_dir)
+            recipe = dataclasses.replace(base, window=screen.chosen)
+            outcome = _train_one(
+                request, recipe, run_dir, resume=False, callback=callback, executor=pool
             )
-        screen.write(run_dir)
-        recipe = dataclasses.replace(base, window=screen.chosen)
-        outcome = _train_one(request, recipe, run_dir, resume=False, callback=callback)
         return _follow_up(request, recipe, run_dir, screen, outcome)
+
+
+#: the most short trainings the cubic test runs at once (its pairs after the first)
+_CUBIC_BATCH = 2 * (CUBIC_SEEDS - 1)
+
+
+def _short_steps(recipe: RunRecipe) -> int:
+    """The optimiser steps of one of the window screen's or the cubic test's short trainings."""
+    from canonid.learning.screen import screen_options
+
+    short = screen_options(recipe.options(), SCREEN_FRACTION)
+    return short.epochs * -(-short.windows_per_epoch // short.batch_size)
 
 
 def _follow_up(
@@ -785,9 +805,12 @@ def _train_one(
     *,
     resume: bool,
     callback: Callable[[EpochReport], None] | None,
+    executor: Executor | None = None,
 ) -> TrainOutcome:
-    """Train (or resume) ``recipe`` into ``run_dir`` and score it (:func:`train_run`)."""
-    from canonid.jobs import torch_threads
+    """Train (or resume) ``recipe`` into ``run_dir`` and score it (:func:`train_run`); the
+    cubic test's short trainings run on ``executor``, else on a :func:`candidate_pool` of their
+    own."""
+    from canonid.jobs import candidate_pool, torch_threads
     from canonid.runfolder import train_run
     from canonid.runner import EpochBar
 
@@ -804,16 +827,23 @@ def _train_one(
         if callback is not None:
             callback(report)
 
+    steps = _short_steps(recipe)
     try:
-        with torch_threads(request.threads):  # a selection's candidates set their own
-            result = train_run(
-                recipe,
-                run_dir,
-                resume=resume,
-                eval_horizon=request.eval_horizon,
-                callback=progress,
-                figure_format=request.figure_format,
-            )
+        with contextlib.ExitStack() as stack:
+            if executor is None:
+                executor = stack.enter_context(
+                    candidate_pool(request.threads, steps=steps, candidates=_CUBIC_BATCH)
+                )
+            with torch_threads(request.threads):  # a selection's candidates set their own
+                result = train_run(
+                    recipe,
+                    run_dir,
+                    resume=resume,
+                    eval_horizon=request.eval_horizon,
+                    callback=progress,
+                    figure_format=request.figure_format,
+                    executor=executor,
+                )
     finally:
         bar.close()
     return TrainOutcome(run_dir, result.evaluation.to_json(), result=result)

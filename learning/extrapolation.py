@@ -17,7 +17,8 @@ and spoils a saturating tank. Which of the two a record needs is decided by the 
   :data:`CUBIC_SEEDS` seeds, and keeps the branch when its best loss on the held-out peaks over
   those seeds is at most :data:`CUBIC_GAIN` × the plain network's best. One pair of such short
   trainings decides by the seed as much as by the record, unless its ratio is far from the
-  threshold (:data:`CUBIC_MARGIN`, :func:`decisive`): then the first pair decides alone.
+  threshold (:data:`CUBIC_MARGIN`, :func:`decisive`): then the first pair decides alone. The
+  arms are independent: given an executor they train side by side, each as it would alone.
 
 The validation part and the test part play no part: the held-out peaks come from the training
 part. How the constants were chosen, on validation only: benchmarks/RESULTS.md, "Extrapolation".
@@ -29,6 +30,7 @@ import dataclasses
 import logging
 import math
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass
 from typing import Any
 
@@ -225,6 +227,7 @@ def cubic_test(
     net_options: Mapping[str, Any],
     fit: Callable[..., Any],
     model: str = "mlp",
+    executor: Executor | None = None,
 ) -> CubicTest:
     """Decide the cubic branch on ``train``'s held-out peaks (see the module docstring).
 
@@ -233,7 +236,9 @@ def cubic_test(
     ``options.seed`` on, up to :data:`CUBIC_SEEDS` pairs, one when the first is
     :func:`decisive`); ``net_options`` the network's, resolved but for
     ``cubic``; ``fit`` is :func:`canonid.learning.training.fit`, given by it (this module does
-    not import its caller).
+    not import its caller). ``executor``: where the arms train, the first pair side by side and
+    then the remaining pairs at once (``None``: one after the other in this process); the
+    losses are those of the arms trained alone.
     """
     opts = screen_options(options, SCREEN_FRACTION)
     try:
@@ -251,13 +256,23 @@ def cubic_test(
             f"samples, under {MIN_TRAIN_SHARE:.0%}"
         )
         return CubicTest(0, None, None, opts.epochs, reason, split.to_dict())
-    plain_losses: list[float | None] = []
-    cubic_losses: list[float | None] = []
-    for seed in range(opts.seed, opts.seed + CUBIC_SEEDS):
-        for units, losses in ((0, plain_losses), (CUBIC_UNITS, cubic_losses)):
-            losses.append(_short_loss(fit, split, model, window, opts, net_options, units, seed))
-        if seed == opts.seed and decisive(plain_losses[0], cubic_losses[0]):
-            break
+
+    def pairs(seeds: Sequence[int]) -> list[float | None]:
+        """The (plain, cubic) losses of ``seeds``, flat, in order."""
+        calls = [
+            (fit, split, model, window, opts, net_options, units, seed)
+            for seed in seeds
+            for units in (0, CUBIC_UNITS)
+        ]
+        if executor is None:
+            return [_short_loss(*call) for call in calls]
+        futures = [executor.submit(_short_loss, *call) for call in calls]
+        return [future.result() for future in futures]
+
+    losses = pairs([opts.seed])
+    if not decisive(losses[0], losses[1]):
+        losses += pairs(range(opts.seed + 1, opts.seed + CUBIC_SEEDS))
+    plain_losses, cubic_losses = losses[0::2], losses[1::2]
     plain, cubic = _best(plain_losses), _best(cubic_losses)
     return CubicTest(
         CUBIC_UNITS if keeps_cubic(plain, cubic) else 0,

@@ -11,6 +11,10 @@ model that will be trained, not a proxy; a linear (ARX) fit's best window is not
 ℓ = 2 on Silverbox, where the network prefers longer windows). A candidate that diverges or
 fails is recorded and left out of the choice.
 
+The candidates are independent: given an ``executor`` (worker processes of one torch thread
+each, :func:`canonid.jobs.candidate_pool`) they train side by side, each as it would alone with
+one thread, so the screen chooses what ``--threads 1`` chooses, sooner.
+
 Only the training and validation trajectories are given: the choice never reads test data.
 The outcome is a :class:`WindowScreen` (written by ``canonid train`` to the run folder as
 :data:`SCREEN_FILE`); it, the rule and the constants live in
@@ -23,6 +27,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import Executor
 from typing import TYPE_CHECKING, Any
 
 from canonid.kernel.errors import OptionError
@@ -101,6 +106,7 @@ def screen_windows(
     fraction: float = SCREEN_FRACTION,
     tolerance: float = SCREEN_TOLERANCE,
     progress: Callable[[int, ScreenCandidate], None] | None = None,
+    executor: Executor | None = None,
 ) -> WindowScreen:
     """Train ``model`` at each of ``windows`` for :func:`screen_options` ``(options, fraction)``
     and choose the shortest window whose best validation loss is at most ``tolerance`` times the
@@ -115,12 +121,14 @@ def screen_windows(
         model, options, net_options: as for :func:`fit` (``options``: the full run's).
         fraction: the share of ``options.epochs`` each candidate trains for.
         tolerance: ≥ 1; 1 chooses the lowest loss (the shortest window on a tie).
-        progress: called as ``progress(index, row)`` after each candidate.
+        progress: called as ``progress(index, row)`` after each candidate, in their order.
+        executor: where the candidates train (module docstring); ``None``: one after the other
+            in this process.
 
     One window alone is chosen without training. Raises :class:`OptionError` when no window is
     given or none reaches a finite validation loss.
     """
-    from canonid.learning.training import TrainOptions, fit
+    from canonid.learning.training import TrainOptions
 
     if not windows:
         raise OptionError("the window screen needs at least one candidate window")
@@ -137,19 +145,14 @@ def screen_windows(
     longest_val = max(len(t.y) for t in val)
     common = min(opts.rollout_horizon, longest_val - max(windows))
     opts = dataclasses.replace(opts, val_horizon=max(common, 1))
+    calls = [(train, val, model, int(ell), opts, net_options) for ell in windows]
+    if executor is None:
+        outcomes = (_candidate(*call) for call in calls)
+    else:
+        futures = [executor.submit(_candidate, *call) for call in calls]
+        outcomes = (future.result() for future in futures)
     rows = []
-    for i, ell in enumerate(windows):
-        cpu0 = time.process_time()
-        try:
-            result = fit(
-                train, val, model=model, window=int(ell), options=opts, net_options=net_options
-            )
-        except Exception as exc:  # one candidate's failure leaves the others to choose from
-            message = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-            row = ScreenCandidate(int(ell), None, 0, 0, "failed", message, 0.0)
-        else:
-            row = fit_row(result)
-        row = dataclasses.replace(row, cpu_seconds=round(time.process_time() - cpu0, 3))
+    for i, row in enumerate(outcomes):
         rows.append(row)
         if progress is not None:
             progress(i, row)
@@ -159,3 +162,28 @@ def screen_windows(
         raise OptionError(f"no candidate window reached a finite validation loss ({reasons})")
     chosen = choose_window({r.window: r.best_val_loss for r in scored}, tolerance)  # type: ignore[misc]
     return WindowScreen(tuple(rows), chosen, float(fraction), opts.to_dict(), float(tolerance))
+
+
+def _candidate(
+    train: Sequence[Any],
+    val: Sequence[Any],
+    model: str,
+    window: int,
+    options: TrainOptions,
+    net_options: Mapping[str, Any] | None,
+) -> ScreenCandidate:
+    """One candidate's short training and its row, with the CPU time of the process it ran in
+    (this one or a worker)."""
+    from canonid.learning.training import fit
+
+    cpu0 = time.process_time()
+    try:
+        result = fit(
+            train, val, model=model, window=window, options=options, net_options=net_options
+        )
+    except Exception as exc:  # one candidate's failure leaves the others to choose from
+        message = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        row = ScreenCandidate(window, None, 0, 0, "failed", message, 0.0)
+    else:
+        row = fit_row(result)
+    return dataclasses.replace(row, cpu_seconds=round(time.process_time() - cpu0, 3))

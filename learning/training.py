@@ -62,6 +62,7 @@ import math
 import pickle
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -735,6 +736,7 @@ def fit(
     resume: bool = False,
     callback: Callable[[EpochReport], None] | None = None,
     info: Mapping[str, Any] | None = None,
+    executor: Executor | None = None,
 ) -> FitResult:
     """Train model ``model`` with window ``window`` by output error.
 
@@ -760,6 +762,8 @@ def fit(
             ``device``) must match, or :class:`CheckpointError` names what differs.
         callback: called with an :class:`EpochReport` after every epoch.
         info: extra JSON facts saved in the model's ``config.json``.
+        executor: where the cubic test's short trainings run side by side
+            (:func:`~canonid.learning.extrapolation.cubic_test`); ``None``: in this process.
 
     If training is interrupted (an exception, Ctrl-C), the best model so far is still written
     to ``run_dir`` before the exception propagates.
@@ -785,6 +789,7 @@ def fit(
                 net_options={**options_all, "cubic": 0},
                 fit=fit,
                 model=model,
+                executor=executor,
             )
         options_all = {**options_all, "cubic": cubic.units}
         info = {**dict(info or {}), "cubic_test": cubic.to_dict()}

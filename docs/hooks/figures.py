@@ -38,6 +38,13 @@ def _catalog() -> Any:
     return catalog
 
 
+def _jobs() -> Any:
+    """The job layer (the worker pool's threshold)."""
+    from canonid import jobs
+
+    return jobs
+
+
 def _followup_share() -> str:
     """The share of the budget within which full runs leave room for a near-tied window."""
     from canonid.learning.window_screen import FOLLOWUP_SHARE
@@ -145,6 +152,7 @@ _NO_SKIP = "3e-3, clip 1"
 _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of (\d+)"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 LEARNED_MPC_MEAN = "NMPC on a learned model: ensembles"
+CANDIDATES = "Candidates side by side"
 HORIZON_STUDY = "Training horizon on validation"
 EXCITATION_CHECK = "Residuals against the excitation"
 #: the data engine's default controller, a row of the "Data engine" section
@@ -575,6 +583,13 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/screen-fraction": Code(lambda: _screen_fraction()),
     "code/screen-tolerance": Code(lambda: f"{_screen_tolerance():g}"),
     "code/followup-share": Code(lambda: _followup_share()),
+    "code/pool-min-steps": Code(lambda: _jobs().POOL_MIN_STEPS),
+    # Silverbox's defaults with the short trainings side by side or one after the other
+    **{
+        f"candidates/{slug}/{what}": Cell(CANDIDATES, _row(run=run), column)
+        for slug, run in (("side", "side by side"), ("sequential", "one after the other"))
+        for what, column in (("wall", "wall [min]"), ("cpu", "CPU [min]"))
+    },
     "code/small-record-samples": Code(lambda: f"{_catalog().SMALL_RECORD_SAMPLES:,}"),
     "code/small-record-weight-decay": Code(lambda: _catalog().SMALL_RECORD_WEIGHT_DECAY),
     # canonid's cubic test per system (extrapolation_study.py decide): held-out loss ratio
