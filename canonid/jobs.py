@@ -162,17 +162,19 @@ def available_cores() -> int:
 
 @contextlib.contextmanager
 def candidate_pool(
-    threads: int | None, *, steps: int, candidates: int
+    threads: int | None, *, steps: int, candidates: int, device: str = "cpu"
 ) -> Iterator[Executor | None]:
     """Worker processes of one torch thread each, for independent short trainings that train
     side by side (the window screen's candidates, the cubic test's arms): one per thread the run
     may use (``threads``; default every core), at most ``candidates``; ``None`` — train them one
     after the other in this process — with one thread or when each trains for fewer than
-    :data:`POOL_MIN_STEPS` optimiser steps (``steps``). A candidate in a worker gives what it
-    gives alone with ``--threads 1``. Workers start at the first candidate (spawned: a fresh
-    interpreter, no state of this one's threads) and stop when the block ends."""
+    :data:`POOL_MIN_STEPS` optimiser steps (``steps``), or when they may train on a GPU
+    (``device`` not ``cpu`` on a machine with one: the GPU is shared by one process, not by a
+    context per worker). A candidate in a worker gives what it gives alone with ``--threads 1``.
+    Workers start at the first candidate (spawned: a fresh interpreter, no state of this one's
+    threads) and stop when the block ends."""
     workers = min(threads if threads is not None else available_cores(), candidates)
-    if workers < 2 or steps < POOL_MIN_STEPS:
+    if workers < 2 or steps < POOL_MIN_STEPS or (device != "cpu" and _gpu()):
         yield None
         return
     import multiprocessing
@@ -189,6 +191,12 @@ def candidate_pool(
         pool.shutdown(wait=False, cancel_futures=True)  # Ctrl-C reaches the workers too
         raise
     pool.shutdown(wait=True)
+
+
+def _gpu() -> bool:
+    import torch
+
+    return torch.cuda.is_available()
 
 
 def _one_thread() -> None:

@@ -581,7 +581,8 @@ def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | Non
 
         # the screen's candidates, then the chosen run's cubic test, side by side on the cores
         steps, most = _short_steps(base), max(len(windows), _CUBIC_BATCH)
-        with candidate_pool(request.threads, steps=steps, candidates=most) as pool:
+        device = base.options().device
+        with candidate_pool(request.threads, steps=steps, candidates=most, device=device) as pool:
             with torch_threads(request.threads):
                 screen = screen_windows(
                     train_part,
@@ -831,9 +832,13 @@ def _train_one(
     try:
         with contextlib.ExitStack() as stack:
             if executor is None:
-                executor = stack.enter_context(
-                    candidate_pool(request.threads, steps=steps, candidates=_CUBIC_BATCH)
+                pool = candidate_pool(
+                    request.threads,
+                    steps=steps,
+                    candidates=_CUBIC_BATCH,
+                    device=recipe.options().device,
                 )
+                executor = stack.enter_context(pool)
             with torch_threads(request.threads):  # a selection's candidates set their own
                 result = train_run(
                     recipe,

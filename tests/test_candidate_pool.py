@@ -114,6 +114,20 @@ def test_the_pool_has_one_worker_per_thread_when_it_pays(threads, steps, candida
             assert not pool._processes  # none started before the first candidate
 
 
+def test_no_pool_where_the_trainings_may_use_a_gpu(monkeypatch):
+    import canonid.jobs
+
+    monkeypatch.setattr(canonid.jobs, "_gpu", lambda: True)
+    for device in ("auto", "cuda"):
+        with candidate_pool(4, steps=POOL_MIN_STEPS, candidates=4, device=device) as pool:
+            assert pool is None
+    with candidate_pool(4, steps=POOL_MIN_STEPS, candidates=4, device="cpu") as pool:
+        assert pool is not None
+    monkeypatch.setattr(canonid.jobs, "_gpu", lambda: False)  # `auto` on a machine without one
+    with candidate_pool(4, steps=POOL_MIN_STEPS, candidates=4, device="auto") as pool:
+        assert pool is not None
+
+
 def test_a_worker_trains_with_one_thread(workers):
     assert workers.submit(torch.get_num_threads).result() == 1
     assert np.isfinite(workers.submit(np.sqrt, 4.0).result())
