@@ -163,7 +163,8 @@ class LearnedSystem(System):
             )
         self.network = net
         self.regressor = reg = net.regressor if isinstance(net, ReducedCanonicalNet) else net
-        #: the canonical models whose mean output this system is (``(net,)`` for one model)
+        #: the canonical models whose mean output this system is: ``(net,)`` for one canonical
+        #: model, empty for a reduced one
         self.members: tuple[CanonicalNet, ...] = _members(net, members, name)
         input_units = tuple(input_units or ("-",) * len(input_names))
         output_units = tuple(output_units or ("-",) * len(output_names))
