@@ -717,6 +717,27 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             ("px", ("learned / true change, from rest",)),
         )
     },
+    # the hand-added second batch of seeds in the same section
+    **{
+        f"learned-mpc-mean/{slug}/{what}": Cell(
+            LEARNED_MPC_MEAN,
+            _row(**{"prediction model (second batch)": model}),
+            column,
+            whole=what == "left",
+        )
+        for slug, model in (
+            ("s6", "seed 6 alone"),
+            ("s8", "seed 8 alone"),
+            ("pair", "mean of seeds 6 and 8"),
+            ("pass6", "mean of the six that pass (0, 2, 3, 4, 6, 8)"),
+        )
+        for what, column in (
+            ("ratio", "loop ratio, second batch"),
+            ("left", "loops out of X, second batch"),
+            ("px", "px from rest, second batch"),
+            ("seventh", "seventh reference, learned [m]"),
+        )
+    },
     **{
         f"learned-mpc/{slug}/{output}/{start}": Cell(
             LEARNED_MPC_ID,
