@@ -129,6 +129,27 @@ def _row(**cells: str) -> tuple[tuple[str, str], ...]:
     return tuple(cells.items())
 
 
+def _grid(
+    prefix: str,
+    section: str,
+    row_column: str,
+    rows: tuple[tuple[str, str], ...],
+    columns: tuple[tuple[str, str], ...],
+    *,
+    whole: tuple[str, ...] = (),
+) -> dict[str, Cell]:
+    """The cells ``prefix/slug/what`` of one table of ``section``: for each ``(slug, text)`` of
+    ``rows`` the row whose ``row_column`` is ``text``, for each ``(what, column)`` that column
+    (the whole cell for the ``what`` in ``whole``)."""
+    return {
+        f"{prefix}/{slug}/{what}": Cell(
+            section, _row(**{row_column: text}), column, whole=what in whole
+        )
+        for slug, text in rows
+        for what, column in columns
+    }
+
+
 def _quick(stage: str, key: str) -> Callable[[], Any]:
     def get() -> Any:
         from canonid.profiles import PROFILES
@@ -651,21 +672,23 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         for system in ("drone2d-id", "tank")
     },
     # the informative drone data's candidates: validation beside the NMPC loop
-    **{
-        f"horizon-loop/{slug}/{what}": Cell(HORIZON_STUDY, _row(run=f"`{run}`"), column)
-        for slug, run in (
-            ("defaults", "runs/drone2d/id-def"),
-            ("h10", "runs/drone2d/id-h10"),
-            ("ramp300", "runs/hz/drone-id-c300"),
-            ("arx", "runs/drone2d/arx-l10-drone2d-id"),
-        )
-        for what, column in (
+    **_grid(
+        "horizon-loop",
+        HORIZON_STUDY,
+        "run",
+        (
+            ("defaults", "`runs/drone2d/id-def`"),
+            ("h10", "`runs/drone2d/id-h10`"),
+            ("ramp300", "`runs/hz/drone-id-c300`"),
+            ("arx", "`runs/drone2d/arx-l10-drone2d-id`"),
+        ),
+        (
             ("val100", "best validation loss (100 samples)"),
             ("val20", "validation MSE, 20 samples"),
             ("ratio", "learned / true tracking RMSE"),
             ("px", "px change, learned / true"),
-        )
-    },
+        ),
+    ),
     # residuals against the excitation (excitation_check.py): correlations outside the 99 %
     # band at k = 1 (of 6) and k = 10 (of 60), per run and for the noise itself
     **{
@@ -718,26 +741,24 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         )
     },
     # the hand-added second batch of seeds in the same section
-    **{
-        f"learned-mpc-mean/{slug}/{what}": Cell(
-            LEARNED_MPC_MEAN,
-            _row(**{"prediction model (second batch)": model}),
-            column,
-            whole=what == "left",
-        )
-        for slug, model in (
+    **_grid(
+        "learned-mpc-mean",
+        LEARNED_MPC_MEAN,
+        "prediction model (second batch)",
+        (
             ("s6", "seed 6 alone"),
             ("s8", "seed 8 alone"),
             ("pair", "mean of seeds 6 and 8"),
             ("pass6", "mean of the six that pass (0, 2, 3, 4, 6, 8)"),
-        )
-        for what, column in (
+        ),
+        (
             ("ratio", "loop ratio, second batch"),
             ("left", "loops out of X, second batch"),
             ("px", "px from rest, second batch"),
             ("seventh", "seventh reference, learned [m]"),
-        )
-    },
+        ),
+        whole=("left",),
+    ),
     **{
         f"learned-mpc/{slug}/{output}/{start}": Cell(
             LEARNED_MPC_ID,
