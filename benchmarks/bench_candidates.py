@@ -41,6 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _results import write_section  # noqa: E402
 
+from canonid.jobs import available_cores  # noqa: E402
 from canonid.kernel.io import atomic_write_json, read_json  # noqa: E402
 
 OUT = ROOT / "runs" / "candidates"
@@ -113,7 +114,7 @@ def main() -> int:
             times[name] = run(name, args.dir.resolve())
             OUT.mkdir(parents=True, exist_ok=True)
             atomic_write_json(times_file, times)
-    cores = len(os.sched_getaffinity(0))
+    cores = available_cores()
     lines = [
         f"`canonid benchmark silverbox --dir DIR --no-progress` with the defaults (threads: one "
         f"per core, here {cores}), once as typed and once with the pool switched off "

@@ -240,11 +240,8 @@ def export_casadi(
         for path in files:  # the files belong together: none is left without the others
             path.unlink(missing_ok=True)
         raise
-    what = (
-        f"the mean of {len(members) + 1} {learned.model.name} models"
-        if members
-        else (f"{learned.model.name} model")
-    )
+    count = f"the mean of {len(members) + 1} " if members else ""
+    what = f"{count}{learned.model.name} model{'s' if members else ''}"
     headline = (
         f"{what} of {', '.join(map(str, [run_dir, *members]))}: {system.n_x} states, {system.n_u} "
         f"input(s), {system.n_y} output(s), dt = {system.dt:g} s"

@@ -828,13 +828,12 @@ def _train_one(
         if callback is not None:
             callback(report)
 
-    steps = _short_steps(recipe)
     try:
         with contextlib.ExitStack() as stack:
             if executor is None:
                 pool = candidate_pool(
                     request.threads,
-                    steps=steps,
+                    steps=_short_steps(recipe),
                     candidates=_CUBIC_BATCH,
                     device=recipe.options().device,
                 )
