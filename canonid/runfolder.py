@@ -80,7 +80,9 @@ __all__ = [
     "pick_split",
     "read_recipe",
     "recipe_of",
+    "rescore_run",
     "run_data",
+    "score_horizon",
     "scoring_source",
     "train_run",
     "write_history",
@@ -669,6 +671,45 @@ def eval_defaults(
     return min(horizon, longest - window) if fit else horizon
 
 
+def score_horizon(recipe: RunRecipe, dataset: Dataset, split: str, eval_horizon: int | None) -> int:
+    """The rollout length :func:`train_run` scores ``recipe``'s model with on ``dataset``'s
+    ``split`` (:func:`eval_defaults`: ``eval_horizon``, else 100 or the final training rollout
+    when shorter, at most what the records hold)."""
+    return eval_defaults(
+        dataset.split(split),
+        recipe.window,
+        eval_horizon or min(100, recipe.options().rollout_horizon),
+        where=f"{scoring_source(recipe, split)} [{split}]",
+        fit=eval_horizon is None,
+    )
+
+
+def rescore_run(
+    run_dir: Path,
+    recipe: RunRecipe,
+    model: Model,
+    *,
+    eval_horizon: int | None = None,
+    eval_stride: int = 1,
+    figure_format: str = "png",
+) -> RunEvaluation:
+    """Score ``model``, now the model of the run in ``run_dir``, as :func:`train_run` scored
+    the one it trained (the same split, rollout length and figures; ``metrics.json`` and the
+    rollout figure rewritten)."""
+    dataset, _, _, split, data_path = load_splits(recipe)
+    return evaluate_run(
+        run_dir,
+        model,
+        dataset,
+        data_path=data_path,
+        split=split,
+        horizon=score_horizon(recipe, dataset, split, eval_horizon),
+        stride=eval_stride,
+        n_init=None,
+        figure_format=figure_format,
+    )
+
+
 def evaluate_run(
     run_dir: Path,
     model: Model,
@@ -753,13 +794,7 @@ def train_run(
         recipe = recipe.pinned()
     data_path = scoring_source(recipe, test_name)
     opts = recipe.options()
-    horizon = eval_defaults(
-        dataset.split(test_name),
-        recipe.window,
-        eval_horizon or min(100, opts.rollout_horizon),
-        where=f"{data_path} [{test_name}]",
-        fit=eval_horizon is None,
-    )
+    horizon = score_horizon(recipe, dataset, test_name, eval_horizon)
     with run_folder_lock(run_dir, new=not resume):
         if not resume and (run_dir / CHECKPOINT_FILE).exists():
             raise OutputError(

@@ -42,9 +42,11 @@ from canonid.learning.screen import (
     WindowScreen,
 )
 from canonid.learning.window_screen import FOLLOWUP_SHARE
+from canonid.members import check_members
 
 if TYPE_CHECKING:
     from canonid.learning import EpochReport
+    from canonid.members import MemberChoice
     from canonid.runfolder import RunRecipe, RunResult
     from canonid.selection import Selection
 
@@ -53,6 +55,7 @@ __all__ = [
     "CUBIC_HELP",
     "FOLLOWUPS_DIR",
     "FOLLOWUP_SHARE",
+    "MEMBERS_HELP",
     "REQUEST_TEXT_FIELDS",
     "SCREEN_FRACTION",
     "SCREEN_TOLERANCE",
@@ -102,6 +105,14 @@ CUBIC_HELP = (
     f"{CUBIC_GAIN:g}× the plain network's best"
 )
 
+#: ``canonid train --members``
+MEMBERS_HELP = (
+    "Ours (MLP): train the run's recipe from K seeds (the run's seed and the K − 1 after it, "
+    "each in RUN/members/sS) and keep the lowest validation loss among each alone and the means "
+    "of the 2 … K best (their regressors averaged: one canonical model); members.json records "
+    "the choice (default 1; K times the training)"
+)
+
 
 @dataclass(frozen=True, kw_only=True)
 class TrainRequest:
@@ -121,6 +132,9 @@ class TrainRequest:
             training part's held-out peaks, :mod:`canonid.learning.extrapolation`).
         out, resume: the new run's folder, or the run to continue.
         eval_horizon, threads: the final score's rollout length; torch CPU threads.
+        members: train the run's recipe from this many seeds and keep the lowest validation
+            loss among them and the means of their best (:mod:`canonid.members`; default 1,
+            a resumed run the number it planned).
         figure_format: the figures' file format (one of :data:`canonid.kernel.io.FIGURE_FORMATS`).
         workers, scheduler, progress: where a selection's candidates run; progress bars.
         command: the command line that asked (recorded in ``run.json``).
@@ -154,6 +168,7 @@ class TrainRequest:
     eval_horizon: int | None = None
     figure_format: str = "png"
     threads: int | None = None
+    members: int | None = None
     workers: int | None = None
     scheduler: str | None = None
     progress: bool = True
@@ -171,6 +186,7 @@ class TrainOutcome:
     result: RunResult | None = None
     selection: Selection | None = None
     screen: WindowScreen | None = None
+    members: MemberChoice | None = None
 
     def summary(self) -> str:
         """What ``canonid train`` prints: how training ended, the scores, where the run is."""
@@ -204,6 +220,8 @@ class TrainOutcome:
             cubic = fitted.model.info.get("cubic_test")
             if cubic:  # cubic "auto": say what the held-out peaks decided
                 head.append(f"{CubicTest.from_dict(cubic).summary()} (--cubic K decides instead)")
+            if self.members is not None:
+                head.append(f"{self.members.summary()}; the test scores below are the kept model's")
         return "\n".join([*head, metrics_table(self.metrics), f"run written to {self.run_dir}"])
 
 
@@ -713,14 +731,21 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe | None]:
             f"selection again to continue it, or resume one candidate's folder"
         )
     if mode != "run":
-        run_dir = _candidates_folder(request, _candidates_base(request))
+        base = _candidates_base(request)
+        if request.members is not None:
+            check_members(request.members, base.model, mode=mode)
+        run_dir = _candidates_folder(request, base)
         check_new_run(run_dir, selection=mode == "select")
         return run_dir, None
     if request.resume is not None:
-        return request.resume, _resume_recipe(request, request.resume)
-    recipe = _recipe(request)
-    run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
-    check_new_run(run_dir)
+        recipe = _resume_recipe(request, request.resume)
+        run_dir = request.resume
+    else:
+        recipe = _recipe(request)
+        run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
+        check_new_run(run_dir)
+    if request.members is not None:
+        check_members(request.members, recipe.model, mode=mode)
     return run_dir, recipe
 
 
@@ -792,11 +817,58 @@ def train(
 
             with run_folder_lock(run_dir, flag="--resume"):  # its full runs continue too
                 outcome = _train_one(request, recipe, run_dir, resume=True, callback=callback)
-                return _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
-        return _train_one(request, recipe, run_dir, resume=resume, callback=callback)
+                outcome = _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
+                return _members(request, outcome)
+        outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
+        return _members(request, outcome)
     if _mode(request) == "screen":
-        return _screen(request, callback)
+        return _members(request, _screen(request, callback))
     return _select(request)
+
+
+def _member_count(request: TrainRequest, run_dir: Path) -> int:
+    """``--members``, else what a resumed run planned (``members.json``), else 1."""
+    from canonid.members import planned_members
+
+    if request.members is not None:
+        return request.members
+    planned = planned_members(run_dir) if request.resume is not None else None
+    return planned or 1
+
+
+def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
+    """After the run's own training: its members and the choice among them
+    (:func:`canonid.members.choose_members`), where more than one is asked for."""
+    from canonid.jobs import run_folder_lock
+    from canonid.kernel.io import read_json
+    from canonid.members import choose_members
+    from canonid.runfolder import METRICS_FILE
+
+    count = _member_count(request, outcome.run_dir)
+    if count == 1 or outcome.result is None:
+        return outcome
+
+    def train_one(recipe: RunRecipe, folder: Path, resume: bool) -> RunResult:
+        if request.progress:
+            import sys
+
+            seed = recipe.options().seed
+            print(f"members: training seed {seed} in {folder}", file=sys.stderr)
+        done = _train_one(request, recipe, folder, resume=resume, callback=None)
+        assert done.result is not None
+        return done.result
+
+    with run_folder_lock(outcome.run_dir, flag="--members"):
+        choice = choose_members(
+            outcome.result,
+            outcome.run_dir,
+            count,
+            train_one=train_one,
+            eval_horizon=request.eval_horizon,
+            figure_format=request.figure_format,
+        )
+        metrics = read_json(outcome.run_dir / METRICS_FILE, what="metrics")
+    return dataclasses.replace(outcome, metrics=metrics, members=choice)
 
 
 def _train_one(

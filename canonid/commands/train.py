@@ -18,6 +18,7 @@ from canonid.kernel.catalog import (
 from canonid.training import (
     CUBIC_HELP,
     FOLLOWUP_SHARE,
+    MEMBERS_HELP,
     REQUEST_TEXT_FIELDS,
     SCREEN_FRACTION,
     SCREEN_TOLERANCE,
@@ -168,6 +169,7 @@ def register(p: argparse.ArgumentParser) -> None:
         help="rollout length of the evaluation after training (default 100, or the final training "
         "rollout length when that is shorter, or what the scored records hold)",
     )
+    p.add_argument("--members", type=int, metavar="K", help=MEMBERS_HELP)
     _options.add_figure_format(p)
     _options.add_threads(p)
     _options.add_where(

@@ -1,0 +1,247 @@
+"""``canonid train --members K``: the run's recipe trained from K seeds, and the model chosen on
+validation among the members and the averages of the best of them.
+
+After the run's own training (its window screened and its near ties followed up), K − 1 more
+trainings of the same recipe start from the seeds that follow the run's (``--seed S``: S + 1, …,
+S + K − 1), each in ``RUN/members/sS``, a run folder of its own (resumed from its checkpoint when
+it was interrupted). They train the network the run's own training settled on (the window, and
+what the feedthrough and cubic tests decided), so every member has the same architecture. The
+candidates are each member alone and, for j = 2 … K, the mean of the j members of lowest
+validation loss (their regressors averaged at every step:
+:func:`canonid.learning.members.average_members`); one routine scores all of them on the run's
+validation windows (:func:`canonid.learning.members.validation_losses`), and the lowest becomes
+the run folder's model, scored on the test split as the run was. ``members.json`` records the
+candidates, their losses and the choice; every member's own model stays in its folder (the run's
+first member's too, under ``members/sS``, once another candidate replaced it). The run folder's
+``history.csv`` and checkpoint stay the first member's: ``--resume`` continues it, then the
+members, then chooses again.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from canonid.kernel.errors import CheckpointError, OptionError
+from canonid.kernel.io import atomic_write_json, read_json
+
+if TYPE_CHECKING:
+    from canonid.learning import Model
+    from canonid.runfolder import RunRecipe, RunResult
+
+__all__ = [
+    "MEMBERS_DIR",
+    "MEMBERS_FILE",
+    "MemberChoice",
+    "check_members",
+    "choose_members",
+    "kept_candidate",
+    "planned_members",
+]
+
+#: the folder of a run folder that holds its members' runs, one ``sS`` folder per seed
+MEMBERS_DIR = "members"
+#: the members' candidates and the choice among them, in a run folder
+MEMBERS_FILE = "members.json"
+MEMBERS_FORMAT = "canonid-members"
+
+
+@dataclass(frozen=True)
+class MemberChoice:
+    """The candidates of ``--members K`` and the one kept (validation losses normalised, as
+    ``fit`` scores an epoch; all computed on the same windows).
+
+    Attributes:
+        seeds: the members' seeds, the run's own first.
+        losses: each member's validation loss, in the order of ``seeds``.
+        means: ``(j, loss)`` of the mean of the j members of lowest loss, j = 2 … K.
+        kept: ``"seed S"`` (a member alone) or ``"mean of j"``.
+    """
+
+    seeds: tuple[int, ...]
+    losses: tuple[float, ...]
+    means: tuple[tuple[int, float], ...]
+    kept: str
+
+    @property
+    def kept_loss(self) -> float:
+        return min((*self.losses, *(loss for _, loss in self.means)))
+
+    def ranked(self) -> list[int]:
+        """The members' indices, lowest loss first (the earlier seed on a tie)."""
+        return sorted(range(len(self.seeds)), key=lambda i: (self.losses[i], i))
+
+    def summary(self) -> str:
+        """The choice in one line (what ``canonid train`` prints)."""
+        members = ", ".join(f"seed {s} {loss:.4g}" for s, loss in zip(self.seeds, self.losses))
+        means = ", ".join(f"mean of {j} {loss:.4g}" for j, loss in self.means)
+        return (
+            f"members (validation loss): {members}; {means}; kept: {self.kept} "
+            f"({self.kept_loss:.4g})"
+        )
+
+    def folder(self, seed: int) -> str:
+        """Where the member of ``seed`` is, relative to the run folder: the run's own seed is
+        the run folder itself while it is kept, else under ``members/``."""
+        return "." if seed == self.seeds[0] and self.kept == f"seed {seed}" else member_folder(seed)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "format": MEMBERS_FORMAT,
+            "count": len(self.seeds),
+            "members": [
+                {"seed": s, "folder": self.folder(s), "val_loss": loss}
+                for s, loss in zip(self.seeds, self.losses)
+            ],
+            "means": [{"members": j, "val_loss": loss} for j, loss in self.means],
+            "kept": self.kept,
+        }
+
+    @classmethod
+    def read(cls, run_dir: Path) -> MemberChoice:
+        """The choice recorded in ``run_dir`` (a :class:`CheckpointError` while its members are
+        still training)."""
+        path = run_dir / MEMBERS_FILE
+        body = read_json(path, what="members")
+        try:
+            if body["format"] != MEMBERS_FORMAT:
+                raise ValueError
+            if body["kept"] is None:
+                raise CheckpointError(f"{path}: the members have not all trained yet")
+            return cls(
+                seeds=tuple(int(m["seed"]) for m in body["members"]),
+                losses=tuple(float(m["val_loss"]) for m in body["members"]),
+                means=tuple((int(m["members"]), float(m["val_loss"])) for m in body["means"]),
+                kept=str(body["kept"]),
+            )
+        except (KeyError, TypeError, ValueError):
+            raise CheckpointError(f"{path} is not a canonid members file") from None
+
+
+def planned_members(run_dir: Path) -> int | None:
+    """The number of members the run in ``run_dir`` was asked for (``members.json``, written
+    before the first member trains), or ``None`` where it has no members file."""
+    path = run_dir / MEMBERS_FILE
+    if not path.is_file():
+        return None
+    body = read_json(path, what="members")
+    count = body.get("count") if isinstance(body, dict) else None
+    if not isinstance(body, dict) or body.get("format") != MEMBERS_FORMAT:
+        raise CheckpointError(f"{path} is not a canonid members file")
+    if isinstance(count, bool) or not isinstance(count, int) or count < 1:
+        raise CheckpointError(f"{path}: field 'count' must be an integer >= 1, got {count!r}")
+    return count
+
+
+def member_folder(seed: int) -> str:
+    """The member of seed ``seed``'s folder, relative to the run folder."""
+    return f"{MEMBERS_DIR}/s{seed}"
+
+
+def check_members(members: int, model: str, *, mode: str) -> None:
+    """Refuse ``--members`` where it does not apply: below 1, for a model other than Ours
+    (MLP), or with a list of windows or ``--hidden auto`` (whose candidates are chosen
+    already)."""
+    if isinstance(members, bool) or not isinstance(members, int) or members < 1:
+        raise OptionError(f"--members must be an integer >= 1, got {members!r}")
+    if members == 1:
+        return
+    if model != "mlp":
+        raise OptionError(f"--members averages Ours (MLP) networks (mlp), not {model}")
+    if mode == "select":
+        raise OptionError(
+            "--members does not combine with a list of windows or --hidden auto: give one "
+            "window, or none for the screen"
+        )
+
+
+def _finite(loss: float) -> float:
+    return loss if math.isfinite(loss) else math.inf
+
+
+def kept_candidate(
+    seeds: Sequence[int], losses: Sequence[float], means: Sequence[tuple[int, float]]
+) -> str:
+    """The candidate of lowest validation loss, ``"seed S"`` or ``"mean of j"``: the members in
+    seed order, then the means by size, the first on a tie; a loss that is not finite never
+    wins (the run's own member where none is finite)."""
+    named = [(loss, f"seed {s}") for s, loss in zip(seeds, losses, strict=True)]
+    named += [(loss, f"mean of {j}") for j, loss in means]
+    finite = [c for c in named if math.isfinite(c[0])]
+    return min(finite, key=lambda c: c[0])[1] if finite else f"seed {seeds[0]}"
+
+
+def member_recipe(recipe: RunRecipe, model: Model, seed: int) -> RunRecipe:
+    """``recipe`` from ``seed``, training the network ``model`` (the run's first member) has:
+    the feedthrough and cubic tests' decisions taken over, not made again."""
+    config = model.net.config()
+    net_options = dict(recipe.net_options)
+    net_options["feedthrough"] = bool(config["feedthrough"])
+    net_options["cubic"] = int(config.get("cubic", 0))
+    return dataclasses.replace(
+        recipe,
+        net_options=net_options,
+        train_options={**recipe.train_options, "seed": seed},
+    )
+
+
+def choose_members(
+    first: RunResult,
+    run_dir: Path,
+    members: int,
+    *,
+    train_one: Callable[[RunRecipe, Path, bool], RunResult],
+    eval_horizon: int | None = None,
+    figure_format: str = "png",
+) -> MemberChoice:
+    """Train the members of the run ``first`` (its own training, in ``run_dir``) that follow
+    it, choose among them and their means on validation, and make the choice the run folder's
+    model (see the module docstring). ``train_one(recipe, folder, resume)`` trains one member."""
+    from canonid.learning import TrainOptions
+    from canonid.learning.members import average_members, validation_losses
+    from canonid.learning.training import CHECKPOINT_FILE
+    from canonid.runfolder import load_splits, rescore_run
+
+    recipe = first.recipe
+    seed = int(recipe.options().seed)
+    seeds = tuple(seed + i for i in range(members))
+    # the plan first, so that --resume continues the members after an interruption
+    atomic_write_json(
+        run_dir / MEMBERS_FILE,
+        {"format": MEMBERS_FORMAT, "count": members, "members": [], "means": [], "kept": None},
+    )
+    models: list[Model] = [first.fit.model]
+    for s in seeds[1:]:
+        folder = run_dir / member_folder(s)
+        done = train_one(
+            member_recipe(recipe, first.fit.model, s),
+            folder,
+            (folder / CHECKPOINT_FILE).is_file(),
+        )
+        models.append(done.fit.model)
+    _, _, val, _, _ = load_splits(recipe)
+    options = TrainOptions.from_dict(recipe.train_options)
+    losses = validation_losses(models, val, options)
+    order = sorted(range(members), key=lambda i: (_finite(losses[i]), i))
+    sizes = range(2, members + 1)
+    means = [average_members([models[i] for i in order[:j]]) for j in sizes]
+    mean_losses = tuple(zip(sizes, validation_losses(means, val, options) if means else []))
+    kept = kept_candidate(seeds, losses, mean_losses)
+    model = {
+        **{f"seed {s}": m for s, m in zip(seeds, models, strict=True)},
+        **{f"mean of {j}": m for j, m in zip(sizes, means, strict=True)},
+    }[kept]
+    choice = MemberChoice(seeds=seeds, losses=tuple(losses), means=mean_losses, kept=kept)
+    if kept != f"seed {seed}":
+        first.fit.model.save(run_dir / member_folder(seed))
+        # the recipe's training record, and where the choice is written down
+        members_info = {"kept": kept, "seeds": list(seeds), "file": MEMBERS_FILE}
+        model.info = {**first.fit.model.info, "members": members_info}
+        model.save(run_dir)
+        rescore_run(run_dir, recipe, model, eval_horizon=eval_horizon, figure_format=figure_format)
+    atomic_write_json(run_dir / MEMBERS_FILE, choice.to_json())
+    return choice
