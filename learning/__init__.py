@@ -39,6 +39,7 @@ _EXPORTS = {
     "screen_windows": "canonid.learning.screen",
     "latent_size": "canonid.learning.reduction",
     "reduce_model": "canonid.learning.reduction",
+    "average_members": "canonid.learning.members",
     "EpochReport": "canonid.learning.training",
     "FitResult": "canonid.learning.training",
     "OptionError": "canonid.learning.training",

@@ -174,6 +174,12 @@ _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of 
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 LEARNED_MPC_MEAN = "NMPC on a learned model: ensembles"
 CANDIDATES = "Candidates side by side"
+MEMBERS = "Members on small records"
+_MEMBER_RECORDS = (  # key slug, the record cell, the test part's row and unit
+    ("silverbox-1k", "Silverbox, first 1,000 samples (800 / 200)", "multisine [mV]"),
+    ("silverbox-3k", "Silverbox, first 3,000 samples (2,400 / 600)", "multisine [mV]"),
+    ("overflow", "overflow tanks, 1,024 samples (819 / 205)", "test record [V]"),
+)
 HORIZON_STUDY = "Training horizon on validation"
 EXCITATION_CHECK = "Residuals against the excitation"
 #: the data engine's default controller, a row of the "Data engine" section
@@ -610,6 +616,22 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         f"candidates/{slug}/{what}": Cell(CANDIDATES, _row(run=run), column)
         for slug, run in (("side", "side by side"), ("sequential", "one after the other"))
         for what, column in (("wall", "wall [min]"), ("cpu", "CPU [min]"))
+    },
+    # seeds of one recipe on small records (members_study.py): validation, then the test
+    **{
+        f"members/{slug}/{what}": Cell(MEMBERS, _row(record=record), column, whole=whole)
+        for slug, record, _ in _MEMBER_RECORDS
+        for what, column, whole in (
+            ("val-k2", "kept / seed 0, K = 2", False),
+            ("val-k3", "kept / seed 0, K = 3", False),
+            ("keeps-k2", "K = 2 keeps", True),
+            ("keeps-k3", "K = 3 keeps", True),
+        )
+    },
+    **{
+        f"members/{slug}/test/{what}": Cell(MEMBERS, _row(record=record, part=part), column)
+        for slug, record, part in _MEMBER_RECORDS
+        for what, column in (("defaults", "defaults (seed 0)"), ("k2", "K = 2"), ("k3", "K = 3"))
     },
     "code/small-record-samples": Code(lambda: f"{_catalog().SMALL_RECORD_SAMPLES:,}"),
     "code/small-record-weight-decay": Code(lambda: _catalog().SMALL_RECORD_WEIGHT_DECAY),
