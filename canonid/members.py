@@ -107,11 +107,11 @@ class MemberChoice:
         still training)."""
         path = run_dir / MEMBERS_FILE
         body = read_json(path, what="members")
+        if isinstance(body, dict) and body.get("format") == MEMBERS_FORMAT and not body.get("kept"):
+            raise CheckpointError(f"{path}: the members have not all trained yet")
         try:
             if body["format"] != MEMBERS_FORMAT:
                 raise ValueError
-            if body["kept"] is None:
-                raise CheckpointError(f"{path}: the members have not all trained yet")
             return cls(
                 seeds=tuple(int(m["seed"]) for m in body["members"]),
                 losses=tuple(float(m["val_loss"]) for m in body["members"]),

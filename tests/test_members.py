@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 from learning_helpers import damped_split, siso_dataset_file
 
 from canonid.cli import main
-from canonid.kernel.errors import ShapeError
+from canonid.kernel.errors import CheckpointError, ShapeError
 from canonid.learning import Model, Normalisation, TrainOptions, build_net, fit
 from canonid.learning.canonical import shift
 from canonid.learning.members import average_members, validation_losses
@@ -205,8 +205,13 @@ def test_train_with_members_keeps_the_lowest_validation_loss(dataset_path, tmp_p
     assert math.isfinite(metrics["rmse"])
     assert main(["evaluate", str(run), "--eval-horizon", "20", "--stride", "5"]) == 0
 
-    # resumed, the finished run and its members choose the same again, to the byte
+    # resumed, the finished run and its members choose the same again, to the byte; the plan
+    # written before the first member trained is what tells --resume how many members there are
     before = {name: (run / name).read_bytes() for name in (MEMBERS_FILE, "weights.pt")}
+    plan = {"format": "canonid-members", "count": 3, "members": [], "means": [], "kept": None}
+    (run / MEMBERS_FILE).write_text(json.dumps(plan))
+    with pytest.raises(CheckpointError, match="have not all trained yet"):
+        MemberChoice.read(run)
     assert main(["train", "--resume", "--out", str(run), "--no-progress", "--threads", "1"]) == 0
     assert {name: (run / name).read_bytes() for name in before} == before
 
