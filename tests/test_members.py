@@ -248,3 +248,13 @@ def test_members_where_they_do_not_apply_are_refused(dataset_path, tmp_path, cap
         argv += ["--window", "3"]
     one_line_error(capsys, main([*argv, *extra]), needle)
     assert not (tmp_path / "run").exists()
+
+
+def test_resume_with_members_adds_them_to_a_finished_run(dataset_path, tmp_path):
+    run = tmp_path / "run"
+    assert _train(dataset_path, run) == 0
+    assert not (run / MEMBERS_FILE).exists()  # one member: no members file, as before
+    resume = ["train", "--resume", "--out", str(run), "--no-progress", "--threads", "1"]
+    assert main([*resume, "--members", "2"]) == 0
+    choice = MemberChoice.read(run)
+    assert choice.seeds == (0, 1) and (run / "members" / "s1" / "weights.pt").is_file()
