@@ -175,6 +175,7 @@ LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 LEARNED_MPC_MEAN = "NMPC on a learned model: ensembles"
 CANDIDATES = "Candidates side by side"
 MEMBERS = "Members on small records"
+_MEMBERS_LOOP = "`--members 4`: seed 3 alone, chosen on validation"
 _MEMBER_RECORDS = (  # key slug, the record cell, the test part's row and unit
     ("silverbox-1k", "Silverbox, first 1,000 samples (800 / 200)", "multisine [mV]"),
     ("silverbox-3k", "Silverbox, first 3,000 samples (2,400 / 600)", "multisine [mV]"),
@@ -616,6 +617,20 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         f"candidates/{slug}/{what}": Cell(CANDIDATES, _row(run=run), column)
         for slug, run in (("side", "side by side"), ("sequential", "one after the other"))
         for what, column in (("wall", "wall [min]"), ("cpu", "CPU [min]"))
+    },
+    # the hand-added row of `canonid train --members 4` flown in the same section
+    **{
+        f"learned-mpc-members/{what}": Cell(
+            LEARNED_MPC_MEAN,
+            _row(**{"prediction model (members)": _MEMBERS_LOOP}),
+            column,
+            whole=what == "left",
+        )
+        for what, column in (
+            ("ratio", "loop ratio, members"),
+            ("left", "loops out of X, members"),
+            ("px", "px from rest, members"),
+        )
     },
     # seeds of one recipe on small records (members_study.py): validation, then the test
     **{
