@@ -69,11 +69,10 @@ class MemberChoice:
 
     @property
     def kept_loss(self) -> float:
-        return min((*self.losses, *(loss for _, loss in self.means)))
-
-    def ranked(self) -> list[int]:
-        """The members' indices, lowest loss first (the earlier seed on a tie)."""
-        return sorted(range(len(self.seeds)), key=lambda i: (self.losses[i], i))
+        """The kept candidate's validation loss."""
+        named = {f"seed {s}": loss for s, loss in zip(self.seeds, self.losses, strict=True)}
+        named.update({f"mean of {j}": loss for j, loss in self.means})
+        return named[self.kept]
 
     def summary(self) -> str:
         """The choice in one line (what ``canonid train`` prints)."""
