@@ -142,7 +142,7 @@ def _test_scores(record: Record, model: Any) -> dict[str, float]:
 
 
 def study() -> dict[str, Any]:
-    from canonid.learning import Model, TrainOptions
+    from canonid.learning import Model
     from canonid.learning.members import average_members, validation_losses
     from canonid.members import kept_candidate
     from canonid.runfolder import RunRecipe, load_splits
@@ -155,7 +155,7 @@ def study() -> dict[str, Any]:
             continue
         recipe = RunRecipe.read(runs[0])
         _, _, val, _, _ = load_splits(recipe)
-        options = TrainOptions.from_dict(recipe.train_options)
+        options = recipe.options()
         models = [Model.load(r) for r in runs]
         losses = validation_losses(models, val, options)
         entry: dict[str, Any] = {

@@ -200,7 +200,6 @@ def choose_members(
     """Train the members of the run ``first`` (its own training, in ``run_dir``) that follow
     it, choose among them and their means on validation, and make the choice the run folder's
     model (see the module docstring). ``train_one(recipe, folder, resume)`` trains one member."""
-    from canonid.learning import TrainOptions
     from canonid.learning.members import average_members, validation_losses
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.runfolder import load_splits, rescore_run
@@ -223,7 +222,7 @@ def choose_members(
         )
         models.append(done.fit.model)
     _, _, val, _, _ = load_splits(recipe)
-    options = TrainOptions.from_dict(recipe.train_options)
+    options = recipe.options()
     losses = validation_losses(models, val, options)
     order = sorted(range(members), key=lambda i: (_finite(losses[i]), i))
     sizes = range(2, members + 1)

@@ -839,6 +839,8 @@ def _member_count(request: TrainRequest, run_dir: Path) -> int:
 def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     """After the run's own training: its members and the choice among them
     (:func:`canonid.members.choose_members`), where more than one is asked for."""
+    import sys
+
     from canonid.jobs import run_folder_lock
     from canonid.kernel.io import read_json
     from canonid.members import choose_members
@@ -850,8 +852,6 @@ def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
 
     def train_one(recipe: RunRecipe, folder: Path, resume: bool) -> RunResult:
         if request.progress:
-            import sys
-
             seed = recipe.options().seed
             print(f"members: training seed {seed} in {folder}", file=sys.stderr)
         done = _train_one(request, recipe, folder, resume=resume, callback=None)

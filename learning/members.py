@@ -81,11 +81,11 @@ def _check(members: Sequence[Model]) -> OursMLP:
     return first.net
 
 
-def average_members(members: Sequence[Model], *, info: dict[str, Any] | None = None) -> Model:
+def average_members(members: Sequence[Model]) -> Model:
     """One Ours (MLP) whose ``Ĥ`` is the mean of the ``members``' (see the module docstring).
 
-    ``info`` is the result's :attr:`Model.info` (default: the first member's). One member gives
-    an equal copy of it.
+    The result's :attr:`Model.info` is the first member's. One member gives an equal copy of
+    it.
     """
     first = _check(members)
     k = len(members)
@@ -120,7 +120,7 @@ def average_members(members: Sequence[Model], *, info: dict[str, Any] | None = N
             out.affine.bias.copy_(torch.stack([a.bias for a in affine]).mean(dim=0))
         out.residual_scale.copy_(first.residual_scale)
     out.eval()
-    return Model(out, members[0].norm, info=dict(members[0].info if info is None else info))
+    return Model(out, members[0].norm, info=dict(members[0].info))
 
 
 def validation_losses(

@@ -199,7 +199,7 @@ def test_train_with_members_keeps_the_lowest_validation_loss(dataset_path, tmp_p
 
     recipe = RunRecipe.read(run)
     _, _, val, _, _ = load_splits(recipe)
-    (loss,) = validation_losses([kept], val, TrainOptions.from_dict(recipe.train_options))
+    (loss,) = validation_losses([kept], val, recipe.options())
     assert loss == pytest.approx(choice.kept_loss, rel=1e-6)
     metrics = json.loads((run / "metrics.json").read_text())
     assert math.isfinite(metrics["rmse"])
