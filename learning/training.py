@@ -780,8 +780,7 @@ def fit(
     identity = None
     if options_all.get("cubic") == "auto":  # decided on the training part's held-out peaks
         resumed = _resumed_cubic_test(run_dir) if resume else None
-        cubic = resumed[0] if resumed is not None else None
-        if cubic is None:
+        if resumed is None:
             cubic = cubic_test(
                 train,
                 window=window,
@@ -791,10 +790,13 @@ def fit(
                 model=model,
                 executor=executor,
             )
+            recorded: Mapping[str, Any] | None = cubic.to_dict()
+        else:  # the checkpoint's record as written (an older run lacks later fields)
+            cubic, recorded = resumed
         options_all = {**options_all, "cubic": cubic.units}
         info = {**dict(info or {}), "cubic_test": cubic.to_dict()}
-        if resumed is None or resumed[1]:  # a checkpoint from before the test has none
-            identity = {"cubic_test": cubic.to_dict()}
+        if recorded is not None:  # a checkpoint from before the test has none
+            identity = {"cubic_test": recorded}
 
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
@@ -817,10 +819,13 @@ def fit(
     )
 
 
-def _resumed_cubic_test(run_dir: str | Path | None) -> tuple[CubicTest, bool] | None:
-    """The cubic test recorded in the checkpoint of ``run_dir`` (and ``True``), so that a
-    resumed run does not test again; for a checkpoint written before the test, the units of the
-    network it holds (and ``False``). :class:`CheckpointError` for an unreadable checkpoint,
+def _resumed_cubic_test(
+    run_dir: str | Path | None,
+) -> tuple[CubicTest, Mapping[str, Any] | None] | None:
+    """The cubic test recorded in the checkpoint of ``run_dir`` and the record itself, so that
+    a resumed run does not test again and matches the checkpoint as written (a run recorded
+    before a field was added lacks it); for a checkpoint written before the test, the units of
+    the network it holds (and ``None``). :class:`CheckpointError` for an unreadable checkpoint,
     before any training; ``None`` without ``run_dir`` (``fit_net`` then says so)."""
     if run_dir is None:
         return None
@@ -829,12 +834,12 @@ def _resumed_cubic_test(run_dir: str | Path | None) -> tuple[CubicTest, bool] | 
     extra, net = identity.get("extra"), identity.get("net")
     try:
         if isinstance(extra, Mapping) and "cubic_test" in extra:
-            return CubicTest.from_dict(extra["cubic_test"]), True
+            return CubicTest.from_dict(extra["cubic_test"]), extra["cubic_test"]
         units = int(net.get("cubic", 0)) if isinstance(net, Mapping) else 0
     except (TypeError, ValueError) as exc:
         raise CheckpointError(f"checkpoint {path}: its cubic test is unreadable ({exc})") from None
     reason = "resumed from a checkpoint written before the test"  # the network it holds
-    return CubicTest(units, None, None, 0, reason, None), False
+    return CubicTest(units, None, None, 0, reason, None), None
 
 
 def fit_net(

@@ -179,6 +179,47 @@ def test_a_run_records_its_cubic_test_and_a_resume_reads_it_back(tmp_path, monke
     assert CubicTest.from_dict(recorded).summary().startswith("cubic branch on the held-out")
 
 
+def test_a_run_recorded_before_the_seeds_were_added_still_resumes(tmp_path, monkeypatch) -> None:
+    """A checkpoint whose cubic test lacks the fields added with the seeds resumes as written."""
+    import torch
+
+    from canonid.kernel.errors import CheckpointError
+    from canonid.learning import extrapolation, training
+    from canonid.learning.training import CHECKPOINT_FILE, TrainOptions, fit
+
+    train, val = _bursty(1, 2, 900), _bursty(2, 1, 300)
+    opts = TrainOptions(
+        epochs=20, batch_size=8, horizon=6, val_horizon=10, windows_per_epoch=16, device="cpu"
+    )
+    net = {"hidden": [8], "feedthrough": False}
+    fit(train, val, window=3, options=opts, net_options=net, run_dir=tmp_path)
+    path = tmp_path / CHECKPOINT_FILE
+    state = torch.load(path, map_location="cpu", weights_only=True)
+    old = state["identity"]["extra"]["cubic_test"]
+    for name in ("plain_losses", "cubic_losses", "seeds"):
+        del old[name]
+    torch.save(state, path)
+
+    def no_second_test(*args, **kwargs):
+        raise AssertionError("a resumed run tested the cubic branch again")
+
+    monkeypatch.setattr(training, "cubic_test", no_second_test)
+    monkeypatch.setattr(extrapolation, "cubic_test", no_second_test)
+    longer = TrainOptions(**{**opts.to_dict(), "epochs": 25})
+    again = fit(
+        train, val, window=3, options=longer, net_options=net, run_dir=tmp_path, resume=True
+    )
+    assert again.epochs_run == 25
+    assert again.model.info["cubic_test"] == CubicTest.from_dict(old).to_dict()
+    # what the checkpoint recorded still binds: a different record is refused
+    state = torch.load(path, map_location="cpu", weights_only=True)
+    assert "seeds" not in state["identity"]["extra"]["cubic_test"]
+    state["identity"]["extra"]["cubic_test"]["units"] = 99
+    torch.save(state, path)
+    with pytest.raises(CheckpointError, match="checkpoint"):
+        fit(train, val, window=3, options=longer, net_options=net, run_dir=tmp_path, resume=True)
+
+
 def test_the_test_does_not_run_when_the_peaks_leave_too_little_to_train() -> None:
     from canonid.learning.extrapolation import MIN_TRAIN_SHARE, cubic_test
     from canonid.learning.training import TrainOptions
