@@ -106,7 +106,7 @@ def _body(run: Path, cpu: float, wall: float, load: str, earlier: str | None = N
         f"RMSE of each official test part after its first n_init measured samples "
         f"({report['definition']}). Wall {wall / 60:.1f} min, CPU {cpu / 60:.1f} min (training, "
         f"canonid train's evaluation and the benchmark's scoring); load average before / after: "
-        f"{load} on a machine shared with other jobs.\n\n{table}\n\nPublished baselines: "
+        f"{load}.\n\n{table}\n\nPublished baselines: "
         f"{sources}. * the lowest published figure on the test part. Figures: "
         f"`RUN/benchmark-<part>.png`." + (f"\n\n{earlier}" if earlier else "")
     )
@@ -137,7 +137,8 @@ def main() -> int:
     subprocess.run([sys.executable, "-m", "canonid", *cmd[1:]], check=True)
     wall = time.perf_counter() - start
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    body = _body(out, usage.ru_utime + usage.ru_stime, wall, f"{before} / {_load()}")
+    load = f"{before} / {_load()}"
+    body = _body(out, usage.ru_utime + usage.ru_stime, wall, load, args.earlier)
     write_section("Standard benchmarks", body, command=" ".join(cmd))
     return 0
 

@@ -526,6 +526,11 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "benchmark/silverbox/cpu-min": Prose(
         "Standard benchmarks", r"Wall [\d.]+ min, CPU ([\d.]+) min"
     ),
+    "benchmark/silverbox/wall-min": Prose("Standard benchmarks", r"Wall ([\d.]+) min, CPU"),
+    # the same command with --threads 1 on a shared machine (the runs' table)
+    "benchmark/silverbox/threads1/cpu-min": Cell(
+        "Standard benchmarks", _row(CPU="AMD EPYC, `--threads 1`, shared"), "CPU [min]"
+    ),
     "benchmark/silverbox/window-10/cpu-min": Prose(
         "Standard benchmarks",
         r"ℓ = 10 given \(before the window screen\): [^;]*? in ([\d.]+) CPU minutes",
