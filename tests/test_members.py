@@ -99,6 +99,41 @@ def test_one_member_is_itself_and_the_average_saves_and_loads(norm, tmp_path):
     np.testing.assert_array_equal(again.predict(u, y0), mean.predict(u, y0))
 
 
+@pytest.mark.parametrize("options", OPTIONS[::2])
+def test_the_mean_applies_its_blocks_as_the_dense_weights_it_stores(norm, options, tmp_path):
+    """Block by block (groups) is the dense network that saving, analysis and export read, in
+    a simulation (no gradient) and in training (gradients flow to the blocks alone); a mean of
+    means keeps every member's block."""
+    members = [_member(seed, norm, **options) for seed in range(3)]
+    mean = average_members(members)
+    assert mean.net.groups == 3 and mean.net.config()["groups"] == 3
+    dense = build_net("mlp", **{**mean.net.config(), "groups": 1}).double()
+    dense.load_state_dict(mean.net.state_dict())
+    z = torch.randn(16, mean.net.state_dim, dtype=torch.float64)
+    u = torch.randn(16, 1, dtype=torch.float64)
+    with torch.no_grad():
+        want = dense.one_step(z, u)
+        assert torch.allclose(mean.net.one_step(z, u), want, rtol=1e-12, atol=1e-12)
+        assert torch.allclose(mean.net.one_step(z, u), want, rtol=1e-12, atol=1e-12)  # cached
+    hidden = [m for m in mean.net.net if isinstance(m, torch.nn.Linear)][1]
+    mean.net.one_step(z, u).sum().backward()
+    dense.one_step(z, u).sum().backward()
+    dense_hidden = [m for m in dense.net if isinstance(m, torch.nn.Linear)][1]
+    width_in, width_out = members[0].net.hidden[:2]
+    blocks = torch.block_diag(*[torch.ones(width_out, width_in, dtype=torch.float64)] * 3)
+    assert torch.allclose(hidden.weight.grad, dense_hidden.weight.grad * blocks, atol=1e-12)
+    mean.save(tmp_path / "mean")
+    assert Model.load(tmp_path / "mean").net.groups == 3
+    nested = average_members([average_members(members[:2]), average_members([members[2]] * 2)])
+    assert nested.net.groups == 4
+    with torch.no_grad():
+        want = (members[0].net.one_step(z, u) + members[1].net.one_step(z, u)) / 4
+        want = want + members[2].net.one_step(z, u) / 2
+        assert torch.allclose(nested.net.one_step(z, u), want, rtol=1e-10, atol=1e-12)
+    with pytest.raises(ShapeError, match="groups must be a number"):
+        build_net("mlp", window=3, n_u=1, n_y=1, hidden=[8, 6], groups=4)
+
+
 def test_members_of_other_recipes_are_refused_by_name(norm):
     base = _member(0, norm)
     with pytest.raises(ShapeError, match="differs from member 1 in window"):
