@@ -384,8 +384,8 @@ def record() -> int:
         "",
         "| size (training / validation) | canonid: window | best epoch of last | multisine "
         "[mV] | arrow no-extrap. [mV] | arrow full [mV] | CPU s | deepSI: multisine [mV] | "
-        "arrow no-extrap. [mV] | arrow full [mV] | best at | CPU s | issue's target (canonid, "
-        "multisine) |",
+        "deepSI: arrow no-extrap. [mV] | deepSI: arrow full [mV] | best at | CPU s | "
+        "issue's target (canonid, multisine) |",
         "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---|---:|---|",
         *[size_row(n) for n in SIZES],
         "",
@@ -436,9 +436,7 @@ def cubic_line() -> str:
     return (
         'The cubic branch (`cubic="auto"`, section "Extrapolation"): '
         + "; ".join(told)
-        + ". Where the plain network trains, the model is the one trained before the test "
-        "existed, to the bit (the 3,000 and 10,000 cuts were trained again with it: the same "
-        "weights); the CPU time includes the test."
+        + ". The CPU time includes the test."
     )
 
 

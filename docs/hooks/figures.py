@@ -247,26 +247,9 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         )
         for who, column in (
             ("canonid", "multisine [mV]"),
+            ("canonid/arrow-full", "arrow full [mV]"),  # canonid's: the first of that name
             ("deepsi", "deepSI: multisine [mV]"),
         )
-    },
-    # the 3,000 and 10,000 cuts re-measured with the three-seed cubic test (hand-added table)
-    **{
-        f"small/{n}/{what}": Cell("Small data", _row(cut=label), column)
-        for n, label in ((3000, "3,000 (2,400 / 600)"), (10000, "10,000 (8,000 / 2,000)"))
-        for what, column in (
-            ("three-seed/multisine", "three-seed test: multisine [mV]"),
-            ("three-seed/arrow-full", "three-seed test: arrow full [mV]"),
-        )
-    },
-    **{
-        f"small/{n}/one-seed/arrow-full": Cell(
-            "Small data",
-            _row(cut=label),
-            "one-seed test (the table's row, plain network): multisine / no-extrap. / full [mV]",
-            pick=2,
-        )
-        for n, label in ((3000, "3,000 (2,400 / 600)"), (10000, "10,000 (8,000 / 2,000)"))
     },
     "small/1000/best-epoch": Cell(
         "Small data",
