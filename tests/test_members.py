@@ -134,6 +134,29 @@ def test_the_mean_applies_its_blocks_as_the_dense_weights_it_stores(norm, option
         build_net("mlp", window=3, n_u=1, n_y=1, hidden=[8, 6], groups=4)
 
 
+def test_the_mean_exports_to_casadi_with_the_numbers_it_simulates(norm):
+    """Export reads the stored dense weights; CasADi's Ĥ equals the block-by-block torch one."""
+    from canonid.models.learned import LearnedSystem
+    from canonid.models.sets import Box
+
+    members = [_member(s, norm, cubic=2, linear="skip", residual=True) for s in range(3)]
+    exported = average_members(members).export()
+    net = exported.network()
+    ones = np.ones(net.state_dim)
+    system = LearnedSystem(
+        net,
+        dt=1.0,
+        input_names=("u",),
+        output_names=("y",),
+        X=Box(-ones, ones),
+        U=Box([-1.0], [1.0]),
+        W=Box([0.0], [0.0]),
+    )
+    rng = np.random.default_rng(5)
+    z, u = rng.normal(size=(32, net.state_dim)), rng.normal(size=(32, 1))
+    np.testing.assert_allclose(system.h_batch(z, u), exported.H(z, u), rtol=1e-10, atol=1e-10)
+
+
 def test_members_of_other_recipes_are_refused_by_name(norm):
     base = _member(0, norm)
     with pytest.raises(ShapeError, match="differs from member 1 in window"):
