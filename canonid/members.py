@@ -4,7 +4,8 @@ validation among the members and the averages of the best of them.
 After the run's own training (its window screened and its near ties followed up), K − 1 more
 trainings of the same recipe start from the seeds that follow the run's (``--seed S``: S + 1, …,
 S + K − 1), each in ``RUN/members/sS``, a run folder of its own (resumed from its checkpoint when
-it was interrupted). They train the network the run's own training settled on (the window, and
+it was interrupted); ``canonid train`` trains them side by side, one thread each, when the run
+may use several cores. They train the network the run's own training settled on (the window, and
 what the feedthrough and cubic tests decided), so every member has the same architecture. The
 candidates are each member alone and, for j = 2 … K, the mean of the j members of lowest
 validation loss (their regressors averaged at every step:
@@ -37,6 +38,7 @@ __all__ = [
     "MEMBERS_DIR",
     "MEMBERS_FILE",
     "MemberChoice",
+    "MemberJob",
     "check_members",
     "choose_members",
     "kept_candidate",
@@ -174,6 +176,16 @@ def kept_candidate(
     return min(finite, key=lambda c: c[0])[1] if finite else f"seed {seeds[0]}"
 
 
+@dataclass(frozen=True)
+class MemberJob:
+    """One member to train: its recipe, its run folder, and whether to resume it there (its
+    checkpoint exists)."""
+
+    recipe: RunRecipe
+    folder: Path
+    resume: bool
+
+
 def member_recipe(recipe: RunRecipe, model: Model, seed: int) -> RunRecipe:
     """``recipe`` from ``seed``, training the network ``model`` (the run's first member) has:
     the feedthrough and cubic tests' decisions taken over, not made again."""
@@ -193,13 +205,15 @@ def choose_members(
     run_dir: Path,
     members: int,
     *,
-    train_one: Callable[[RunRecipe, Path, bool], RunResult],
+    train: Callable[[Sequence[MemberJob]], list[Model]],
     eval_horizon: int | None = None,
     figure_format: str = "png",
 ) -> MemberChoice:
     """Train the members of the run ``first`` (its own training, in ``run_dir``) that follow
     it, choose among them and their means on validation, and make the choice the run folder's
-    model (see the module docstring). ``train_one(recipe, folder, resume)`` trains one member."""
+    model (see the module docstring). ``train(jobs)`` trains (or resumes) every member's
+    :class:`MemberJob` and returns their models in the same order; they are independent, so
+    it may train them side by side."""
     from canonid.learning.members import average_members, validation_losses
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.runfolder import load_splits, rescore_run
@@ -212,15 +226,15 @@ def choose_members(
         run_dir / MEMBERS_FILE,
         {"format": MEMBERS_FORMAT, "count": members, "members": [], "means": [], "kept": None},
     )
-    models: list[Model] = [first.fit.model]
-    for s in seeds[1:]:
-        folder = run_dir / member_folder(s)
-        done = train_one(
+    jobs = [
+        MemberJob(
             member_recipe(recipe, first.fit.model, s),
-            folder,
-            (folder / CHECKPOINT_FILE).is_file(),
+            run_dir / member_folder(s),
+            (run_dir / member_folder(s) / CHECKPOINT_FILE).is_file(),
         )
-        models.append(done.fit.model)
+        for s in seeds[1:]
+    ]
+    models: list[Model] = [first.fit.model, *(train(jobs) if jobs else [])]
     _, _, val, _, _ = load_splits(recipe)
     options = recipe.options()
     losses = validation_losses(models, val, options)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -45,8 +45,8 @@ from canonid.learning.window_screen import FOLLOWUP_SHARE
 from canonid.members import check_members
 
 if TYPE_CHECKING:
-    from canonid.learning import EpochReport
-    from canonid.members import MemberChoice
+    from canonid.learning import EpochReport, Model
+    from canonid.members import MemberChoice, MemberJob
     from canonid.runfolder import RunRecipe, RunResult
     from canonid.selection import Selection
 
@@ -839,7 +839,6 @@ def _member_count(request: TrainRequest, run_dir: Path) -> int:
 def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     """After the run's own training: its members and the choice among them
     (:func:`canonid.members.choose_members`), where more than one is asked for."""
-    import sys
 
     from canonid.jobs import run_folder_lock
     from canonid.kernel.io import read_json
@@ -850,25 +849,73 @@ def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     if count == 1 or outcome.result is None:
         return outcome
 
-    def train_one(recipe: RunRecipe, folder: Path, resume: bool) -> RunResult:
-        if request.progress:
-            seed = recipe.options().seed
-            print(f"members: training seed {seed} in {folder}", file=sys.stderr)
-        done = _train_one(request, recipe, folder, resume=resume, callback=None)
-        assert done.result is not None
-        return done.result
+    def train(jobs: Sequence[MemberJob]) -> list[Model]:
+        return _train_members(request, jobs)
 
     with run_folder_lock(outcome.run_dir, flag="--members"):
         choice = choose_members(
             outcome.result,
             outcome.run_dir,
             count,
-            train_one=train_one,
+            train=train,
             eval_horizon=request.eval_horizon,
             figure_format=request.figure_format,
         )
         metrics = read_json(outcome.run_dir / METRICS_FILE, what="metrics")
     return dataclasses.replace(outcome, metrics=metrics, members=choice)
+
+
+def _train_members(request: TrainRequest, jobs: Sequence[MemberJob]) -> list[Model]:
+    """Train (or resume) the members ``jobs`` and return their models, in order. Each trains as
+    it would alone with ``--threads 1``: side by side in worker processes of one thread when the
+    run may use several cores (:func:`canonid.jobs.candidate_pool`), else one after the other
+    here; so a member's weights depend on its seed, not on K or ``--threads``. On a GPU they
+    train one after the other on it."""
+    import sys
+
+    from canonid.jobs import POOL_MIN_STEPS, candidate_pool
+    from canonid.learning import Model
+
+    device = jobs[0].recipe.options().device
+    # at least two workers when the run has two threads: one member trains in one thread too
+    workers = candidate_pool(
+        request.threads, steps=POOL_MIN_STEPS, candidates=max(2, len(jobs)), device=device
+    )
+    with workers as pool:
+        seeds = ", ".join(str(job.recipe.options().seed) for job in jobs)
+        if pool is not None:
+            if request.progress:
+                print(f"members: training seeds {seeds} side by side", file=sys.stderr)
+            futures = [
+                pool.submit(_member_in_worker, job, request.eval_horizon, request.figure_format)
+                for job in jobs
+            ]
+            for future in futures:
+                future.result()
+            return [Model.load(job.folder) for job in jobs]
+    models = []
+    for job in jobs:
+        if request.progress:
+            seed = job.recipe.options().seed
+            print(f"members: training seed {seed} in {job.folder}", file=sys.stderr)
+        done = _train_one(request, job.recipe, job.folder, resume=job.resume, callback=None)
+        assert done.result is not None
+        models.append(done.result.fit.model)
+    return models
+
+
+def _member_in_worker(job: MemberJob, eval_horizon: int | None, figure_format: str) -> None:
+    """One member in a worker process (one torch thread): trained and scored into its folder
+    (no window screen, no tests: the member's recipe holds the run's decisions)."""
+    from canonid.runfolder import train_run
+
+    train_run(
+        job.recipe,
+        job.folder,
+        resume=job.resume,
+        eval_horizon=eval_horizon,
+        figure_format=figure_format,
+    )
 
 
 def _train_one(

@@ -274,6 +274,25 @@ def test_train_with_members_keeps_the_lowest_validation_loss(dataset_path, tmp_p
     assert {name: (run / name).read_bytes() for name in before} == before
 
 
+def test_members_side_by_side_train_as_they_would_alone_on_one_thread(dataset_path, tmp_path):
+    """With two threads the members train in worker processes of one thread each: the same
+    weights and scores as ``--threads 1``, one after the other."""
+    alone, side = tmp_path / "alone", tmp_path / "side"
+    assert _train(dataset_path, alone, "--members", "3") == 0
+    assert _train(dataset_path, side, "--members", "3", "--threads", "2") == 0
+    for seed in (1, 2):
+        one, two = (Model.load(run / "members" / f"s{seed}") for run in (alone, side))
+        state = two.net.state_dict()
+        assert all(torch.equal(v, state[k]) for k, v in one.net.state_dict().items())
+        metrics = [
+            json.loads((run / "members" / f"s{seed}" / "metrics.json").read_text())
+            for run in (alone, side)
+        ]
+        assert metrics[0]["rollout_mse"] == metrics[1]["rollout_mse"]
+    losses = [json.loads((run / MEMBERS_FILE).read_text())["members"] for run in (alone, side)]
+    assert [m["val_loss"] for m in losses[0][1:]] == [m["val_loss"] for m in losses[1][1:]]
+
+
 def test_the_mean_becomes_the_run_model_when_it_validates_best(dataset_path, tmp_path, monkeypatch):
     from canonid import members as members_module
 
