@@ -872,6 +872,7 @@ def _train_members(request: TrainRequest, jobs: Sequence[MemberJob]) -> list[Mod
     here; so a member's weights depend on its seed, not on K or ``--threads``. On a GPU they
     train one after the other on it."""
     import sys
+    from concurrent.futures import as_completed
 
     from canonid.jobs import POOL_MIN_STEPS, candidate_pool
     from canonid.learning import Model
@@ -882,16 +883,25 @@ def _train_members(request: TrainRequest, jobs: Sequence[MemberJob]) -> list[Mod
         request.threads, steps=POOL_MIN_STEPS, candidates=max(2, len(jobs)), device=device
     )
     with workers as pool:
-        seeds = ", ".join(str(job.recipe.options().seed) for job in jobs)
         if pool is not None:
             if request.progress:
+                seeds = ", ".join(str(job.recipe.options().seed) for job in jobs)
                 print(f"members: training seeds {seeds} side by side", file=sys.stderr)
-            futures = [
-                pool.submit(_member_in_worker, job, request.eval_horizon, request.figure_format)
+            futures = {
+                pool.submit(
+                    _member_in_worker, job, request.eval_horizon, request.figure_format
+                ): job
                 for job in jobs
-            ]
-            for future in futures:
+            }
+            for finished, future in enumerate(as_completed(futures), start=1):
                 future.result()
+                if request.progress:
+                    job = futures[future]
+                    print(
+                        f"members: seed {job.recipe.options().seed} trained in {job.folder} "
+                        f"({finished}/{len(jobs)})",
+                        file=sys.stderr,
+                    )
             return [Model.load(job.folder) for job in jobs]
     models = []
     for job in jobs:

@@ -274,12 +274,19 @@ def test_train_with_members_keeps_the_lowest_validation_loss(dataset_path, tmp_p
     assert {name: (run / name).read_bytes() for name in before} == before
 
 
-def test_members_side_by_side_train_as_they_would_alone_on_one_thread(dataset_path, tmp_path):
+def test_members_side_by_side_train_as_they_would_alone_on_one_thread(
+    dataset_path, tmp_path, capsys
+):
     """With two threads the members train in worker processes of one thread each: the same
-    weights and scores as ``--threads 1``, one after the other."""
+    weights and scores as ``--threads 1``, one after the other; each says when it is done."""
     alone, side = tmp_path / "alone", tmp_path / "side"
     assert _train(dataset_path, alone, "--members", "3") == 0
-    assert _train(dataset_path, side, "--members", "3", "--threads", "2") == 0
+    shown = ["--window", "3", "--epochs", "2", "--hidden", "16,16", "--device", "cpu"]
+    args = ["train", str(dataset_path), *shown, "--out", str(side), "--members", "3"]
+    assert main([*args, "--threads", "2"]) == 0  # with progress, this time
+    err = capsys.readouterr().err
+    assert "members: training seeds 1, 2 side by side" in err
+    assert all(f"members: seed {s} trained in {side / 'members' / f's{s}'}" in err for s in (1, 2))
     for seed in (1, 2):
         one, two = (Model.load(run / "members" / f"s{seed}") for run in (alone, side))
         state = two.net.state_dict()
