@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 
+import casadi as ca
 import numpy as np
 import pytest
 import torch
@@ -136,7 +137,7 @@ def test_the_mean_applies_its_blocks_as_the_dense_weights_it_stores(norm, option
 
 def test_the_mean_exports_to_casadi_with_the_numbers_it_simulates(norm):
     """Export reads the stored dense weights; CasADi's Ĥ equals the block-by-block torch one."""
-    from canonid.models.learned import LearnedSystem
+    from canonid.models.learned import LearnedSystem, regressor_expr
     from canonid.models.sets import Box
 
     members = [_member(s, norm, cubic=2, linear="skip", residual=True) for s in range(3)]
@@ -155,6 +156,14 @@ def test_the_mean_exports_to_casadi_with_the_numbers_it_simulates(norm):
     rng = np.random.default_rng(5)
     z, u = rng.normal(size=(32, net.state_dim)), rng.normal(size=(32, 1))
     np.testing.assert_allclose(system.h_batch(z, u), exported.H(z, u), rtol=1e-10, atol=1e-10)
+
+    # the symbolic products skip the zeros between the blocks: about K members' instructions
+    def instructions(model: Model) -> int:
+        plain = model.export().network()
+        z, u = ca.SX.sym("z", plain.state_dim), ca.SX.sym("u", 1)
+        return ca.Function("h", [z, u], [regressor_expr(plain, z, u)]).n_instructions()
+
+    assert instructions(average_members(members)) <= 3.2 * instructions(members[0])
 
 
 def test_members_of_other_recipes_are_refused_by_name(norm):
