@@ -839,7 +839,6 @@ def _member_count(request: TrainRequest, run_dir: Path) -> int:
 def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     """After the run's own training: its members and the choice among them
     (:func:`canonid.members.choose_members`), where more than one is asked for."""
-
     from canonid.jobs import run_folder_lock
     from canonid.kernel.io import read_json
     from canonid.members import choose_members
@@ -849,15 +848,12 @@ def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     if count == 1 or outcome.result is None:
         return outcome
 
-    def train(jobs: Sequence[MemberJob]) -> list[Model]:
-        return _train_members(request, jobs)
-
     with run_folder_lock(outcome.run_dir, flag="--members"):
         choice = choose_members(
             outcome.result,
             outcome.run_dir,
             count,
-            train=train,
+            train=lambda jobs: _train_members(request, jobs),
             eval_horizon=request.eval_horizon,
             figure_format=request.figure_format,
         )
