@@ -307,6 +307,16 @@ def test_members_side_by_side_train_as_they_would_alone_on_one_thread(
         assert metrics[0]["rollout_mse"] == metrics[1]["rollout_mse"]
     losses = [json.loads((run / MEMBERS_FILE).read_text())["members"] for run in (alone, side)]
     assert [m["val_loss"] for m in losses[0][1:]] == [m["val_loss"] for m in losses[1][1:]]
+    # stopped while the members trained (the plan pending, a member's model not yet written
+    # beside its checkpoint), --resume continues in the workers and gives the same bytes
+    before = {name: (side / name).read_bytes() for name in (MEMBERS_FILE, "weights.pt")}
+    plan = {"format": "canonid-members", "count": 3, "members": [], "means": [], "kept": None}
+    (side / MEMBERS_FILE).write_text(json.dumps(plan))
+    for name in ("weights.pt", "config.json", "metrics.json"):
+        (side / "members" / "s2" / name).unlink()
+    resume = ["train", "--resume", "--out", str(side), "--no-progress", "--threads", "2"]
+    assert main(resume) == 0
+    assert {name: (side / name).read_bytes() for name in before} == before
 
 
 def test_the_mean_becomes_the_run_model_when_it_validates_best(dataset_path, tmp_path, monkeypatch):
