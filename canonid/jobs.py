@@ -40,7 +40,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
-from canonid.kernel.errors import CheckpointError, OptionError, OutputError
+from canonid.kernel.errors import CheckpointError, OptionError, OutputError, WorkerError
 from canonid.kernel.io import atomic_write_json, jsonable, read_json, remove_stale_temporaries
 
 __all__ = [
@@ -179,6 +179,7 @@ def candidate_pool(
         return
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
+    from concurrent.futures.process import BrokenProcessPool
 
     pool = ProcessPoolExecutor(
         max_workers=workers,
@@ -187,6 +188,13 @@ def candidate_pool(
     )
     try:
         yield pool
+    except BrokenProcessPool as exc:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise WorkerError(
+            f"a worker process of the {workers} that train side by side ended abruptly (killed "
+            "by the system, most often for lack of memory); run the command again with "
+            "--threads 1 to train one candidate at a time in this process, or with more memory"
+        ) from exc
     except BaseException:
         pool.shutdown(wait=False, cancel_futures=True)  # Ctrl-C reaches the workers too
         raise

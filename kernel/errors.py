@@ -17,6 +17,7 @@ __all__ = [
     "ShapeError",
     "UnknownSplitError",
     "UnknownSystemError",
+    "WorkerError",
 ]
 
 
@@ -62,3 +63,8 @@ class CheckpointError(CanonidError, ValueError):
 class OutputError(CanonidError, OSError):
     """A file or folder cannot be written: a file where a folder is expected, a full disk, a
     read-only file system, missing permissions."""
+
+
+class WorkerError(CanonidError, RuntimeError):
+    """A worker process that trained side by side ended abruptly (killed by the system, most
+    often for lack of memory): its work is lost, not the finished work of the others."""

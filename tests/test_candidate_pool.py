@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import dataclasses
 import multiprocessing
+import os
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
 
 import pytest
 import torch
 
 from canonid.jobs import POOL_MIN_STEPS, _one_thread, candidate_pool
+from canonid.kernel.errors import WorkerError
 from canonid.learning.extrapolation import cubic_test
 from canonid.learning.screen import screen_windows
 from canonid.learning.training import TrainOptions, fit
@@ -152,3 +154,16 @@ def test_canonid_train_screens_in_workers_as_with_one_thread(tmp_path, monkeypat
             row["cpu_seconds"] = 0.0
         tables.append(table)
     assert tables[0] == tables[1] and len(tables[0]["candidates"]) > 1
+
+
+def _die() -> None:
+    os._exit(9)  # as the system's out-of-memory killer ends a process: no exception, no cleanup
+
+
+def test_a_worker_killed_mid_candidate_is_one_clear_error():
+    """A worker that dies (killed, e.g. out of memory) is a WorkerError saying what happened and
+    what to do, not a traceback of the process pool."""
+    with pytest.raises(WorkerError, match=r"ended abruptly .* --threads 1"):
+        with candidate_pool(2, steps=POOL_MIN_STEPS, candidates=2) as pool:
+            assert pool is not None
+            pool.submit(_die).result()
