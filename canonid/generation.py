@@ -22,9 +22,10 @@ from canonid.kernel.io import atomic_write_figure, figure_name
 if TYPE_CHECKING:
     from canonid.datagen.excitation import InputDesign
     from canonid.datagen.generate import FlightResult
+    from canonid.datagen.informativeness import Informativeness
     from canonid.kernel.dataset import Dataset
 
-__all__ = ["GenerateRequest", "generate", "plot_flights", "scenario_names"]
+__all__ = ["GenerateRequest", "generate", "informativeness_line", "plot_flights", "scenario_names"]
 
 
 def scenario_names() -> list[str]:
@@ -166,12 +167,7 @@ def generate(request: GenerateRequest) -> str:
     if stand_in:
         lines.append(f"  SIMULATED data: {system} is a simulated stand-in for {stand_in}")
     if result.informativeness is not None:
-        info = result.informativeness
-        lines.append(
-            f"  informativeness (window {info.window}): smallest eigenvalue of the regressor "
-            f"covariance {info.smallest:.3g}, of the inputs given the outputs "
-            f"{info.input_given_outputs:.3g} (dataset.json: metadata.informativeness)"
-        )
+        lines.append(informativeness_line(result.informativeness))
     lines.append(
         f"  generated {result.generated}, resumed {result.resumed}; solver failures (fell back) "
         f"{result.solver_failures}; flights regenerated with a new seed {result.replaced}"
@@ -180,6 +176,28 @@ def generate(request: GenerateRequest) -> str:
         drawn = plot_flights(Dataset.load(result.path), out / figure)
         lines.append(f"  figure: {drawn.resolve()}")
     return "\n".join(lines)
+
+
+#: a regressor covariance whose smallest eigenvalue is below this share of its largest is
+#: singular to float64 rounding (its eigenvalues are computed to about 1e-16 of the largest)
+SINGULAR_SHARE = 1e-12
+
+
+def informativeness_line(info: Informativeness) -> str:
+    """What ``canonid generate`` prints of the data's informativeness; a covariance singular to
+    rounding says so (its smallest eigenvalue alone would read as a plain 0)."""
+    line = (
+        f"  informativeness (window {info.window}): smallest eigenvalue of the regressor "
+        f"covariance {info.smallest:.3g}, of the inputs given the outputs "
+        f"{info.input_given_outputs:.3g} (dataset.json: metadata.informativeness)"
+    )
+    if info.smallest <= SINGULAR_SHARE * info.eigenvalues[0]:
+        line += (
+            "; the covariance is singular to rounding: at this window some combination of the "
+            "lagged inputs and outputs carries no variance (e.g. inputs with no power at high "
+            "frequencies)"
+        )
+    return line
 
 
 def plot_flights(dataset: Dataset, path: Path, *, n: int = 3) -> Path:

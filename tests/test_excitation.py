@@ -116,6 +116,12 @@ def test_inputs_that_the_outputs_fix_leave_nothing_given_the_outputs():
     )
     assert closed.input_given_outputs < 1e-10
     assert opened.input_given_outputs > 0.5
+    # what canonid generate prints: a covariance singular to rounding says so, not a bare 0
+    from canonid.generation import informativeness_line
+
+    assert "singular to rounding" in informativeness_line(closed)
+    assert "singular to rounding" not in informativeness_line(opened)
+    assert informativeness_line(opened).startswith("  informativeness (window 3): smallest")
 
 
 def test_band_shares_put_a_slow_sine_in_the_lowest_octave():
