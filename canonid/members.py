@@ -226,13 +226,10 @@ def choose_members(
         run_dir / MEMBERS_FILE,
         {"format": MEMBERS_FORMAT, "count": members, "members": [], "means": [], "kept": None},
     )
+    folders = {s: run_dir / member_folder(s) for s in seeds[1:]}
     jobs = [
-        MemberJob(
-            member_recipe(recipe, first.fit.model, s),
-            run_dir / member_folder(s),
-            (run_dir / member_folder(s) / CHECKPOINT_FILE).is_file(),
-        )
-        for s in seeds[1:]
+        MemberJob(member_recipe(recipe, first.fit.model, s), f, (f / CHECKPOINT_FILE).is_file())
+        for s, f in folders.items()
     ]
     models: list[Model] = [first.fit.model, *(train(jobs) if jobs else [])]
     _, _, val, _, _ = load_splits(recipe)

@@ -221,7 +221,7 @@ class TrainOutcome:
             if cubic:  # cubic "auto": say what the held-out peaks decided
                 head.append(f"{CubicTest.from_dict(cubic).summary()} (--cubic K decides instead)")
             if self.members is not None:
-                head.append(f"{self.members.summary()}; the test scores below are the kept model's")
+                head.append(f"{self.members.summary()}; the scores below are the kept model's")
         return "\n".join([*head, metrics_table(self.metrics), f"run written to {self.run_dir}"])
 
 

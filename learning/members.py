@@ -12,7 +12,7 @@ average is taken at every step, on the model's own past predictions, not over se
 simulated outputs. The network knows its ``K`` groups (``OursMLP(groups=K)``) and applies each
 block-diagonal layer block by block, so a step costs about what the ``K`` members' steps cost
 together; the weights are stored dense, zeros off the blocks, so analysis and export read a
-plain MLP (and pay for the zeros there).
+plain MLP (the numpy analysis multiplies the zeros; CasADi's symbolic export drops them).
 """
 
 from __future__ import annotations

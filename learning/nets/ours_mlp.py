@@ -33,7 +33,7 @@ class OursMLP(CanonicalModel):
         groups: ``K`` independent networks side by side (the mean of ``K`` trained ones:
             :func:`canonid.learning.members.average_members`): every hidden width is ``K``
             members' units, the hidden layers after the first are block-diagonal and are applied
-            block by block (``K`` products of one member's size instead of one of ``K²``); the
+            block by block (``K`` products of one member's size, not one ``K²`` times as large); the
             weights are stored dense, so saving, analysis and export read a plain MLP.
         common: ``window``, ``n_u``, ``n_y``, ``feedthrough``, ``residual``, ``linear`` (see
             :class:`canonid.learning.nets.base.SequenceModel` and
@@ -130,12 +130,11 @@ class OursMLP(CanonicalModel):
         recorded, cut once per version of the weight (a simulation's steps reuse them)."""
         k, weight = self.groups, linear.weight
         out, inp = weight.shape[0] // k, weight.shape[1] // k
+        blocks = weight.view(k, out, k, inp).diagonal(dim1=0, dim2=2).permute(2, 0, 1)  # a view
         if torch.is_grad_enabled():
-            return weight.view(k, out, k, inp).diagonal(dim1=0, dim2=2).permute(2, 0, 1)
+            return blocks
         key = (weight._version, weight.data_ptr())
         cached = self._blocks.get(index)
         if cached is None or cached[0] != key:
-            blocks = weight.view(k, out, k, inp).diagonal(dim1=0, dim2=2).permute(2, 0, 1)
-            cached = (key, blocks.contiguous())
-            self._blocks[index] = cached
+            cached = self._blocks[index] = (key, blocks.contiguous())
         return cached[1]
