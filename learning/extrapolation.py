@@ -19,9 +19,17 @@ and spoils a saturating tank. Which of the two a record needs is decided by the 
   trainings decides by the seed as much as by the record, unless its ratio is far from the
   threshold (:data:`CUBIC_MARGIN`, :func:`decisive`): then the first pair decides alone. The
   arms are independent: given an executor they train side by side, each as it would alone.
+* Records too short to hold out their peaks so (or whose pieces between them hold under
+  :data:`MIN_TRAIN_SHARE`) cannot ask the question at all. There the branch is a candidate
+  like another: :func:`cubic_test` says so (``fallback``, no training), both networks train
+  fully and the validation part keeps the branch by the same rule (:func:`arms_verdict`; the
+  training loop, :func:`canonid.learning.training.fit`, trains them). A short training on the
+  validation part was tried first and misjudged the overflow tanks (benchmarks/RESULTS.md,
+  "Cubic test on validation").
 
-The validation part and the test part play no part: the held-out peaks come from the training
-part. How the constants were chosen, on validation only: benchmarks/RESULTS.md, "Extrapolation".
+The test part plays no part; the validation part only when the peaks cannot be held out. How
+the constants were chosen, on validation only: benchmarks/RESULTS.md, "Extrapolation" (and
+"Cubic test on validation" for the records too short for it).
 """
 
 from __future__ import annotations
@@ -49,6 +57,7 @@ __all__ = [
     "MIN_TRAIN_SHARE",
     "CubicTest",
     "HeldOutPeaks",
+    "arms_verdict",
     "cubic_test",
     "decisive",
     "held_out_peaks",
@@ -162,8 +171,12 @@ class CubicTest:
         plain_losses, cubic_losses: each seed's best held-out loss, in the order of ``seeds``
             (``None``: that training failed); empty when the test did not run.
         seeds: the seeds each arm trained from (one when the first pair was decisive).
-        reason: why the test did not run (records too short), else ``None``.
+        reason: why the test did not run (a checkpoint from before it), else ``None``.
         split: :meth:`HeldOutPeaks.to_dict` of the split, when there was one.
+        fallback: why the held-out peaks could not decide (``None``: they did); then both
+            networks train fully and the validation part decides (:func:`arms_verdict`): the
+            losses are then the full runs' best validation losses, ``epochs`` the full budget
+            (0 before they ran).
 
     It holds no timing, so that the model's ``config.json`` stays the same bytes for the same
     seed.
@@ -178,6 +191,7 @@ class CubicTest:
     plain_losses: tuple[float | None, ...] = ()
     cubic_losses: tuple[float | None, ...] = ()
     seeds: tuple[int, ...] = ()
+    fallback: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -203,6 +217,12 @@ class CubicTest:
             return f"cubic branch: not tested ({self.reason}); the plain network trains"
         verdict = f"{self.units} cubic units" if self.units else "the plain network"
         runs = f"best of {len(self.seeds)} seeds, " if len(self.seeds) > 1 else ""
+        if self.fallback is not None:
+            return (
+                f"cubic branch on the validation part, both networks trained fully "
+                f"({self.fallback}): loss {_fmt(self.cubic_loss)} against "
+                f"{_fmt(self.plain_loss)} without: {verdict} kept"
+            )
         return (
             f"cubic branch on the held-out peaks: loss {_fmt(self.cubic_loss)} against "
             f"{_fmt(self.plain_loss)} without ({runs}{self.epochs} epochs each): {verdict} trains"
@@ -238,7 +258,8 @@ def cubic_test(
     ``cubic``; ``fit`` is :func:`canonid.learning.training.fit`, given by it (this module does
     not import its caller). ``executor``: where the arms train, the first pair side by side and
     then the remaining pairs at once (``None``: one after the other in this process); the
-    losses are those of the arms trained alone.
+    losses are those of the arms trained alone. Records too short for the peaks give the
+    plain network with ``fallback`` set and train nothing here (see the module docstring).
     """
     opts = screen_options(options, SCREEN_FRACTION)
     try:
@@ -248,14 +269,14 @@ def cubic_test(
             train, window=window, horizon=longest, val_horizon=opts.rollout_horizon
         )
     except ShapeError as exc:
-        return CubicTest(0, None, None, opts.epochs, str(exc), None)
+        return CubicTest(0, None, None, 0, None, None, fallback=str(exc))
     share = sum(t.T for t in split.train) / sum(t.T for t in train)
     if share < MIN_TRAIN_SHARE:
-        reason = (
+        fallback = (
             f"the pieces between the largest excursions hold {share:.0%} of the training "
             f"samples, under {MIN_TRAIN_SHARE:.0%}"
         )
-        return CubicTest(0, None, None, opts.epochs, reason, split.to_dict())
+        return CubicTest(0, None, None, 0, None, split.to_dict(), fallback=fallback)
 
     def pairs(seeds: Sequence[int]) -> list[float | None]:
         """The (plain, cubic) losses of ``seeds``, flat, in order."""
@@ -284,6 +305,24 @@ def cubic_test(
         plain_losses=tuple(plain_losses),
         cubic_losses=tuple(cubic_losses),
         seeds=tuple(range(opts.seed, opts.seed + len(plain_losses))),
+    )
+
+
+def arms_verdict(
+    test: CubicTest, plain: float | None, cubic: float | None, *, seed: int, epochs: int
+) -> CubicTest:
+    """``test`` (a :attr:`~CubicTest.fallback`) decided by the best validation losses of the
+    plain network's and the branch's full runs (``epochs``, from ``seed``), by
+    :func:`keeps_cubic`."""
+    return dataclasses.replace(
+        test,
+        epochs=epochs,
+        units=CUBIC_UNITS if keeps_cubic(plain, cubic) else 0,
+        plain_loss=plain,
+        cubic_loss=cubic,
+        plain_losses=(plain,),
+        cubic_losses=(cubic,),
+        seeds=(seed,),
     )
 
 

@@ -55,6 +55,7 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
+import functools
 import hashlib
 import io
 import logging
@@ -62,7 +63,7 @@ import math
 import pickle
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from concurrent.futures import Executor
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -75,7 +76,7 @@ from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
 from canonid.learning.data import Normalisation, WindowBank
-from canonid.learning.extrapolation import CubicTest, cubic_test
+from canonid.learning.extrapolation import CUBIC_UNITS, CubicTest, arms_verdict, cubic_test
 from canonid.learning.linear import feedthrough_test, initialise_linear
 from canonid.learning.model import Model, check_same, load_state
 from canonid.learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
@@ -87,6 +88,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CHECKPOINT_FILE",
+    "CUBIC_ARM_DIR",
     "EpochReport",
     "FitResult",
     "OptionError",
@@ -446,20 +448,24 @@ def flush_subnormal_tensors(tensors: Iterable[Any]) -> None:
                 t.masked_fill_(t.abs() < _FLOAT32_TINY, 0.0)
 
 
-def _fit_validation_horizon(opts: TrainOptions, window: int, longest: int) -> TrainOptions:
+def _fit_validation_horizon(
+    opts: TrainOptions, window: int, longest: int, *, warn: bool = True
+) -> TrainOptions:
     """``opts`` with the validation rollout cut to what the longest validation trajectory holds
-    after its ℓ-sample burn-in, with a warning; the model's recorded options keep the cut."""
+    after its ℓ-sample burn-in, with a warning (unless ``warn`` is false: said already); the
+    model's recorded options keep the cut."""
     fits = longest - window
     if fits >= opts.rollout_horizon:
         return opts
-    log.warning(
-        "validation rollouts cut from %d to %d steps: the longest validation trajectory has %d "
-        "samples, window ℓ = %d",
-        opts.rollout_horizon,
-        fits,
-        longest,
-        window,
-    )
+    if warn:
+        log.warning(
+            "validation rollouts cut from %d to %d steps: the longest validation trajectory has "
+            "%d samples, window ℓ = %d",
+            opts.rollout_horizon,
+            fits,
+            longest,
+            window,
+        )
     return dataclasses.replace(opts, val_horizon=fits)
 
 
@@ -754,7 +760,9 @@ def fit(
             decides on validation (:func:`canonid.learning.linear.feedthrough_test`) and
             ``cubic="auto"`` on the training part's held-out peaks
             (:func:`canonid.learning.extrapolation.cubic_test`; a resumed run reads the decision
-            from its checkpoint), both recorded in the model's info.
+            from its checkpoint), both recorded in the model's info. Records too short for the
+            peaks train both networks fully, the branch in ``run_dir/``:data:`CUBIC_ARM_DIR`,
+            and the validation part keeps one (:func:`_with_cubic_arm`).
         run_dir: where the model and ``checkpoint.pt`` are written (nothing is written if
             ``None``).
         resume: continue from ``run_dir/checkpoint.pt``; the model, its configuration, the
@@ -763,7 +771,9 @@ def fit(
         callback: called with an :class:`EpochReport` after every epoch.
         info: extra JSON facts saved in the model's ``config.json``.
         executor: where the cubic test's short trainings run side by side
-            (:func:`~canonid.learning.extrapolation.cubic_test`); ``None``: in this process.
+            (:func:`~canonid.learning.extrapolation.cubic_test`), and the full run of the
+            branch beside this process's when the records are too short for them; ``None``: in
+            this process.
 
     If training is interrupted (an exception, Ctrl-C), the best model so far is still written
     to ``run_dir`` before the exception propagates.
@@ -777,7 +787,7 @@ def fit(
         test = feedthrough_test(train, val, Normalisation.fit(train), window=window)
         options_all = {**options_all, "feedthrough": test.feedthrough}
         info = {**dict(info or {}), "feedthrough_test": test.to_dict()}
-    identity = None
+    identity, fallback = None, None
     if options_all.get("cubic") == "auto":  # decided on the training part's held-out peaks
         resumed = _resumed_cubic_test(run_dir) if resume else None
         if resumed is None:
@@ -795,6 +805,7 @@ def fit(
             cubic, recorded = resumed
         options_all = {**options_all, "cubic": cubic.units}
         info = {**dict(info or {}), "cubic_test": cubic.to_dict()}
+        fallback = cubic if cubic.fallback is not None else None
         if recorded is not None:  # a checkpoint from before the test has none
             identity = {"cubic_test": recorded}
 
@@ -805,18 +816,140 @@ def fit(
             initialise_linear(net, train, norm)
         return net
 
-    return fit_net(
-        build,
+    arm = None
+    if fallback is not None:
+        # the peaks could not decide: the branch trains fully too (beside, given an executor)
+        arm = _start_cubic_arm(
+            train,
+            val,
+            model=model,
+            window=window,
+            options=options,
+            net_options=options_all,
+            run_dir=run_dir,
+            resume=resume,
+            info=info,
+            executor=executor,
+        )
+    try:
+        with _threads_beside(arm):
+            plain = fit_net(
+                build,
+                train,
+                val,
+                window=window,
+                options=options,
+                run_dir=run_dir,
+                resume=resume,
+                callback=callback,
+                info=info,
+                identity=identity,
+            )
+    except BaseException:
+        if arm is not None:
+            arm.cancel()
+        raise
+    if fallback is None:
+        return plain
+    return _with_cubic_arm(plain, arm, fallback, run_dir, options=options or TrainOptions())
+
+
+#: where a run whose records are too short for the cubic test trains its cubic branch fully
+CUBIC_ARM_DIR = "cubic-arm"
+
+
+def _start_cubic_arm(
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
+    *,
+    run_dir: str | Path | None,
+    resume: bool,
+    net_options: Mapping[str, Any],
+    executor: Executor | None,
+    **kwargs: Any,
+) -> Future[FitResult]:
+    """The full run of the cubic branch, as :func:`fit` with ``cubic`` given: in a worker of
+    ``executor`` (it starts now), else here when its result is asked for."""
+    folder = None if run_dir is None else Path(run_dir) / CUBIC_ARM_DIR
+    longest = max(t.T for t in as_trajectories(val, what="validation data"))
+    # a cut of the validation rollouts is the plain network's too, and said once, by it
+    kwargs["options"] = _fit_validation_horizon(
+        kwargs["options"] or TrainOptions(), kwargs["window"], longest, warn=False
+    )
+    call = functools.partial(
+        fit,
         train,
         val,
-        window=window,
-        options=options,
-        run_dir=run_dir,
-        resume=resume,
-        callback=callback,
-        info=info,
-        identity=identity,
+        net_options={**net_options, "cubic": CUBIC_UNITS},
+        run_dir=folder,
+        resume=resume and folder is not None and (folder / CHECKPOINT_FILE).is_file(),
+        **kwargs,
     )
+    if executor is not None:
+        return executor.submit(call)
+    return _LazyFuture(call)
+
+
+class _LazyFuture(Future):
+    """A future that runs its call in this process when its result is first asked for."""
+
+    def __init__(self, call: Callable[[], FitResult]) -> None:
+        super().__init__()
+        self._call = call
+
+    def result(self, timeout: float | None = None) -> FitResult:
+        if not self.done():
+            try:
+                self.set_result(self._call())
+            except BaseException as exc:
+                self.set_exception(exc)
+        return super().result(timeout)
+
+
+@contextlib.contextmanager
+def _threads_beside(arm: Future[FitResult] | None) -> Iterator[None]:
+    """One torch thread fewer here while the branch trains in a worker beside this process."""
+    if arm is None or isinstance(arm, _LazyFuture) or torch.get_num_threads() < 2:
+        yield
+        return
+    threads = torch.get_num_threads()
+    torch.set_num_threads(threads - 1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
+def _with_cubic_arm(
+    plain: FitResult,
+    arm: Future[FitResult] | None,
+    test: CubicTest,
+    run_dir: str | Path | None,
+    *,
+    options: TrainOptions,
+) -> FitResult:
+    """The run of the two whose best validation loss the rule keeps
+    (:func:`~canonid.learning.extrapolation.arms_verdict`), its model carrying the verdict and
+    saved in ``run_dir`` (the plain network's checkpoint stays there, so that a resumed run
+    continues both)."""
+    assert arm is not None
+    cubic = arm.result()
+    verdict = arms_verdict(
+        test,
+        _finite(plain.best_val_loss),
+        _finite(cubic.best_val_loss),
+        seed=options.seed,
+        epochs=options.epochs,
+    )
+    kept = cubic if verdict.units else plain
+    kept.model.info["cubic_test"] = verdict.to_dict()
+    if run_dir is not None:
+        kept.model.save(Path(run_dir))
+    return kept
+
+
+def _finite(loss: float) -> float | None:
+    return loss if math.isfinite(loss) else None
 
 
 def _resumed_cubic_test(
@@ -919,9 +1052,14 @@ def fit_net(
             if run_path is not None and not net.iterative:
                 state.save(run_path / CHECKPOINT_FILE)
         stopped = "completed" if net.iterative else "least_squares"
+        # a run resumed after it stopped early trains no further epoch: it ended there
+        ended = resume and net.iterative and state.should_stop_early()
+        if ended:
+            stopped = "early_stopping"
         try:
             with flushed_subnormals(device, float(opts.weight_decay)):  # resolved above
-                for epoch in range(state.epoch + 1, opts.epochs + 1 if net.iterative else 1):
+                last = state.epoch if ended else (opts.epochs if net.iterative else 0)
+                for epoch in range(state.epoch + 1, last + 1):
                     row = state.train_epoch(epoch)
                     if row is None:
                         stopped = "diverged"

@@ -70,6 +70,19 @@ def test_train_with_a_val_csv_scores_the_val_file(trained, csv_files):
     assert config["info"]["data"]["splits"] == {"train": 3, "val": 1}
 
 
+def test_records_too_short_for_the_cubic_test_train_the_branch_beside(trained):
+    from canonid.learning.extrapolation import CUBIC_UNITS, keeps_cubic
+
+    config = json.loads((trained / "config.json").read_text())
+    test = config["info"]["cubic_test"]
+    assert "too short to hold out their largest excursions" in test["fallback"]
+    arm = json.loads((trained / "cubic-arm" / "config.json").read_text())
+    assert arm["net"]["cubic"] == CUBIC_UNITS
+    assert test["cubic_loss"] == arm["info"]["training"]["best_val_loss"]
+    kept = keeps_cubic(test["plain_loss"], test["cubic_loss"])
+    assert config["net"].get("cubic", 0) == test["units"] == (CUBIC_UNITS if kept else 0)
+
+
 def test_evaluate_rebuilds_the_runs_split_and_keeps_the_held_out_score(trained, csv_files, capsys):
     before = (trained / "metrics.json").read_bytes()
     written = json.loads(before)

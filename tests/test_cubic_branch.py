@@ -237,8 +237,8 @@ def test_the_test_does_not_run_when_the_peaks_leave_too_little_to_train() -> Non
     split = held_out_peaks(train, window=2, horizon=6, val_horizon=6)
     assert sum(t.T for t in split.train) < MIN_TRAIN_SHARE * 600
     test = cubic_test(train, window=2, options=opts, net_options={}, fit=no_training)
-    assert test.units == 0 and test.plain_loss is None and "under 40%" in test.reason
-    assert "not tested" in test.summary()
+    assert test.units == 0 and test.plain_loss is None and "under 40%" in test.fallback
+    assert test.reason is None and test.epochs == 0  # no short training: the full runs decide
 
 
 def test_each_arm_keeps_its_best_seed_and_the_rule_compares_the_bests() -> None:
@@ -314,3 +314,102 @@ def test_a_short_training_that_fails_leaves_the_plain_network(caplog) -> None:
     test = cubic_test(_bursty(1, 2, 900), window=3, options=opts, net_options={}, fit=fit)
     assert (test.units, test.plain_loss, test.cubic_loss) == (0, 0.5, None)
     assert "failed: the loss is not finite" in caplog.text
+
+
+@pytest.mark.parametrize(
+    ("plain", "cubic", "units"),
+    [(1.0, CUBIC_GAIN, CUBIC_UNITS), (1.0, 0.9, 0), (None, 1.0, CUBIC_UNITS), (1.0, None, 0)],
+)
+def test_records_too_short_for_peaks_leave_the_choice_to_the_full_runs(plain, cubic, units):
+    from canonid.learning.extrapolation import arms_verdict, cubic_test
+    from canonid.learning.training import TrainOptions
+
+    def no_training(*args, **kwargs):
+        raise AssertionError("a short training ran although the peaks cannot be held out")
+
+    opts = TrainOptions(epochs=20, horizon=50, val_horizon=100, seed=4)
+    test = cubic_test(_bursty(1, 1, 120), window=10, options=opts, net_options={}, fit=no_training)
+    assert test.units == 0 and "too short to hold out" in test.fallback and test.split is None
+    verdict = arms_verdict(test, plain, cubic, seed=4, epochs=20)
+    assert verdict.units == units and verdict.fallback == test.fallback
+    assert (verdict.plain_losses, verdict.cubic_losses, verdict.seeds) == ((plain,), (cubic,), (4,))
+    assert CubicTest.from_dict(verdict.to_dict()).to_dict() == verdict.to_dict()
+    kept = "16 cubic units kept" if units else "the plain network kept"
+    assert verdict.summary().startswith("cubic branch on the validation part, both networks")
+    assert verdict.summary().endswith(kept)
+
+
+def _short_pair() -> tuple[list[Trajectory], list[Trajectory], object]:
+    from canonid.learning.training import TrainOptions
+
+    opts = TrainOptions(
+        epochs=12, batch_size=8, horizon=50, val_horizon=60, windows_per_epoch=16, device="cpu"
+    )
+    return _bursty(1, 1, 150), _bursty(2, 1, 80), opts
+
+
+def test_a_short_run_trains_both_networks_and_keeps_the_rule_s_choice(tmp_path) -> None:
+    from canonid.learning import Model
+    from canonid.learning.training import CUBIC_ARM_DIR, fit
+
+    train, val, opts = _short_pair()
+    net = {"hidden": [8], "feedthrough": False}
+    run = fit(train, val, window=3, options=opts, net_options=net, run_dir=tmp_path)
+    test = run.model.info["cubic_test"]
+    assert test["fallback"].startswith("the records are too short") and test["epochs"] == 12
+    # each arm is the network trained alone with its units given, to the bit
+    alone = {
+        units: fit(train, val, window=3, options=opts, net_options={**net, "cubic": units})
+        for units in (0, CUBIC_UNITS)
+    }
+    assert test["plain_loss"] == alone[0].best_val_loss
+    assert test["cubic_loss"] == alone[CUBIC_UNITS].best_val_loss
+    assert keeps_cubic(test["plain_loss"], test["cubic_loss"]) == bool(test["units"])
+    kept = alone[test["units"]]
+    assert run.best_val_loss == kept.best_val_loss and run.model.net.cubic == test["units"]
+    for a, b in zip(run.model.net.parameters(), kept.model.net.parameters(), strict=True):
+        assert torch.equal(a, b)
+    saved = Model.load(tmp_path)  # the folder holds the kept network, the verdict with it
+    assert saved.info["cubic_test"] == test and saved.net.cubic == test["units"]
+    assert Model.load(tmp_path / CUBIC_ARM_DIR).net.cubic == CUBIC_UNITS
+
+
+def test_a_short_run_resumes_both_networks_and_gives_the_same_bytes(tmp_path) -> None:
+    import dataclasses
+
+    from canonid.learning.training import fit
+
+    train, val, opts = _short_pair()
+    net = {"hidden": [8], "feedthrough": False}
+    whole = fit(train, val, window=3, options=opts, net_options=net, run_dir=tmp_path / "a")
+    # interrupted after 6 epochs of each network, then resumed to the end
+    half = dataclasses.replace(opts, epochs=6, checkpoint_every=3)
+    fit(train, val, window=3, options=half, net_options=net, run_dir=tmp_path / "b")
+    again = fit(
+        train,
+        val,
+        window=3,
+        options=dataclasses.replace(opts, checkpoint_every=3),
+        net_options=net,
+        run_dir=tmp_path / "b",
+        resume=True,
+    )
+    assert again.model.info["cubic_test"] == whole.model.info["cubic_test"]
+    for a, b in zip(again.model.net.parameters(), whole.model.net.parameters(), strict=True):
+        assert torch.equal(a, b)
+
+
+def test_the_branch_trains_beside_in_a_worker_as_it_does_here(tmp_path) -> None:
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    from canonid.learning.training import fit
+
+    train, val, opts = _short_pair()
+    net = {"hidden": [8], "feedthrough": False}
+    here = fit(train, val, window=3, options=opts, net_options=net)
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+        beside = fit(train, val, window=3, options=opts, net_options=net, executor=pool)
+    assert beside.model.info["cubic_test"] == here.model.info["cubic_test"]
+    for a, b in zip(beside.model.net.parameters(), here.model.net.parameters(), strict=True):
+        assert torch.equal(a, b)

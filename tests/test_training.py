@@ -211,6 +211,28 @@ def test_resume_with_more_epochs_continues_the_run(data, tmp_path):
     assert longer.epochs_run == 5 and len(longer.history) == 6
 
 
+def test_a_run_that_stopped_early_resumes_to_the_same_end(data, tmp_path):
+    train, val = data
+    # a learning rate too large to improve for long: validation stalls, patience 2 ends it
+    opts = tiny_options(epochs=40, lr=0.3, patience=2)
+    ended = fit_tiny(train, val, options=opts, run_dir=tmp_path)
+    assert ended.stopped == "early_stopping" and ended.epochs_run < 40
+    again = fit_tiny(train, val, options=opts, run_dir=tmp_path, resume=True)
+    assert again.stopped == "early_stopping" and again.epochs_run == ended.epochs_run
+    assert again.history == ended.history
+    wa, wb = weights(ended.model), weights(again.model)
+    assert all(np.array_equal(wa[k], wb[k]) for k in wa)
+    # a larger patience, given on resume, lets it go on
+    longer = fit_tiny(
+        train,
+        val,
+        options=tiny_options(epochs=40, lr=0.3, patience=50),
+        run_dir=tmp_path,
+        resume=True,
+    )
+    assert longer.epochs_run == 40
+
+
 def test_a_diverging_run_stops_and_keeps_the_best_model(data, monkeypatch, caplog):
     from canonid.learning.nets.ours_mlp import OursMLP
 

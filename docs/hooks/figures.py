@@ -665,6 +665,20 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
     "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
     "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
+    # the records too short for the cubic test's peaks (cubic_fallback.py): cubic / plain
+    **{
+        f"cubic-fallback/{slug}/{which}": Cell(
+            "Cubic test on validation", _row(record=label), column
+        )
+        for slug, label in (
+            ("silverbox-1k", "Silverbox, first 1,000 samples (800 / 200)"),
+            ("overflow-tanks", "overflow tanks, 1,024 samples (819 / 205)"),
+        )
+        for which, column in (
+            ("short-ratio", "short: best cubic / best plain"),
+            ("full-ratio", "full: cubic / plain"),
+        )
+    },
     "code/cubic-min-share": Code(
         lambda: f"{_extrapolation().MIN_TRAIN_SHARE:.0%}".replace("%", " %")
     ),
