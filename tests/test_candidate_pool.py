@@ -167,3 +167,24 @@ def test_a_worker_killed_mid_candidate_is_one_clear_error():
         with candidate_pool(2, steps=POOL_MIN_STEPS, candidates=2) as pool:
             assert pool is not None
             pool.submit(_die).result()
+
+
+def test_the_cubic_branch_of_a_short_record_trains_beside_as_it_does_here(
+    workers, one_thread, tmp_path
+):
+    from canonid.learning.training import CUBIC_ARM_DIR
+
+    # records too short for the cubic test's peaks: both networks train fully, the branch in
+    # a worker beside this process
+    train, val = _bursty(1, 1, 150), _bursty(2, 1, 80)
+    opts = dataclasses.replace(OPTS, epochs=12, horizon=50, val_horizon=60, device="cpu")
+    net = {"hidden": [8], "feedthrough": False}
+    here = fit(train, val, window=3, options=opts, net_options=net)
+    beside = fit(
+        train, val, window=3, options=opts, net_options=net, executor=workers, run_dir=tmp_path
+    )
+    assert beside.model.info["cubic_test"] == here.model.info["cubic_test"]
+    assert beside.model.info["cubic_test"]["fallback"] is not None
+    for a, b in zip(beside.model.net.parameters(), here.model.net.parameters(), strict=True):
+        assert torch.equal(a, b)
+    assert (tmp_path / CUBIC_ARM_DIR / "weights.pt").is_file()

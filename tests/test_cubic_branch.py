@@ -397,19 +397,3 @@ def test_a_short_run_resumes_both_networks_and_gives_the_same_bytes(tmp_path) ->
     assert again.model.info["cubic_test"] == whole.model.info["cubic_test"]
     for a, b in zip(again.model.net.parameters(), whole.model.net.parameters(), strict=True):
         assert torch.equal(a, b)
-
-
-def test_the_branch_trains_beside_in_a_worker_as_it_does_here(tmp_path) -> None:
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
-    from canonid.learning.training import fit
-
-    train, val, opts = _short_pair()
-    net = {"hidden": [8], "feedthrough": False}
-    here = fit(train, val, window=3, options=opts, net_options=net)
-    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
-        beside = fit(train, val, window=3, options=opts, net_options=net, executor=pool)
-    assert beside.model.info["cubic_test"] == here.model.info["cubic_test"]
-    for a, b in zip(beside.model.net.parameters(), here.model.net.parameters(), strict=True):
-        assert torch.equal(a, b)
