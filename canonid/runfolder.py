@@ -474,7 +474,8 @@ class RunEvaluation:
 
 @dataclass(frozen=True)
 class RunResult:
-    """What :func:`train_run` did: the fit, the evaluation on the scoring split, and timings."""
+    """What :func:`train_run` did: the fit, the evaluation on the scoring split, and timings
+    (``cpu_seconds``: this process's and, for a cubic branch trained beside, its worker's)."""
 
     run_dir: Path
     recipe: RunRecipe
@@ -847,5 +848,5 @@ def train_run(
         evaluation=evaluation,
         resumed=resume,
         seconds=round(time.perf_counter() - t0, 3),
-        cpu_seconds=round(time.process_time() - cpu0, 3),
+        cpu_seconds=round(time.process_time() - cpu0 + fitted.cpu_elsewhere, 3),
     )

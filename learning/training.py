@@ -290,6 +290,9 @@ class FitResult:
             (a model fitted in closed form, with no gradient step).
         screen: the window screen that chose ``model.window`` (``canonid.fit`` without a
             window), else ``None``.
+        cpu_elsewhere: CPU seconds this fit spent in worker processes (the cubic branch of a
+            record too short for the cubic test, trained beside), which the calling process's
+            own clock does not count.
     """
 
     model: Model
@@ -299,6 +302,7 @@ class FitResult:
     epochs_run: int
     stopped: str
     screen: WindowScreen | None = None
+    cpu_elsewhere: float = 0.0
 
 
 #: ``device="auto"`` trains on CUDA only when one rollout step of the job takes at least this
@@ -886,8 +890,15 @@ def _start_cubic_arm(
         **kwargs,
     )
     if executor is not None:
-        return executor.submit(call)
+        return executor.submit(_timed, call)
     return _LazyFuture(call)
+
+
+def _timed(call: Callable[[], FitResult]) -> FitResult:
+    """``call()`` in a worker, with the worker's CPU seconds for it as ``cpu_elsewhere``."""
+    start = time.process_time()
+    result = call()
+    return dataclasses.replace(result, cpu_elsewhere=time.process_time() - start)
 
 
 class _LazyFuture(Future):
@@ -945,7 +956,7 @@ def _with_cubic_arm(
     kept.model.info["cubic_test"] = verdict.to_dict()
     if run_dir is not None:
         kept.model.save(Path(run_dir))
-    return kept
+    return dataclasses.replace(kept, cpu_elsewhere=cubic.cpu_elsewhere)
 
 
 def _finite(loss: float) -> float | None:

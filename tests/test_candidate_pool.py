@@ -188,3 +188,5 @@ def test_the_cubic_branch_of_a_short_record_trains_beside_as_it_does_here(
     for a, b in zip(beside.model.net.parameters(), here.model.net.parameters(), strict=True):
         assert torch.equal(a, b)
     assert (tmp_path / CUBIC_ARM_DIR / "weights.pt").is_file()
+    # the worker's CPU time is the run's too; here the process's own clock counted it
+    assert beside.cpu_elsewhere > 0 and here.cpu_elsewhere == 0
