@@ -19,6 +19,7 @@ running the same selection again continues an interrupted one.
 from __future__ import annotations
 
 import dataclasses
+import shutil
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -35,7 +36,7 @@ from canonid.kernel.io import (
     read_json,
 )
 from canonid.learning import NETS
-from canonid.learning.training import CHECKPOINT_FILE
+from canonid.learning.training import CHECKPOINT_FILE, CUBIC_ARM_DIR
 from canonid.runfolder import (
     FIGURES,
     HISTORY_FILE,
@@ -338,7 +339,17 @@ def select(
 def adopt(source: Path, run_dir: Path, *, checkpoint: bool = False) -> None:
     """Copy the chosen candidate's run files into ``run_dir`` (each replaced atomically);
     ``checkpoint``: its checkpoint too, first, so that ``--resume`` continues the adopted run
-    (the window screen's full runs, :func:`canonid.training.train`)."""
+    (the window screen's full runs, :func:`canonid.training.train`), and its cubic branch's
+    folder (:data:`~canonid.learning.training.CUBIC_ARM_DIR`) with it, which that resume
+    continues too."""
+    if checkpoint:  # replaced whole: the branch of the run adopted over is no longer it
+        staged = run_dir / f".{CUBIC_ARM_DIR}.adopted"
+        shutil.rmtree(staged, ignore_errors=True)
+        if (source / CUBIC_ARM_DIR).is_dir():
+            shutil.copytree(source / CUBIC_ARM_DIR, staged)
+        shutil.rmtree(run_dir / CUBIC_ARM_DIR, ignore_errors=True)
+        if staged.is_dir():
+            staged.rename(run_dir / CUBIC_ARM_DIR)
     for name in ((CHECKPOINT_FILE,) if checkpoint else ()) + ADOPTED:
         if (source / name).is_file():
             atomic_copy(source / name, run_dir / name)

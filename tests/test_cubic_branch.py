@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from canonid.kernel.errors import ShapeError
+from canonid.learning import Model
 from canonid.learning.nets import build_net
 
 SHAPE = {"window": 3, "n_u": 1, "n_y": 2, "hidden": [8, 8], "linear": "skip"}
@@ -397,3 +398,26 @@ def test_a_short_run_resumes_both_networks_and_gives_the_same_bytes(tmp_path) ->
     assert again.model.info["cubic_test"] == whole.model.info["cubic_test"]
     for a, b in zip(again.model.net.parameters(), whole.model.net.parameters(), strict=True):
         assert torch.equal(a, b)
+
+
+def test_a_run_adopted_over_another_brings_its_branch_and_resumes_with_it(tmp_path) -> None:
+    from canonid.learning.training import CUBIC_ARM_DIR, fit
+    from canonid.selection import adopt
+
+    # a window screen's follow-up adopted over the first full run, both with a branch beside
+    train, val, opts = _short_pair()
+    net = {"hidden": [8], "feedthrough": False}
+    fit(train, val, window=3, options=opts, net_options=net, run_dir=tmp_path / "run")
+    other = fit(train, val, window=4, options=opts, net_options=net, run_dir=tmp_path / "l4")
+    adopt(tmp_path / "l4", tmp_path / "run", checkpoint=True)
+    assert Model.load(tmp_path / "run" / CUBIC_ARM_DIR).window == 4
+    again = fit(
+        train, val, window=4, options=opts, net_options=net, run_dir=tmp_path / "run", resume=True
+    )
+    assert again.model.info["cubic_test"] == other.model.info["cubic_test"]
+    for a, b in zip(again.model.net.parameters(), other.model.net.parameters(), strict=True):
+        assert torch.equal(a, b)
+    # a run with no branch beside it, adopted, leaves none of the other's behind
+    fit(train, val, window=4, options=opts, net_options={**net, "cubic": 0}, run_dir=tmp_path / "p")
+    adopt(tmp_path / "p", tmp_path / "run", checkpoint=True)
+    assert not (tmp_path / "run" / CUBIC_ARM_DIR).exists()
