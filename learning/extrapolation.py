@@ -171,7 +171,8 @@ class CubicTest:
         plain_losses, cubic_losses: each seed's best held-out loss, in the order of ``seeds``
             (``None``: that training failed); empty when the test did not run.
         seeds: the seeds each arm trained from (one when the first pair was decisive).
-        reason: why the test did not run (a checkpoint from before it), else ``None``.
+        reason: why the test did not run (a checkpoint from before it; in runs recorded
+            before records too short for it trained the branch beside, that), else ``None``.
         split: :meth:`HeldOutPeaks.to_dict` of the split, when there was one.
         fallback: why the held-out peaks could not decide (``None``: they did); then both
             networks train fully and the validation part decides (:func:`arms_verdict`): the
