@@ -102,7 +102,8 @@ CUBIC_HELP = (
     "auto: hold out the training part's largest excursions (above "
     f"{HOLD_OUT:g}× the largest), train briefly with {CUBIC_UNITS} units and without, from up "
     f"to {CUBIC_SEEDS} seeds each, and keep the branch when its best loss on them is at most "
-    f"{CUBIC_GAIN:g}× the plain network's best"
+    f"{CUBIC_GAIN:g}× the plain network's best; on records too short to hold them out, train "
+    "both fully (the branch in RUN/cubic-arm) and apply the same rule to their validation losses"
 )
 
 #: ``canonid train --members``
