@@ -820,10 +820,11 @@ def fit(
             initialise_linear(net, train, norm)
         return net
 
-    arm = None
+    arm: Callable[[], FitResult] | None = None
+    beside: Future[FitResult] | None = None
     if fallback is not None:
-        # the peaks could not decide: the branch trains fully too (beside, given an executor)
-        arm = _start_cubic_arm(
+        # the peaks could not decide: the branch trains fully too, beside given an executor
+        arm = _cubic_arm(
             train,
             val,
             model=model,
@@ -832,11 +833,11 @@ def fit(
             net_options=options_all,
             run_dir=run_dir,
             resume=resume,
-            info=info,
-            executor=executor,
+            info={k: v for k, v in (info or {}).items() if k != "cubic_test"},
         )
+        beside = executor.submit(_timed, arm) if executor is not None else None
     try:
-        with _threads_beside(arm):
+        with _threads_beside(beside):
             plain = fit_net(
                 build,
                 train,
@@ -850,37 +851,37 @@ def fit(
                 identity=identity,
             )
     except BaseException:
-        if arm is not None:
-            arm.cancel()
+        if beside is not None:
+            beside.cancel()
         raise
-    if fallback is None:
+    if fallback is None or arm is None:
         return plain
-    return _with_cubic_arm(plain, arm, fallback, run_dir, options=options or TrainOptions())
+    branch = beside.result() if beside is not None else arm()
+    return _with_cubic_arm(plain, branch, fallback, run_dir, options=options or TrainOptions())
 
 
 #: where a run whose records are too short for the cubic test trains its cubic branch fully
 CUBIC_ARM_DIR = "cubic-arm"
 
 
-def _start_cubic_arm(
+def _cubic_arm(
     train: Sequence[Trajectory],
     val: Sequence[Trajectory],
     *,
     run_dir: str | Path | None,
     resume: bool,
     net_options: Mapping[str, Any],
-    executor: Executor | None,
     **kwargs: Any,
-) -> Future[FitResult]:
-    """The full run of the cubic branch, as :func:`fit` with ``cubic`` given: in a worker of
-    ``executor`` (it starts now), else here when its result is asked for."""
+) -> Callable[[], FitResult]:
+    """The full run of the cubic branch, as :func:`fit` with ``cubic`` given, in
+    ``run_dir/``:data:`CUBIC_ARM_DIR` (a call that pickles, for a worker)."""
     folder = None if run_dir is None else Path(run_dir) / CUBIC_ARM_DIR
     longest = max(t.T for t in as_trajectories(val, what="validation data"))
     # a cut of the validation rollouts is the plain network's too, and said once, by it
     kwargs["options"] = _fit_validation_horizon(
         kwargs["options"] or TrainOptions(), kwargs["window"], longest, warn=False
     )
-    call = functools.partial(
+    return functools.partial(
         fit,
         train,
         val,
@@ -889,38 +890,20 @@ def _start_cubic_arm(
         resume=resume and folder is not None and (folder / CHECKPOINT_FILE).is_file(),
         **kwargs,
     )
-    if executor is not None:
-        return executor.submit(_timed, call)
-    return _LazyFuture(call)
 
 
 def _timed(call: Callable[[], FitResult]) -> FitResult:
-    """``call()`` in a worker, with the worker's CPU seconds for it as ``cpu_elsewhere``."""
+    """``call()`` in a worker, with the worker's CPU seconds for it as ``cpu_elsewhere``
+    (which this process's own clock does not count)."""
     start = time.process_time()
     result = call()
     return dataclasses.replace(result, cpu_elsewhere=time.process_time() - start)
 
 
-class _LazyFuture(Future):
-    """A future that runs its call in this process when its result is first asked for."""
-
-    def __init__(self, call: Callable[[], FitResult]) -> None:
-        super().__init__()
-        self._call = call
-
-    def result(self, timeout: float | None = None) -> FitResult:
-        if not self.done():
-            try:
-                self.set_result(self._call())
-            except BaseException as exc:
-                self.set_exception(exc)
-        return super().result(timeout)
-
-
 @contextlib.contextmanager
-def _threads_beside(arm: Future[FitResult] | None) -> Iterator[None]:
+def _threads_beside(beside: Future[FitResult] | None) -> Iterator[None]:
     """One torch thread fewer here while the branch trains in a worker beside this process."""
-    if arm is None or isinstance(arm, _LazyFuture) or torch.get_num_threads() < 2:
+    if beside is None or torch.get_num_threads() < 2:
         yield
         return
     threads = torch.get_num_threads()
@@ -933,7 +916,7 @@ def _threads_beside(arm: Future[FitResult] | None) -> Iterator[None]:
 
 def _with_cubic_arm(
     plain: FitResult,
-    arm: Future[FitResult] | None,
+    cubic: FitResult,
     test: CubicTest,
     run_dir: str | Path | None,
     *,
@@ -943,8 +926,6 @@ def _with_cubic_arm(
     (:func:`~canonid.learning.extrapolation.arms_verdict`), its model carrying the verdict and
     saved in ``run_dir`` (the plain network's checkpoint stays there, so that a resumed run
     continues both)."""
-    assert arm is not None
-    cubic = arm.result()
     verdict = arms_verdict(
         test,
         _finite(plain.best_val_loss),

@@ -78,6 +78,7 @@ def test_records_too_short_for_the_cubic_test_train_the_branch_beside(trained):
     assert "too short to hold out their largest excursions" in test["fallback"]
     arm = json.loads((trained / "cubic-arm" / "config.json").read_text())
     assert arm["net"]["cubic"] == CUBIC_UNITS
+    assert "cubic_test" not in arm["info"]  # the verdict is the run's, not the branch's own
     assert test["cubic_loss"] == arm["info"]["training"]["best_val_loss"]
     kept = keeps_cubic(test["plain_loss"], test["cubic_loss"])
     assert config["net"].get("cubic", 0) == test["units"] == (CUBIC_UNITS if kept else 0)
