@@ -246,7 +246,7 @@ def screen(name: str) -> str:
     )
     v = validation(RUNS / name)
     epochs = found.full_epochs or round(found.epochs / found.fraction)
-    within = v.last <= FOLLOWUP_SHARE * epochs
+    within = v.last < FOLLOWUP_SHARE * epochs
     after = (
         f"{', '.join(str(r.window) for r in found.full_runs[1:])} trained fully too"
         if len(found.full_runs) > 1

@@ -40,7 +40,7 @@ def fit(
     windows :data:`~canonid.learning.screen.SCREEN_WINDOWS` that the records allow on the
     validation trajectories (:func:`~canonid.learning.screen.screen_windows`: a short training
     each; ``max_window``: only those up to it, as ``--max-window``) and trains the chosen one
-    fully; while the full runs stop early within
+    fully; while the full runs together stop early, before
     :data:`~canonid.learning.window_screen.FOLLOWUP_SHARE` of the epochs, the screen's next
     near-tied window is trained fully too and the lowest full-run validation loss chooses.
     The result carries the screen's table as ``result.screen``; with ``run_dir`` the table is

@@ -40,11 +40,12 @@ SCREEN_FRACTION = 0.1
 #: longer window must be clearly better in the short training to be chosen (chosen on the full
 #: runs' validation losses: benchmarks/RESULTS.md, "Window on validation")
 SCREEN_TOLERANCE = 1.6
-#: full runs that together ended within this share of the profile's epochs (early stopping:
-#: they overfitted early, as on small records) leave budget for the screen's next near-tied
-#: window, trained fully too; the lowest full-run validation loss then chooses
-#: (benchmarks/studies/window_study_notes.md, "Full runs of the near ties")
-FOLLOWUP_SHARE = 0.5
+#: full runs that together stopped before this share of the profile's epochs (early stopping:
+#: they overfitted early, as on small records) leave that budget to the screen's next near-tied
+#: window, trained fully too; the lowest full-run validation loss then chooses. One budget: a run
+#: that stopped early spends what it did not use (benchmarks/studies/window_study_notes.md, "Full
+#: runs of the near ties")
+FOLLOWUP_SHARE = 1.0
 #: the folder of a run folder that holds the near ties' full runs, one ``lL`` folder each
 FOLLOWUPS_DIR = "followups"
 #: the screen's table in a run folder
@@ -81,7 +82,7 @@ class WindowScreen:
     """The candidates of a screen, the window its rule chose (the shortest whose best
     validation loss is within ``tolerance`` of the lowest) and the full runs that followed.
 
-    The screened window is trained fully; when the full runs so far ended within
+    The screened window is trained fully; when the full runs so far ended before
     :data:`FOLLOWUP_SHARE` of the profile's epochs, the next of the screen's near-tied windows
     (:meth:`near_ties`, shortest first) is trained fully too (:meth:`next_followup`), and the
     lowest best validation loss of the full runs chooses the model.
@@ -130,11 +131,11 @@ class WindowScreen:
 
     def next_followup(self) -> int | None:
         """The window to train fully next, or ``None``: the shortest near-tied window not yet
-        trained fully, while the full runs so far used at most :data:`FOLLOWUP_SHARE` of the
+        trained fully, while the full runs so far used less than :data:`FOLLOWUP_SHARE` of the
         profile's epochs (none before the screened window's own full run is recorded)."""
         if not self.full_runs or self.full_epochs is None:
             return None
-        if sum(r.epochs_run for r in self.full_runs) > FOLLOWUP_SHARE * self.full_epochs:
+        if sum(r.epochs_run for r in self.full_runs) >= FOLLOWUP_SHARE * self.full_epochs:
             return None
         done = {r.window for r in self.full_runs}
         return next((w for w in self.near_ties() if w not in done), None)

@@ -50,8 +50,8 @@ def register(p: argparse.ArgumentParser) -> None:
         f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) for "
         f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the shortest whose "
         f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest (while the full runs "
-        f"stop early within {FOLLOWUP_SHARE * 100:g} %% of the epochs, the others within it too, "
-        "keeping the lowest)",
+        f"together stop early, before {FOLLOWUP_SHARE * 100:g} %% of the epochs, the next near "
+        "tie trains fully too, and the lowest is kept)",
     )
     p.add_argument(
         "--max-window",
