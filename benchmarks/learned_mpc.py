@@ -282,7 +282,7 @@ def open_loop_errors(
 
 def input_response(learned: LearnedSystem, case: Case, flights, step: list[float]):
     """How the learned and the true model answer an input step added to recorded inputs: from
-    the recorded state of test flights at five samples each, the change of the outputs after
+    the recorded state of the given flights at five samples each, the change of the outputs after
     ``HORIZON`` samples (the NMPC's horizon) between the recorded inputs plus ``step`` and the
     recorded inputs alone; returns the true and the learned changes ``(starts, n_y)``."""
     ell, true = learned.regressor.window, case.system
@@ -450,11 +450,11 @@ def loop_theory(
 
 
 def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, Any]:
-    """Both controllers on the first ``--references`` test references of ``case``."""
+    """Both controllers on the first ``--references`` references of ``case``'s ``--split``."""
     run, learned = learned_of(run_dir, case)
     ell = learned.regressor.window
     count = args.drone_references if case.name == "drone2d" else None
-    flights = list(run.dataset.split("test"))[: count or args.references]
+    flights = list(run.dataset.split(args.split))[: count or args.references]
     limit = args.drone_steps if case.name == "drone2d" else None
     rows: dict[str, Row] = {}
     learned_loops: list[Loop] = []  # the learned-model NMPC's loops, for the theory beside them
@@ -534,6 +534,7 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
         "epochs": recipe["train_options"].get("epochs"),
         "samples": f"{ell} … {ell + min(flights[0].T - ell, limit or flights[0].T) - 1}",
         "references": len(flights),
+        "split": args.split,
         "rows": {name: {**row.summary(), "envelope": case.envelope} for name, row in rows.items()},
         "outputs": list(case.system.output_names),
         "responses": responses,
@@ -617,8 +618,8 @@ def model_check(key: str, res: dict[str, Any]) -> list[str]:
         lines += [
             f"{key}, response to an input step ({probe}) added to the recorded inputs, change "
             f"of ({names}) after {HORIZON} samples from the recorded state (mean ± std over "
-            f"{r['starts']} starts: {r['flights']} test flights × 5 samples): true model "
-            f"{_vec(r['true_mean'])} ± {_vec(r['true_std'])}, learned model "
+            f"{r['starts']} starts: {r['flights']} {res.get('split', 'test')} flights × 5 "
+            f"samples): true model {_vec(r['true_mean'])} ± {_vec(r['true_std'])}, learned model "
             f"{_vec(r['learned_mean'])} ± {_vec(r['learned_std'])}.",
             "",
         ]
@@ -735,6 +736,14 @@ def main() -> int:
     )
     parser.add_argument("--references", type=int, default=10)
     parser.add_argument(
+        "--split",
+        default="test",
+        choices=("test", "val"),
+        help="the dataset split whose first references the loops track and whose flights the "
+        "step responses start from (default test; val: to choose among runs or designs "
+        "without reading the test references)",
+    )
+    parser.add_argument(
         "--drone-steps", type=int, help="at most this many drone samples per reference"
     )
     parser.add_argument(
@@ -792,8 +801,8 @@ def main() -> int:
             f"{MODELS.get(res['model'].split(',')[0], res['model'])}, ℓ = {res['window']}, hidden "
             f"{res['hidden']}, activation {res['activation']}, residual {res['residual']}, "
             f"affine path {res['affine']}, profile `{res['profile']}`, {res['epochs']} epochs: "
-            f"`{res['command']}`. NMPC: {all_cases[res['system']].note}. Test references: the "
-            f"first {res['references']} of the test split, samples {res['samples']}."
+            f"`{res['command']}`. NMPC: {all_cases[res['system']].note}. References: the "
+            f"first {res['references']} of the {res['split']} split, samples {res['samples']}."
         )
         lines.append("")
     lines += [

@@ -45,6 +45,7 @@ from canonid.learning.window_screen import FOLLOWUP_SHARE
 from canonid.members import check_members
 
 if TYPE_CHECKING:
+    from canonid.horizon_check import HorizonChoice
     from canonid.learning import EpochReport, Model
     from canonid.members import MemberChoice, MemberJob
     from canonid.runfolder import RunRecipe, RunResult
@@ -188,6 +189,7 @@ class TrainOutcome:
     selection: Selection | None = None
     screen: WindowScreen | None = None
     members: MemberChoice | None = None
+    horizon: HorizonChoice | None = None
 
     def summary(self) -> str:
         """What ``canonid train`` prints: how training ended, the scores, where the run is."""
@@ -221,6 +223,8 @@ class TrainOutcome:
             cubic = fitted.model.info.get("cubic_test")
             if cubic:  # cubic "auto": say what the held-out peaks decided
                 head.append(f"{CubicTest.from_dict(cubic).summary()} (--cubic K decides instead)")
+            if self.horizon is not None:
+                head.append(self.horizon.summary())
             if self.members is not None:
                 head.append(f"{self.members.summary()}; the scores below are the kept model's")
         return "\n".join([*head, metrics_table(self.metrics), f"run written to {self.run_dir}"])
@@ -576,17 +580,30 @@ def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | Non
     (:func:`canonid.learning.screen.screen_windows`), record the screen in the run folder
     (:data:`~canonid.learning.screen.SCREEN_FILE`), then train the chosen window as
     ``--window`` would."""
+    base = _candidates_base(request)
+    run_dir = _candidates_folder(request, base)
+    return _screen_into(request, base, run_dir, None, callback)
+
+
+def _screen_into(
+    request: TrainRequest,
+    base: RunRecipe,
+    run_dir: Path,
+    windows: Sequence[int] | None,
+    callback: Callable[[EpochReport], None] | None,
+) -> TrainOutcome:
+    """The screen of :func:`_screen` for the recipe ``base`` into ``run_dir``: of ``windows``,
+    else of those the request allows on the data."""
     import sys
 
     from canonid.jobs import candidate_pool, run_folder_lock, torch_threads
     from canonid.learning.screen import ScreenCandidate, screen_windows
     from canonid.runfolder import load_splits
 
-    base = _candidates_base(request)
-    run_dir = _candidates_folder(request, base)
     with run_folder_lock(run_dir, new=True):
         check_new_run(run_dir)  # again, now that no one else writes it
-        windows = _candidate_windows(request, base)
+        if windows is None:
+            windows = _candidate_windows(request, base)
         _, train_part, val_part, _, _ = load_splits(base)  # the test split plays no part
 
         def shown(index: int, row: ScreenCandidate) -> None:
@@ -641,7 +658,7 @@ def _follow_up(
     outcome: TrainOutcome,
 ) -> TrainOutcome:
     """After the screened window's full run (``outcome``, of ``recipe``): record it in the
-    screen, then, while the full runs ended within
+    screen, then, while the full runs together ended before
     :data:`~canonid.learning.window_screen.FOLLOWUP_SHARE` of the profile's epochs, train the
     screen's next near-tied window fully in ``RUN/followups/lL`` (resumed from its checkpoint
     when one is there); a full run of lower validation loss becomes the run folder's model
@@ -810,21 +827,82 @@ def train(
     """Train (or resume, screen or select) the run that ``request`` asks for, write its run
     folder and score it; a single run shows its epochs in a progress bar (``request.progress``)
     and passes them to ``callback``."""
+    from canonid.horizon_check import HORIZON_CHECK_FILE, finish_adoption
+    from canonid.jobs import run_folder_lock
+
+    resumed = request.resume
+    if resumed is not None and (resumed / HORIZON_CHECK_FILE).is_file():
+        with run_folder_lock(resumed, flag="--resume"):  # an adoption left half done, finished
+            finish_adoption(resumed)
     run_dir, recipe = _plan(request)
     if recipe is not None:
         resume = request.resume is not None
         if resume and (run_dir / SCREEN_FILE).is_file():  # the recorded choice, never redone
-            from canonid.jobs import run_folder_lock
-
             with run_folder_lock(run_dir, flag="--resume"):  # its full runs continue too
                 outcome = _train_one(request, recipe, run_dir, resume=True, callback=callback)
                 outcome = _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
-                return _members(request, outcome)
-        outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
-        return _members(request, outcome)
-    if _mode(request) == "screen":
-        return _members(request, _screen(request, callback))
-    return _select(request)
+        else:
+            outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
+    elif _mode(request) == "screen":
+        outcome = _screen(request, callback)
+    else:
+        return _select(request)
+    return _members(request, _horizon(request, outcome))
+
+
+def _horizon(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
+    """The training horizon chosen by the input response (:mod:`canonid.horizon_check`) where
+    it applies: the run's own model, or the alternative trained with shorter rollouts and
+    adopted as the run folder's."""
+    import sys
+
+    from canonid.horizon_check import applies, choose_horizon
+    from canonid.jobs import run_folder_lock
+
+    run_dir = outcome.run_dir
+    if outcome.result is None or not applies(run_dir, horizon_given=request.horizon is not None):
+        return outcome
+    trained: list[TrainOutcome] = []
+
+    def alternative(folder: Path, resume: bool) -> None:
+        trained.append(_train_alternative(request, run_dir, folder, resume))
+
+    def say(line: str) -> None:
+        if request.progress:
+            print(line, file=sys.stderr)
+
+    with run_folder_lock(run_dir, flag="--out"):
+        choice = choose_horizon(run_dir, alternative, say=say)
+    if choice is None:
+        return outcome
+    if choice.adopted and trained:  # the alternative trained here: its outcome is the run's now
+        outcome = dataclasses.replace(trained[-1], run_dir=run_dir)
+    return dataclasses.replace(outcome, horizon=choice)
+
+
+def _train_alternative(
+    request: TrainRequest, run_dir: Path, folder: Path, resume: bool
+) -> TrainOutcome:
+    """The run of ``run_dir`` again with rollouts of :data:`~canonid.horizon_check.ALTERNATIVE`
+    samples, into ``folder``: its recipe with that horizon (the screen again over the same
+    windows where the run screened them), or continued from ``folder``'s checkpoint."""
+    from canonid.horizon_check import ALTERNATIVE
+    from canonid.jobs import run_folder_lock
+    from canonid.runfolder import RunRecipe
+
+    if resume:
+        recipe = RunRecipe.read(folder)
+        with run_folder_lock(folder, flag="--resume"):
+            outcome = _train_one(request, recipe, folder, resume=True, callback=None)
+            if (folder / SCREEN_FILE).is_file():
+                outcome = _follow_up(request, recipe, folder, WindowScreen.read(folder), outcome)
+        return outcome
+    own = RunRecipe.read(run_dir)
+    base = dataclasses.replace(own, train_options={**own.train_options, "horizon": ALTERNATIVE})
+    if (run_dir / SCREEN_FILE).is_file():
+        windows = [c.window for c in WindowScreen.read(run_dir).candidates]
+        return _screen_into(request, base, folder, windows, None)
+    return _train_one(request, base, folder, resume=False, callback=None)
 
 
 def _member_count(request: TrainRequest, run_dir: Path) -> int:

@@ -173,6 +173,7 @@ _NO_SKIP = "3e-3, clip 1"
 _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of (\d+)"
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 LEARNED_MPC_MEAN = "NMPC on a learned model: ensembles"
+LEARNED_MPC_DEFAULTS = "NMPC on a learned model: the defaults on informative data"
 CANDIDATES = "Candidates side by side"
 MEMBERS = "Members on small records"
 _MEMBERS_LOOP = "`--members 4`: seed 3 alone, chosen on validation"
@@ -664,6 +665,38 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/cubic-margin": Code(lambda: f"{_extrapolation().CUBIC_MARGIN:g}"),
     "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
     "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
+    "code/horizon-check-k": Code(lambda: _horizon_check().CHECK_K),
+    "code/horizon-alternative": Code(lambda: _horizon_check().ALTERNATIVE),
+    # the defaults on the informative drone data (learned_mpc.py, and the hand note beside it)
+    "learned-mpc/defaults/ratio": Cell(
+        LEARNED_MPC_DEFAULTS,
+        _row(model="mlp, horizon 10", data="drone2d-id", output="px"),
+        "learned / true tracking RMSE",
+    ),
+    "learned-mpc/defaults/left": Cell(
+        LEARNED_MPC_DEFAULTS,
+        _row(model="mlp, horizon 10", data="drone2d-id", output="px"),
+        "learned loops that left X",
+        True,
+    ),
+    **{
+        f"learned-mpc/defaults/{output}/{start}": Cell(
+            LEARNED_MPC_DEFAULTS,
+            _row(model="mlp, horizon 10", data="drone2d-id", output=output),
+            f"learned / true change, {column}",
+        )
+        for output in ("px", "theta")
+        for start, column in (("recorded", "recorded states"), ("rest", "from rest"))
+    },
+    "horizon-check/drone2d-id/own": Prose(
+        LEARNED_MPC_DEFAULTS, r"excitation: (\d+) of 60 correlations outside the 99 % band"
+    ),
+    "horizon-check/drone2d-id/alternative": Prose(
+        LEARNED_MPC_DEFAULTS, r"\): (\d+) of 60 outside the band, fewer"
+    ),
+    "horizon-check/drone2d-id/val-ratio": Prose(
+        LEARNED_MPC_DEFAULTS, r"learned / true (\d+\.\d+) \("
+    ),
     "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
     # the records too short for the cubic test's peaks (cubic_fallback.py): cubic / plain
     **{
@@ -815,6 +848,12 @@ def _extrapolation() -> Any:
     from canonid.learning import extrapolation
 
     return extrapolation
+
+
+def _horizon_check() -> Any:
+    from canonid import horizon_check
+
+    return horizon_check
 
 
 def _feedthrough_gain() -> float:

@@ -1,0 +1,368 @@
+"""The training horizon chosen by the input response, for closed-loop data with an excitation.
+
+Output-error rollouts of H samples on data recorded in closed loop can be fitted by a network that
+reads the state from the recorded inputs — the controller's answer to the true state — instead of
+predicting it from its window; the longer the rollouts, the more that pays (an integrating plant
+carries the window's state error along them), and validation rollouts from the same loop reward it
+too. Such a model's input response is wrong and a controller built on it fails, while its
+validation loss is low (benchmarks/RESULTS.md, "Training horizon on validation", "Residuals
+against the excitation" and "NMPC on a learned model: the training horizon chosen by the input
+response"). The k-step residuals against the excitation that was added to the commands tell the
+models apart on validation data alone (:mod:`canonid.residual_check`).
+
+So ``canonid train``, on a ``canonid generate`` dataset recorded in closed loop whose flights
+carry an excitation, for a network trained on rollouts whose horizon the user did not set
+(:func:`applies`), after the run's own training (:func:`choose_horizon`):
+
+1. checks the run's model: the correlations of its k-step residuals (k = :data:`CHECK_K`) with
+   the excitation outside the :data:`~canonid.residual_check.CONFIDENCE` band, on the validation
+   split;
+2. when more lie outside than chance allows (:func:`chance_limit`: the binomial count of the
+   null at the band's confidence), trains the same request with rollouts of
+   :data:`ALTERNATIVE` samples in ``RUN/horizon-10`` (its own window screen) and checks it too;
+3. keeps the model with fewer correlations outside the band, the run's own on a tie. An
+   alternative kept becomes the run folder's (its files copied into ``RUN``, so ``evaluate``,
+   ``analyze``, ``export`` and ``--resume`` read it); the run's own files move to
+   ``RUN/horizon-H`` (H its horizon) first.
+
+``RUN/horizon-check.json`` (:class:`HorizonChoice`) records both checks and the choice; a resumed
+run that has it decides nothing again. Every count is an estimate (sample correlations against an
+asymptotic band).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+from canonid.kernel.errors import CheckpointError, DataError
+from canonid.kernel.io import atomic_copy, atomic_write_json, read_json
+
+__all__ = [
+    "ALTERNATIVE",
+    "CHECK_K",
+    "HORIZON_CHECK_FILE",
+    "HorizonCandidate",
+    "HorizonChoice",
+    "applies",
+    "chance_limit",
+    "choose_horizon",
+    "finish_adoption",
+    "horizon_dir",
+]
+
+#: the alternative's training rollouts: the length the horizon study compared with the profile's
+#: 50 (benchmarks/RESULTS.md, "Training horizon on validation")
+ALTERNATIVE = 10
+#: the residuals' horizon whose correlations decide (the residual check's default K)
+CHECK_K = 10
+#: the choice in a run folder
+HORIZON_CHECK_FILE = "horizon-check.json"
+HORIZON_FORMAT = "canonid-horizon-check"
+#: the controllers of ``canonid generate`` that do not feed back (their flights are open loop)
+OPEN_LOOP_CONTROLLERS = frozenset({"feedforward"})
+
+
+def horizon_dir(run_dir: Path, horizon: int) -> Path:
+    """``RUN/horizon-H``: a run of the check trained (or moved aside) with rollouts of H."""
+    return run_dir / f"horizon-{horizon}"
+
+
+def chance_limit(tests: int, confidence: float) -> int:
+    """The most correlations outside a band of ``confidence`` that chance allows among
+    ``tests``: the smallest c with P(X ≤ c) ≥ ``confidence`` for X ~ Binomial(tests, 1 −
+    confidence) (the correlations taken as independent; an estimate)."""
+    p = 1.0 - confidence
+    total = 0.0
+    for c in range(tests + 1):
+        total += math.comb(tests, c) * p**c * (1.0 - p) ** (tests - c)
+        if total >= confidence:
+            return c
+    return tests
+
+
+@dataclass(frozen=True)
+class HorizonCandidate:
+    """One model of the check.
+
+    Attributes:
+        horizon: its training rollouts' length.
+        folder: where its run is (relative to the run folder; ``"."``: the run folder).
+        window: its ℓ.
+        outside, tests: correlations outside the band at k = :data:`CHECK_K`, of all.
+        largest: the largest ``|r| / band`` among them.
+        best_val_loss: its best validation loss (normalised), for the record.
+    """
+
+    horizon: int
+    folder: str
+    window: int
+    outside: int
+    tests: int
+    largest: float
+    best_val_loss: float | None
+
+
+@dataclass(frozen=True)
+class HorizonChoice:
+    """What :func:`choose_horizon` decided: the candidates checked and the one kept.
+
+    Attributes:
+        candidates: the run's own model first, then the alternative when it was trained.
+        limit: the most correlations outside the band that chance allows (:func:`chance_limit`).
+        chosen: the horizon of the kept model.
+        state: ``"decided"``, or ``"adopting"`` while the alternative's files are copied in
+            (a resumed run finishes the copy).
+        k, confidence: the check's horizon and band.
+        kind: every count is an ``"estimate"``.
+    """
+
+    candidates: tuple[HorizonCandidate, ...]
+    limit: int
+    chosen: int
+    state: Literal["decided", "adopting"] = "decided"
+    k: int = CHECK_K
+    confidence: float = 0.99
+    kind: Literal["estimate"] = "estimate"
+    checked: str = field(default="residuals against the excitation, validation split")
+
+    @property
+    def own(self) -> HorizonCandidate:
+        return self.candidates[0]
+
+    @property
+    def adopted(self) -> bool:
+        """Whether the run folder's model is the alternative."""
+        return self.chosen != self.own.horizon
+
+    def summary(self) -> str:
+        """The choice in one line (what ``canonid train`` prints)."""
+        own = self.own
+        head = (
+            f"input response (k = {self.k}-step residuals against the excitation, validation): "
+            f"{own.outside} of {own.tests} correlations outside the {self.confidence:.0%} band "
+            f"with rollouts of H = {own.horizon}"
+        )
+        if len(self.candidates) == 1:
+            return f"{head}, within the {self.limit} chance allows: H = {own.horizon} kept"
+        other = self.candidates[1]
+        verdict = (
+            f"kept (its files in {other.folder}; the H = {own.horizon} run's in "
+            f"horizon-{own.horizon})"
+            if self.adopted
+            else f"not kept (it is in {other.folder})"
+        )
+        return (
+            f"{head}, more than the {self.limit} chance allows (closed-loop data: long rollouts "
+            f"can read the state from the feedback); with H = {other.horizon} (ℓ = "
+            f"{other.window}): {other.outside} of {other.tests}, {verdict}; --train-horizon H "
+            "decides instead"
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "format": HORIZON_FORMAT,
+            "version": 1,
+            "criterion": "fewer k-step residual correlations with the excitation outside the band "
+            "(the run's own on a tie); the alternative is trained only when the run's own has "
+            "more than chance allows",
+            "checked": self.checked,
+            "kind": self.kind,
+            "k": self.k,
+            "confidence": self.confidence,
+            "limit": self.limit,
+            "chosen": self.chosen,
+            "state": self.state,
+            "candidates": [c.__dict__ for c in self.candidates],
+        }
+
+    @classmethod
+    def read(cls, run_dir: Path) -> HorizonChoice:
+        path = run_dir / HORIZON_CHECK_FILE
+        data = read_json(path, what="horizon check")
+        if not isinstance(data, Mapping) or data.get("format") != HORIZON_FORMAT:
+            raise CheckpointError(f"{path} is not a canonid horizon check")
+        try:
+            return cls(
+                tuple(HorizonCandidate(**c) for c in data["candidates"]),
+                int(data["limit"]),
+                int(data["chosen"]),
+                data["state"],
+                int(data["k"]),
+                float(data["confidence"]),
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise CheckpointError(f"{path} is not a readable horizon check ({exc})") from exc
+
+    def write(self, run_dir: Path) -> None:
+        atomic_write_json(run_dir / HORIZON_CHECK_FILE, self.to_dict())
+
+
+def applies(run_dir: Path, horizon_given: bool) -> bool:
+    """Whether the check runs on the run in ``run_dir``: a network trained on rollouts whose
+    horizon the user did not give (``horizon_given``), on a ``canonid generate`` dataset recorded
+    in closed loop whose flights carry an excitation, or a run that recorded the check."""
+    from canonid.kernel.dataset import Dataset
+    from canonid.residual_check import generated_excitation
+    from canonid.runfolder import RunRecipe
+
+    if (run_dir / HORIZON_CHECK_FILE).is_file():
+        return True
+    from canonid.profiles import train_options
+
+    recipe = RunRecipe.read(run_dir)
+    if horizon_given or recipe.model == "arx" or recipe.val is not None:
+        return False  # a validation file of the user's: not the flights the excitation is of
+    if recipe.options().horizon != train_options(recipe.profile).horizon:
+        return False  # set by the user (a resumed run's request does not say)
+    path = Path(recipe.data)
+    if path.suffix != ".npz" and not (path / "dataset.json").is_file():
+        return False  # a CSV: no recorded excitation
+    try:
+        dataset = Dataset.load(path)
+        meta = dataset.metadata
+        if meta.get("source") != "canonid generate" or not dataset.splits.get("val"):
+            return False
+        if (meta.get("controller") or {}).get("type") in OPEN_LOOP_CONTROLLERS:
+            return False
+        return generated_excitation(dataset, "val") is not None  # none: nothing was added
+    except DataError:
+        return False
+
+
+def _checked(run_dir: Path, folder: str) -> HorizonCandidate:
+    """The check of the run in ``run_dir`` (its data, validation split)."""
+    from canonid.learning import Model
+    from canonid.residual_check import ResidualRequest, check_residuals
+    from canonid.runfolder import RunRecipe
+
+    check = check_residuals(ResidualRequest(run=run_dir, residuals=CHECK_K))
+    test = check.tests[CHECK_K]
+    recipe = RunRecipe.read(run_dir)
+    best = Model.load(run_dir).info.get("training", {}).get("best_val_loss")
+    return HorizonCandidate(
+        horizon=recipe.options().horizon,
+        folder=folder,
+        window=recipe.window,
+        outside=int(test.outside.sum()),
+        tests=int(test.outside.size),
+        largest=float(test.worst[0]),
+        best_val_loss=None if best is None else float(best),
+    )
+
+
+def _runs_entries(folder: Path) -> list[Path]:
+    """What a run folder holds of its run: not the check's file and folders, nor hidden entries
+    (the lock, files being written, a staged copy)."""
+    return [
+        p
+        for p in sorted(folder.iterdir())
+        if p.name != HORIZON_CHECK_FILE and not p.name.startswith(("horizon-", "."))
+    ]
+
+
+def _copy_entry(source: Path, target: Path) -> None:
+    """``source`` (a file or a folder) to ``target``, replacing it: a file atomically, a folder
+    staged beside it and renamed."""
+    if source.is_dir():
+        staged = target.with_name(f".{target.name}.staged")
+        shutil.rmtree(staged, ignore_errors=True)
+        shutil.copytree(source, staged)
+        shutil.rmtree(target, ignore_errors=True)
+        staged.rename(target)
+    else:
+        atomic_copy(source, target)
+
+
+def _adopt(run_dir: Path, choice: HorizonChoice) -> None:
+    """Make the alternative the run folder's run: the run's own entries first copied whole to
+    ``RUN/horizon-H`` (staged, then renamed: complete before anything is replaced), then the
+    alternative's entries copied in and the run's others removed. Repeating it after an
+    interruption finishes it."""
+    own = horizon_dir(run_dir, choice.own.horizon)
+    alternative = run_dir / choice.candidates[1].folder
+    if not own.is_dir():
+        staged = run_dir / f".{own.name}.staged"
+        shutil.rmtree(staged, ignore_errors=True)
+        staged.mkdir()
+        for entry in _runs_entries(run_dir):
+            _copy_entry(entry, staged / entry.name)
+        staged.rename(own)
+    theirs = {p.name for p in _runs_entries(alternative)}
+    for entry in _runs_entries(alternative):
+        _copy_entry(entry, run_dir / entry.name)
+    for entry in _runs_entries(run_dir):
+        if entry.name not in theirs:
+            if entry.is_dir():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+
+
+def finish_adoption(run_dir: Path) -> HorizonChoice | None:
+    """The choice recorded in ``run_dir`` (``None``: none), its adoption finished first when an
+    interruption left it half done (before ``--resume`` reads the run folder's files)."""
+    if not (run_dir / HORIZON_CHECK_FILE).is_file():
+        return None
+    choice = HorizonChoice.read(run_dir)
+    if choice.state == "adopting":
+        _adopt(run_dir, choice)
+        choice = dataclasses.replace(choice, state="decided")
+        choice.write(run_dir)
+    return choice
+
+
+def choose_horizon(
+    run_dir: Path,
+    train_alternative: Callable[[Path, bool], None],
+    *,
+    say: Callable[[str], None] = lambda line: None,
+) -> HorizonChoice | None:
+    """Check the run in ``run_dir`` and, when its residuals correlate with the excitation more
+    than chance allows, train the alternative (``train_alternative(folder, resume)``: the same
+    request with rollouts of :data:`ALTERNATIVE` samples into ``folder``, continued when
+    ``resume``) and keep the model with fewer correlations outside the band (module docstring).
+    A recorded choice is finished (an interrupted adoption) and returned, not made again;
+    ``None`` (and a line said) when the validation records are too short for the check."""
+    from canonid.learning.training import CHECKPOINT_FILE
+    from canonid.residual_check import CONFIDENCE
+
+    if (run_dir / HORIZON_CHECK_FILE).is_file():
+        return finish_adoption(run_dir)
+    try:
+        own = _checked(run_dir, ".")
+    except DataError as exc:  # validation records too short for the check at k
+        say(f"input response not checked: {exc}")
+        return None
+    limit = chance_limit(own.tests, CONFIDENCE)
+    if own.outside <= limit or own.horizon == ALTERNATIVE:
+        choice = HorizonChoice((own,), limit, own.horizon, confidence=CONFIDENCE)
+        choice.write(run_dir)
+        return choice
+    folder = horizon_dir(run_dir, ALTERNATIVE)
+    say(
+        f"input response: {own.outside} of {own.tests} residual correlations with the excitation "
+        f"outside the band (chance allows {limit}); training with rollouts of H = {ALTERNATIVE} "
+        f"too, in {folder}"
+    )
+    train_alternative(folder, (folder / CHECKPOINT_FILE).is_file())
+    try:
+        other = _checked(folder, folder.name)
+    except DataError as exc:  # its window leaves the records too short for the check
+        say(f"input response of the H = {ALTERNATIVE} run not checked ({exc}): not kept")
+        choice = HorizonChoice((own,), limit, own.horizon, confidence=CONFIDENCE)
+        choice.write(run_dir)
+        return choice
+    chosen = other.horizon if other.outside < own.outside else own.horizon
+    choice = HorizonChoice((own, other), limit, chosen, confidence=CONFIDENCE)
+    if choice.adopted:
+        pending = HorizonChoice((own, other), limit, chosen, "adopting", confidence=CONFIDENCE)
+        pending.write(run_dir)
+        _adopt(run_dir, choice)
+    choice.write(run_dir)
+    return choice

@@ -1,0 +1,251 @@
+"""The training horizon chosen by the input response (`canonid.horizon_check`), end to end as a
+user types it: `canonid generate tank --excitation prbs` (PID in the loop, a PRBS added to its
+commands) and `canonid train` on it. Where the decision itself is the subject, the check's counts
+are set by the test (the real check's numbers are the residual check's, tested in
+test_cli_residuals.py); the runs, the adoption of the alternative's files, `--resume` and an
+interrupted adoption are real."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import canonid.horizon_check as hc
+from canonid.cli import main
+from canonid.horizon_check import HORIZON_CHECK_FILE, HorizonCandidate, HorizonChoice
+
+FAST = ["--profile", "tiny", "--epochs", "3", "--no-progress", "--device", "cpu", "--threads", "1"]
+#: the alternative's rollouts in these tests: the tiny profile's own are 10
+SHORT = 5
+
+
+@pytest.fixture(scope="module")
+def closed_loop_data(tmp_path_factory):
+    """A tank dataset flown by the PID with a PRBS on its commands (closed loop, excited)."""
+    data = tmp_path_factory.mktemp("horizon") / "tank-prbs"
+    argv = ["generate", "tank", "--n-train", "3", "--n-val", "2", "--n-test", "1", "--steps", "300"]
+    argv += ["--excitation", "prbs", "--clock", "3", "--amplitude", "0.5", "--no-progress"]
+    assert main([*argv, "--out", str(data)]) == 0
+    return data
+
+
+@pytest.fixture
+def short_alternative(monkeypatch):
+    monkeypatch.setattr(hc, "ALTERNATIVE", SHORT)
+
+
+def _counts(monkeypatch, by_horizon):
+    """The check's count of correlations outside the band, set per training horizon."""
+    real = hc._checked
+
+    def checked(run_dir, folder):
+        found = real(run_dir, folder)
+        return HorizonCandidate(**{**found.__dict__, "outside": by_horizon[found.horizon]})
+
+    monkeypatch.setattr(hc, "_checked", checked)
+
+
+def _bytes(path):
+    return path.read_bytes()
+
+
+def _recorded_horizon(run):
+    return json.loads((run / "run.json").read_text())["train_options"]["horizon"]
+
+
+@given(tests=st.integers(1, 400), confidence=st.sampled_from([0.9, 0.95, 0.99]))
+@settings(max_examples=60, deadline=None)
+def test_the_chance_limit_is_the_binomial_quantile(tests, confidence):
+    """The smallest count whose binomial CDF under the null reaches the band's confidence."""
+
+    def cdf(c):
+        p = 1.0 - confidence
+        return sum(math.comb(tests, j) * p**j * (1 - p) ** (tests - j) for j in range(c + 1))
+
+    limit = hc.chance_limit(tests, confidence)
+    assert cdf(limit) >= confidence - 1e-12
+    assert limit == 0 or cdf(limit - 1) < confidence
+
+
+def test_chance_allows_three_of_sixty_at_99_percent():
+    """The drone's check at k = 10: 2 rotors × 3 outputs × 10 lags."""
+    assert hc.chance_limit(60, 0.99) == 3
+
+
+def test_the_check_runs_on_closed_loop_data_and_records_its_choice(
+    closed_loop_data, short_alternative, tmp_path, capsys
+):
+    """The real check: the run's own count against the band and the chance limit decide whether
+    the alternative trains; the one kept has the fewer correlations outside the band."""
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    choice = HorizonChoice.read(run)
+    own = choice.own
+    assert (own.horizon, own.window, own.tests) == (10, 3, 10)  # 1 input × 1 output × 10 lags
+    assert choice.limit == hc.chance_limit(10, 0.99) and choice.state == "decided"
+    if own.outside <= choice.limit:
+        assert len(choice.candidates) == 1 and not choice.adopted
+    else:
+        other = choice.candidates[1]
+        assert other.horizon == SHORT
+        assert choice.adopted == (other.outside < own.outside)
+    assert _recorded_horizon(run) == choice.chosen
+    assert "input response (k = 10-step residuals against the excitation" in capsys.readouterr().out
+
+
+def test_a_horizon_given_is_trained_as_given(closed_loop_data, short_alternative, tmp_path):
+    run = tmp_path / "run"
+    argv = ["train", str(closed_loop_data), "--window", "3", "--train-horizon", "20", *FAST]
+    assert main([*argv, "--out", str(run)]) == 0
+    assert not (run / HORIZON_CHECK_FILE).exists() and _recorded_horizon(run) == 20
+
+
+def test_open_loop_data_and_arx_are_not_checked(closed_loop_data, tmp_path):
+    """No feedback, no reading of the state from the inputs: a feedforward dataset is left as
+    it is; ARX has no rollouts to shorten."""
+    data = tmp_path / "chain"
+    argv = ["generate", "masses-id", "--n-train", "1", "--n-val", "1", "--n-test", "1"]
+    assert main([*argv, "--steps", "1000", "--no-progress", "--out", str(data)]) == 0
+    run = tmp_path / "open"
+    assert main(["train", str(data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    assert not (run / HORIZON_CHECK_FILE).exists()
+    arx = tmp_path / "arx"
+    argv = ["train", str(closed_loop_data), "--model", "arx", "--window", "3", *FAST]
+    assert main([*argv, "--out", str(arx)]) == 0
+    assert not (arx / HORIZON_CHECK_FILE).exists()
+
+
+def test_an_alternative_with_fewer_correlations_becomes_the_run(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path, capsys
+):
+    """Flagged (20 of 10 is more than chance allows), the alternative validates its input
+    response (0): its files become the run's, the run's own are kept in RUN/horizon-10, the
+    choice is printed and recorded, and the run is read as the alternative by evaluate."""
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    out = capsys.readouterr().out
+    assert "more than the 1 chance allows" in out and "kept (its files in horizon-5" in out
+    choice = HorizonChoice.read(run)
+    assert choice.adopted and choice.chosen == SHORT
+    assert [c.outside for c in choice.candidates] == [8, 0]
+    assert _bytes(run / "weights.pt") == _bytes(run / "horizon-5" / "weights.pt")
+    assert _bytes(run / "checkpoint.pt") == _bytes(run / "horizon-5" / "checkpoint.pt")
+    assert _recorded_horizon(run) == SHORT and _recorded_horizon(run / "horizon-10") == 10
+    assert _bytes(run / "weights.pt") != _bytes(run / "horizon-10" / "weights.pt")
+    assert main(["evaluate", str(run)]) == 0
+
+
+def test_an_alternative_that_does_no_better_is_not_kept(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path
+):
+    _counts(monkeypatch, {10: 8, SHORT: 8})  # a tie keeps the run's own
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    choice = HorizonChoice.read(run)
+    assert not choice.adopted and _recorded_horizon(run) == 10
+    assert (run / "horizon-5" / "weights.pt").is_file() and not (run / "horizon-10").exists()
+
+
+def test_resume_reads_the_choice_and_decides_nothing_again(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path
+):
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    weights = _bytes(run / "weights.pt")
+
+    def no_more(*args, **kwargs):
+        raise AssertionError("the recorded choice was made again")
+
+    monkeypatch.setattr(hc, "_checked", no_more)
+    assert main(["train", "--resume", "--out", str(run), "--no-progress"]) == 0
+    assert _bytes(run / "weights.pt") == weights and HorizonChoice.read(run).adopted
+
+
+def test_an_interrupted_adoption_is_finished_by_resume(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path
+):
+    """Killed while the alternative's files were being copied in: the record says so, and
+    --resume copies the rest before it reads the run folder."""
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    adopted = _bytes(run / "weights.pt")
+    choice = HorizonChoice.read(run)
+    # as an interruption leaves it: the record written first, some of the run's own files back
+    HorizonChoice(choice.candidates, choice.limit, choice.chosen, "adopting").write(run)
+    for name in ("run.json", "weights.pt"):
+        shutil.copy(run / "horizon-10" / name, run / name)
+    assert main(["train", "--resume", "--out", str(run), "--no-progress"]) == 0
+    assert _bytes(run / "weights.pt") == adopted and HorizonChoice.read(run).state == "decided"
+    assert _recorded_horizon(run) == SHORT
+
+
+def test_an_interrupted_alternative_continues_to_the_same_bytes(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path
+):
+    """Stopped after the alternative trained, before the choice: --resume checks again, continues
+    the alternative from its checkpoint and keeps the model an uninterrupted run keeps."""
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    whole = tmp_path / "whole"
+    argv = ["train", str(closed_loop_data), "--window", "3", *FAST]
+    assert main([*argv, "--out", str(whole)]) == 0
+
+    run = tmp_path / "run"
+    real = hc._checked
+
+    def stop_at_the_alternative(run_dir, folder):
+        if folder != ".":
+            raise KeyboardInterrupt
+        return real(run_dir, folder)
+
+    monkeypatch.setattr(hc, "_checked", stop_at_the_alternative)
+    assert main([*argv, "--out", str(run)]) != 0  # "canonid train: interrupted"
+    assert not (run / HORIZON_CHECK_FILE).exists() and (run / "horizon-5" / "weights.pt").is_file()
+    monkeypatch.setattr(hc, "_checked", real)  # the counts of the whole run again
+    assert main(["train", "--resume", "--out", str(run), "--no-progress"]) == 0
+    assert _bytes(run / "weights.pt") == _bytes(whole / "weights.pt")
+    assert HorizonChoice.read(run).adopted
+
+
+def test_the_alternative_screens_the_windows_the_run_screened(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path
+):
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), *FAST, "--out", str(run)]) == 0
+
+    def windows(folder):
+        body = json.loads((folder / "window-screen.json").read_text())
+        return [c["window"] for c in body["candidates"]]
+
+    assert windows(run / "horizon-10") == windows(run / "horizon-5") == windows(run)
+    assert (
+        json.loads((run / "run.json").read_text())["window"]
+        == json.loads((run / "horizon-5" / "run.json").read_text())["window"]
+    )
+
+
+def test_records_too_short_for_the_check_leave_the_run_as_trained(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path, capsys
+):
+    """The check needs ℓ + 2k + its filter's order samples per record; where the validation
+    flights are shorter the run keeps its model, says so, and records no choice."""
+    from canonid.kernel.errors import DataError
+
+    def too_short(run_dir, folder):
+        raise DataError("records of at most 30 samples; the check at k = 10 needs 33")
+
+    monkeypatch.setattr(hc, "_checked", too_short)
+    run = tmp_path / "run"
+    shown = [option for option in FAST if option != "--no-progress"]  # the line is progress
+    argv = ["train", str(closed_loop_data), "--window", "3", *shown]
+    assert main([*argv, "--out", str(run)]) == 0
+    assert "input response not checked: records of at most 30" in capsys.readouterr().err
+    assert not (run / HORIZON_CHECK_FILE).exists() and _recorded_horizon(run) == 10
