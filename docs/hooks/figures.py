@@ -688,6 +688,15 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         for output in ("px", "theta")
         for start, column in (("recorded", "recorded states"), ("rest", "from rest"))
     },
+    "learned-mpc/defaults/gamma-low": Prose(
+        LEARNED_MPC_DEFAULTS, r"loops visit \(600 samples\): sampled lower bound ([\d.]+)"
+    ),
+    "learned-mpc/defaults/gamma-high": Prose(
+        LEARNED_MPC_DEFAULTS, r"exhausted\) and ([\d.]+) \(product of layer norms"
+    ),
+    "learned-mpc/defaults/factor-exponent": Prose(
+        LEARNED_MPC_DEFAULTS, r"Factor 2 γ_f\^ℓ / α_ℓ = [\d.]+e\+(\d+)"
+    ),
     "horizon-check/drone2d-id/own": Prose(
         LEARNED_MPC_DEFAULTS, r"excitation: (\d+) of 60 correlations outside the 99 % band"
     ),
