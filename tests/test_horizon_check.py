@@ -249,3 +249,17 @@ def test_records_too_short_for_the_check_leave_the_run_as_trained(
     assert main([*argv, "--out", str(run)]) == 0
     assert "input response not checked: records of at most 30" in capsys.readouterr().err
     assert not (run / HORIZON_CHECK_FILE).exists() and _recorded_horizon(run) == 10
+
+
+def test_members_follow_the_kept_horizon(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path
+):
+    """--members K trains the kept model's recipe from the next seeds: the alternative's rollouts
+    once the check adopted it."""
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    run = tmp_path / "run"
+    argv = ["train", str(closed_loop_data), "--window", "3", "--members", "2", *FAST]
+    assert main([*argv, "--out", str(run)]) == 0
+    assert HorizonChoice.read(run).adopted
+    members = sorted((run / "members").glob("s*"))
+    assert members and all(_recorded_horizon(m) == SHORT for m in members)
