@@ -208,13 +208,12 @@ def applies(run_dir: Path, horizon_given: bool) -> bool:
     horizon the user did not give (``horizon_given``), on a ``canonid generate`` dataset recorded
     in closed loop whose flights carry an excitation, or a run that recorded the check."""
     from canonid.kernel.dataset import Dataset
+    from canonid.profiles import train_options
     from canonid.residual_check import generated_excitation
     from canonid.runfolder import RunRecipe
 
     if (run_dir / HORIZON_CHECK_FILE).is_file():
         return True
-    from canonid.profiles import train_options
-
     recipe = RunRecipe.read(run_dir)
     if horizon_given or recipe.model == "arx" or recipe.val is not None:
         return False  # a validation file of the user's: not the flights the excitation is of
