@@ -697,6 +697,16 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "learned-mpc/defaults/factor-exponent": Prose(
         LEARNED_MPC_DEFAULTS, r"Factor 2 γ_f\^ℓ / α_ℓ = [\d.]+e\+(\d+)"
     ),
+    # the hand-added table of the same section: the defaults on two more drone datasets
+    "learned-mpc/defaults-s1/px-rest": Cell(
+        LEARNED_MPC_DEFAULTS, _row(kept="H = 10, ℓ = 10"), "px change, rest / recorded"
+    ),
+    "learned-mpc/defaults-s1/test": Cell(
+        LEARNED_MPC_DEFAULTS, _row(kept="H = 10, ℓ = 10"), "test refs (loops out)"
+    ),
+    "learned-mpc/defaults-paper/test": Cell(
+        LEARNED_MPC_DEFAULTS, _row(kept="H = 10, ℓ = 20"), "test refs (loops out)"
+    ),
     "horizon-check/drone2d-id/own": Prose(
         LEARNED_MPC_DEFAULTS, r"excitation: (\d+) of 60 correlations outside the 99 % band"
     ),
