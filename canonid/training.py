@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
+from canonid.horizon_check import ALTERNATIVE as HORIZON_ALTERNATIVE
+from canonid.horizon_check import HORIZON_CHECK_FILE
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
 from canonid.learning.extrapolation import (
     CUBIC_GAIN,
@@ -56,6 +58,7 @@ __all__ = [
     "CUBIC_HELP",
     "FOLLOWUPS_DIR",
     "FOLLOWUP_SHARE",
+    "HORIZON_HELP",
     "MEMBERS_HELP",
     "REQUEST_TEXT_FIELDS",
     "SCREEN_FRACTION",
@@ -97,6 +100,13 @@ TRAIN_OPTION_FIELDS = (
 _NET_FLAGS = ("residual", "feedthrough", "linear", "cubic")
 #: the options of ``canonid train`` that :func:`request_fields` reads as text
 REQUEST_TEXT_FIELDS = ("window", "hidden", "weight_decay", "cubic", "max_window", "resume", "out")
+#: ``canonid train --train-horizon``'s help
+HORIZON_HELP = (
+    "override the profile's final training rollout length (default: the profile's; on a canonid "
+    "generate dataset flown in closed loop with an excitation, that or "
+    f"{HORIZON_ALTERNATIVE}, whichever model's residuals correlate less with the excitation on "
+    f"validation: RUN/{HORIZON_CHECK_FILE})"
+)
 #: ``canonid train --cubic``: what the branch is and how ``auto`` decides it
 CUBIC_HELP = (
     "Ours (MLP)'s cubic branch C (W x + b)³ beside the network, K units (0: none); default "

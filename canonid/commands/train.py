@@ -18,6 +18,7 @@ from canonid.kernel.catalog import (
 from canonid.training import (
     CUBIC_HELP,
     FOLLOWUP_SHARE,
+    HORIZON_HELP,
     MEMBERS_HELP,
     REQUEST_TEXT_FIELDS,
     SCREEN_FRACTION,
@@ -72,13 +73,7 @@ def register(p: argparse.ArgumentParser) -> None:
         f"{SMALL_RECORD_SAMPLES:,} samples, else 0)",
     )
     p.add_argument("--batch-size", type=int, metavar="B", help="override the profile's batch")
-    p.add_argument(
-        "--train-horizon",
-        dest="horizon",
-        type=int,
-        metavar="H",
-        help="override the profile's final training rollout length",
-    )
+    p.add_argument("--train-horizon", dest="horizon", type=int, metavar="H", help=HORIZON_HELP)
     _options.add_former(p, "--horizon", "--train-horizon")
     p.add_argument(
         "--windows-per-epoch",
