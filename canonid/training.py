@@ -837,7 +837,7 @@ def train(
     """Train (or resume, screen or select) the run that ``request`` asks for, write its run
     folder and score it; a single run shows its epochs in a progress bar (``request.progress``)
     and passes them to ``callback``."""
-    from canonid.horizon_check import HORIZON_CHECK_FILE, finish_adoption
+    from canonid.horizon_check import finish_adoption
     from canonid.jobs import run_folder_lock
 
     resumed = request.resume
@@ -896,7 +896,7 @@ def _train_alternative(
     """The run of ``run_dir`` again with rollouts of :data:`~canonid.horizon_check.ALTERNATIVE`
     samples, into ``folder``: its recipe with that horizon (the screen again over the same
     windows where the run screened them), or continued from ``folder``'s checkpoint."""
-    from canonid.horizon_check import ALTERNATIVE
+    from canonid.horizon_check import ALTERNATIVE  # read when called (tests set it)
     from canonid.jobs import run_folder_lock
     from canonid.runfolder import RunRecipe
 
