@@ -707,6 +707,20 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "learned-mpc/defaults-paper/test": Cell(
         LEARNED_MPC_DEFAULTS, _row(kept="H = 10, ℓ = 20"), "test refs (loops out)"
     ),
+    # the same section's table of the three runs with --members 3: the test loop's ratio
+    **{
+        f"learned-mpc/members3/{slug}/test": Cell(
+            LEARNED_MPC_DEFAULTS,
+            _row(data=data),
+            "test refs: single run → with members (loops out)",
+            pick=1,
+        )
+        for slug, data in (
+            ("s0", "`drone2d-id`, seed 0"),
+            ("s1", "`drone2d-id`, seed 1"),
+            ("paper", "`drone2d`, the paper's design"),
+        )
+    },
     "horizon-check/drone2d-id/own": Prose(
         LEARNED_MPC_DEFAULTS, r"excitation: (\d+) of 60 correlations outside the 99 % band"
     ),
