@@ -236,14 +236,16 @@ def applies(run_dir: Path, horizon_given: bool) -> bool:
 
 def _checked(run_dir: Path, folder: str) -> HorizonCandidate:
     """The check of the run in ``run_dir`` (its data, validation split)."""
-    from canonid.learning import Model
+    from canonid.learning.model import CONFIG_FILE
     from canonid.residual_check import ResidualRequest, check_residuals
     from canonid.runfolder import RunRecipe
 
     check = check_residuals(ResidualRequest(run=run_dir, residuals=CHECK_K))
     test = check.tests[CHECK_K]
     recipe = RunRecipe.read(run_dir)
-    best = Model.load(run_dir).info.get("training", {}).get("best_val_loss")
+    # the record only: the model's config says it (the check loaded the weights already)
+    info = read_json(run_dir / CONFIG_FILE, what="model configuration").get("info", {})
+    best = info.get("training", {}).get("best_val_loss")
     return HorizonCandidate(
         horizon=recipe.options().horizon,
         folder=folder,

@@ -134,6 +134,8 @@ def test_an_alternative_with_fewer_correlations_becomes_the_run(
     choice = HorizonChoice.read(run)
     assert choice.adopted and choice.chosen == SHORT
     assert [c.outside for c in choice.candidates] == [8, 0]
+    config = json.loads((run / "config.json").read_text())  # the adopted model's record
+    assert choice.candidates[1].best_val_loss == config["info"]["training"]["best_val_loss"]
     assert _bytes(run / "weights.pt") == _bytes(run / "horizon-5" / "weights.pt")
     assert _bytes(run / "checkpoint.pt") == _bytes(run / "horizon-5" / "checkpoint.pt")
     assert _recorded_horizon(run) == SHORT and _recorded_horizon(run / "horizon-10") == 10
