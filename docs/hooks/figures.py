@@ -721,6 +721,9 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             ("paper", "`drone2d`, the paper's design"),
         )
     },
+    "learned-mpc/paper-design/ratio": Prose(
+        "NMPC on a learned model", r"drone2d: ratio learned / true tracking RMSE \*\*([\d.]+)\*\*"
+    ),
     "horizon-check/drone2d-id/own": Prose(
         LEARNED_MPC_DEFAULTS, r"excitation: (\d+) of 60 correlations outside the 99 % band"
     ),
