@@ -215,10 +215,12 @@ def applies(run_dir: Path, horizon_given: bool) -> bool:
     if (run_dir / HORIZON_CHECK_FILE).is_file():
         return True
     recipe = RunRecipe.read(run_dir)
-    if horizon_given or recipe.model == "arx" or recipe.val is not None:
+    if horizon_given or "horizon" in recipe.given_options:
+        return False  # the user's choice, this time or when the run began
+    if recipe.model == "arx" or recipe.val is not None:
         return False  # a validation file of the user's: not the flights the excitation is of
     if recipe.options().horizon != train_options(recipe.profile).horizon:
-        return False  # set by the user (a resumed run's request does not say)
+        return False  # set by the user in a recipe of an older canonid (no given_options)
     path = Path(recipe.data)
     if path.suffix != ".npz" and not (path / "dataset.json").is_file():
         return False  # a CSV: no recorded excitation

@@ -179,13 +179,20 @@ class RunRecipe(RunSource):
         model, window: the model's registry name and its window ℓ.
         train_options: :class:`canonid.learning.TrainOptions` as a mapping (resolved, profile
         applied). net_options: the network's constructor options.
+        given_options: the names of the training options the request set (the others are the
+            profile's; empty in a recipe of an older canonid), so that a resumed run knows what
+            its user chose even where it equals the profile's value.
     """
 
     model: str
     window: int
     train_options: Mapping[str, Any]
     net_options: Mapping[str, Any] = field(default_factory=dict)
+    given_options: Sequence[str] = ()
     kind: ClassVar[str] = "train"
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "given_options", tuple(sorted(set(self.given_options))))
 
     def options(self) -> TrainOptions:
         return TrainOptions.from_dict(self.train_options)
@@ -201,13 +208,16 @@ class RunRecipe(RunSource):
             "net_options": dict(self.net_options),
             "profile": self.profile,
             "train_options": dict(self.train_options),
+            "given_options": list(self.given_options),
             "command": list(self.command),
         }
 
     @classmethod
     def from_dict(cls, data: Any, *, where: str) -> RunRecipe:
         """Read a ``run.json`` body; a key this version does not know is refused by name."""
-        return cls(**_recipe_body(cls, data, where=where))
+        body = _recipe_body(cls, data, where=where)
+        body["given_options"] = body.get("given_options") or ()
+        return cls(**body)
 
     @classmethod
     def read(cls, run_dir: Path) -> RunRecipe:
@@ -353,6 +363,10 @@ _FIELD_TYPES: dict[str, tuple[Callable[[Any], bool], str]] = {
     "source_run": (_is_text, "a path (a string)"),
     "model": (_is_text, "a model name (a string)"),
     "train_options": (lambda v: isinstance(v, Mapping), "an object"),
+    "given_options": (
+        lambda v: v is None or (isinstance(v, list) and all(map(_is_text, v))),
+        "a list of option names",
+    ),
     "net_options": (lambda v: isinstance(v, Mapping), "an object"),
     "reduction_options": (lambda v: isinstance(v, Mapping), "an object"),
 }

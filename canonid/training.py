@@ -416,6 +416,7 @@ def _recipe(request: TrainRequest) -> RunRecipe:
         net_options=net_options(model, chosen, paper=request.paper_options),
         profile=profile,
         train_options=opts.to_dict(),
+        given_options=tuple(key for key, value in overrides.items() if value is not None),
         command=request.command,
     )
 
@@ -478,9 +479,13 @@ def _resume_recipe(request: TrainRequest, run_dir: Path) -> RunRecipe:
             diffs.append(f"activation: {there} there, {request.activation} here")
     if diffs:
         raise CheckpointError(f"run {run_dir} does not match: " + "; ".join(diffs))
-    opts = dict(recipe.train_options)
-    opts.update({k: getattr(request, k) for k in changeable if getattr(request, k) is not None})
-    return dataclasses.replace(recipe, train_options=TrainOptions.from_dict(opts).to_dict())
+    changes = {k: getattr(request, k) for k in changeable if getattr(request, k) is not None}
+    opts = {**recipe.train_options, **changes}
+    return dataclasses.replace(
+        recipe,
+        train_options=TrainOptions.from_dict(opts).to_dict(),
+        given_options=(*recipe.given_options, *changes),
+    )
 
 
 def _mode(request: TrainRequest) -> Literal["run", "screen", "select"]:
@@ -803,7 +808,8 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
                 f"chose; give --window {recorded.window} to continue it, or choose another --out"
             )
         request = dataclasses.replace(request, window=recorded.window)
-    ignored = {"command", "data", "data_sha256", "val_sha256"}
+    # how the options were asked for is not what runs: --epochs 600 continues a run of the profile's
+    ignored = {"command", "given_options", "data", "data_sha256", "val_sha256"}
     there = _flat({k: v for k, v in recorded.to_dict().items() if k not in ignored})
     wanted = _flat({k: v for k, v in _recipe(request).to_dict().items() if k not in ignored})
     diffs = [

@@ -105,6 +105,22 @@ def test_a_horizon_given_is_trained_as_given(closed_loop_data, short_alternative
     assert not (run / HORIZON_CHECK_FILE).exists() and _recorded_horizon(run) == 20
 
 
+def test_a_horizon_given_equal_to_the_profiles_stays_given_on_resume(
+    closed_loop_data, short_alternative, tmp_path
+):
+    """`--train-horizon 10` is the tiny profile's own value: the recipe records that the user set
+    it, so the run continued by --resume (without the option) is not checked either."""
+    run = tmp_path / "run"
+    argv = ["train", str(closed_loop_data), "--window", "3", "--train-horizon", "10", *FAST]
+    assert main([*argv, "--out", str(run)]) == 0
+    recipe = json.loads((run / "run.json").read_text())
+    assert "horizon" in recipe["given_options"] and "seed" not in recipe["given_options"]
+    resume = ["train", "--resume", "--out", str(run), "--epochs", "5", "--no-progress"]
+    assert main([*resume, "--threads", "1"]) == 0
+    assert not (run / HORIZON_CHECK_FILE).exists()
+    assert json.loads((run / "run.json").read_text())["train_options"]["epochs"] == 5
+
+
 def test_open_loop_data_and_arx_are_not_checked(closed_loop_data, tmp_path):
     """No feedback, no reading of the state from the inputs: a feedforward dataset is left as
     it is; ARX has no rollouts to shorten."""

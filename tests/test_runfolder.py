@@ -54,6 +54,13 @@ def test_the_recipe_round_trips_and_names_an_unknown_key(tmp_path):
     assert RunRecipe.from_dict(body, where="run.json") == recipe
     old = {k: v for k, v in body.items() if k != "version"}  # written before the version field
     assert RunRecipe.from_dict(old, where="run.json") == recipe
+    given = dataclasses.replace(recipe, given_options=("horizon", "epochs"))
+    assert RunRecipe.from_dict(json.loads(json.dumps(given.to_dict())), where="run.json") == given
+    # a recipe of a canonid before the options given were recorded: none given
+    older = {k: v for k, v in given.to_dict().items() if k != "given_options"}
+    assert RunRecipe.from_dict(older, where="run.json").given_options == ()
+    with pytest.raises(CheckpointError, match=r"given_options.*a list of option names"):
+        RunRecipe.from_dict({**body, "given_options": "horizon"}, where="run.json")
     with pytest.raises(CheckpointError, match=r"unknown run recipe key\(s\) \['windw'\]"):
         RunRecipe.from_dict({**body, "windw": 3}, where="run.json")
     with pytest.raises(CheckpointError, match="version 2"):
