@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any, Literal
 
 from canonid.kernel.errors import CheckpointError, DataError
-from canonid.kernel.io import atomic_copy, atomic_write_json, read_json
+from canonid.kernel.io import atomic_copy, atomic_copy_tree, atomic_write_json, read_json
 
 __all__ = [
     "ALTERNATIVE",
@@ -270,14 +270,9 @@ def _runs_entries(folder: Path) -> list[Path]:
 
 
 def _copy_entry(source: Path, target: Path) -> None:
-    """``source`` (a file or a folder) to ``target``, replacing it: a file atomically, a folder
-    staged beside it and renamed."""
+    """``source`` (a file or a folder) to ``target``, replacing it atomically."""
     if source.is_dir():
-        staged = target.with_name(f".{target.name}.staged")
-        shutil.rmtree(staged, ignore_errors=True)
-        shutil.copytree(source, staged)
-        shutil.rmtree(target, ignore_errors=True)
-        staged.rename(target)
+        atomic_copy_tree(source, target)
     else:
         atomic_copy(source, target)
 

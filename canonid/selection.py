@@ -31,6 +31,7 @@ from canonid.kernel.errors import CheckpointError, DataError, OptionError
 from canonid.kernel.io import (
     FIGURE_FORMATS,
     atomic_copy,
+    atomic_copy_tree,
     atomic_write_json,
     atomic_write_text,
     read_json,
@@ -343,13 +344,10 @@ def adopt(source: Path, run_dir: Path, *, checkpoint: bool = False) -> None:
     folder (:data:`~canonid.learning.training.CUBIC_ARM_DIR`) with it, which that resume
     continues too."""
     if checkpoint:  # replaced whole: the branch of the run adopted over is no longer it
-        staged = run_dir / f".{CUBIC_ARM_DIR}.adopted"
-        shutil.rmtree(staged, ignore_errors=True)
         if (source / CUBIC_ARM_DIR).is_dir():
-            shutil.copytree(source / CUBIC_ARM_DIR, staged)
-        shutil.rmtree(run_dir / CUBIC_ARM_DIR, ignore_errors=True)
-        if staged.is_dir():
-            staged.rename(run_dir / CUBIC_ARM_DIR)
+            atomic_copy_tree(source / CUBIC_ARM_DIR, run_dir / CUBIC_ARM_DIR)
+        else:
+            shutil.rmtree(run_dir / CUBIC_ARM_DIR, ignore_errors=True)
     for name in ((CHECKPOINT_FILE,) if checkpoint else ()) + ADOPTED:
         if (source / name).is_file():
             atomic_copy(source / name, run_dir / name)

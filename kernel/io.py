@@ -10,7 +10,8 @@ They live in the kernel, under every layer; they need only numpy.
   exclusively (``mkstemp``), so a symlink planted under a predictable temporary name is never
   written through; and the rename replaces a symlink planted at the target itself rather than
   the file it points to. Every file canonid writes goes through here: figures too
-  (:func:`atomic_write_figure`), and copies (:func:`atomic_copy`).
+  (:func:`atomic_write_figure`), and copies (:func:`atomic_copy`, a folder
+  :func:`atomic_copy_tree`).
 * Deterministic: :func:`write_npz` fixes every zip timestamp and writes arrays in sorted key
   order, so the same arrays always give the same bytes (``np.savez`` stamps the current time).
 * No pickle: arrays are written and read with ``allow_pickle=False``.
@@ -38,6 +39,7 @@ from canonid.kernel.errors import DataError, OptionError, OutputError
 __all__ = [
     "FIGURE_FORMATS",
     "atomic_copy",
+    "atomic_copy_tree",
     "atomic_write_bytes",
     "atomic_write_figure",
     "atomic_write_json",
@@ -95,6 +97,31 @@ def atomic_copy(
 
 #: the file formats figures are written in (``--figure-format``); the first is the default
 FIGURE_FORMATS = ("png", "pdf", "svg")
+
+
+def atomic_copy_tree(source: str | os.PathLike[str], path: str | os.PathLike[str]) -> Path:
+    """Replace the folder ``path`` (if any) by a copy of the folder ``source``; return the path.
+    The copy is made beside it under a hidden name (``.NAME.staged``), then the old folder is
+    removed and the copy renamed: ``path`` is never a partial copy (an interruption leaves the
+    old folder or none, and the hidden copy, which the next call replaces)."""
+    import shutil
+
+    def remove(entry: Path) -> None:  # a planted link is removed, never followed
+        if entry.is_symlink() or entry.is_file():
+            entry.unlink()
+        elif entry.is_dir():
+            shutil.rmtree(entry)
+
+    src, target = Path(source), Path(path)
+    staged = target.with_name(f".{target.name}.staged")
+    try:
+        remove(staged)
+        shutil.copytree(src, staged, symlinks=True)
+        remove(target)
+        staged.rename(target)
+    except (OSError, shutil.Error) as exc:
+        raise OutputError(f"cannot copy {src} to {target}: {exc}") from exc
+    return target
 
 
 def figure_name(name: str, figure_format: str) -> str:

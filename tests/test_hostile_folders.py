@@ -24,7 +24,7 @@ from matplotlib.figure import Figure
 import canonid.datagen.controllers._compiled as compiled
 from canonid.kernel.dataset import as_trajectories
 from canonid.kernel.errors import CheckpointError, OutputError
-from canonid.kernel.io import atomic_copy, atomic_write_figure
+from canonid.kernel.io import atomic_copy, atomic_copy_tree, atomic_write_figure
 from canonid.learning import Model, Normalisation, build_net
 from canonid.learning import model as model_module
 from canonid.learning.plots import plot_rollouts, plot_training_curve
@@ -140,6 +140,42 @@ def test_a_failed_atomic_copy_leaves_the_old_file_and_no_temporary_file(tmp_path
         atomic_copy(tmp_path / "missing.pt", tmp_path / "weights.pt")
     assert [p.name for p in tmp_path.iterdir()] == ["weights.pt"]
     assert (tmp_path / "weights.pt").read_bytes() == b"old"
+
+
+def test_atomic_copy_tree_replaces_the_folder_and_never_follows_a_planted_link(tmp_path):
+    """The folder's old files are gone, the copy is whole, and a symlink planted at the folder's
+    or at its staging name is replaced: the folder it points to keeps its files."""
+    source = tmp_path / "alternative" / "cubic"
+    (source / "inner").mkdir(parents=True)
+    (source / "weights.pt").write_bytes(b"new weights")
+    (source / "inner" / "history.csv").write_text("epoch\n1\n", encoding="utf-8")
+    run = tmp_path / "run"
+    (run / "cubic").mkdir(parents=True)
+    (run / "cubic" / "stale.pt").write_bytes(b"old")
+    assert atomic_copy_tree(source, run / "cubic") == run / "cubic"
+    assert sorted(p.relative_to(run).as_posix() for p in (run / "cubic").rglob("*")) == [
+        "cubic/inner",
+        "cubic/inner/history.csv",
+        "cubic/weights.pt",
+    ]
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "theirs.txt").write_text(VICTIM_TEXT, encoding="utf-8")
+    for name in ("planted", ".planted.staged"):
+        (run / name).symlink_to(outside, target_is_directory=True)
+    atomic_copy_tree(source, run / "planted")
+    assert not (run / "planted").is_symlink() and (run / "planted" / "weights.pt").is_file()
+    assert [p.name for p in outside.iterdir()] == ["theirs.txt"]
+    assert (outside / "theirs.txt").read_text(encoding="utf-8") == VICTIM_TEXT
+    assert not (run / ".planted.staged").exists()
+
+
+def test_a_failed_atomic_copy_tree_leaves_the_old_folder(tmp_path):
+    (tmp_path / "cubic").mkdir()
+    (tmp_path / "cubic" / "weights.pt").write_bytes(b"old")
+    with pytest.raises(OutputError, match=r"cannot copy .*missing to .*cubic"):
+        atomic_copy_tree(tmp_path / "missing", tmp_path / "cubic")
+    assert (tmp_path / "cubic" / "weights.pt").read_bytes() == b"old"
 
 
 def test_window_auto_adopts_the_chosen_model_without_a_fixed_temporary_name(tmp_path):
