@@ -39,6 +39,7 @@ from canonid.scoring import EvaluateRequest, scoring_data
 
 __all__ = [
     "CONFIDENCE",
+    "CheckedRecords",
     "DEFAULT_HORIZONS",
     "DEFAULT_K",
     "INPUTS_NOTE",
@@ -140,6 +141,68 @@ def generated_excitation(dataset: Dataset, split: str) -> list[np.ndarray] | Non
         return None
     signals = [flight.total for flight in dataset_excitation(dataset, split)]
     return signals if any(np.any(s != 0.0) for s in signals) else None
+
+
+@dataclass(frozen=True)
+class CheckedRecords:
+    """The records a check reads and the instrument their residuals are correlated with, read
+    once for any number of models (:meth:`tests`).
+
+    Attributes:
+        data: the data's path. split: the split's name. records: its records.
+        instrument: ``"excitation"`` (regenerated) or ``"inputs"``; signals: one array per
+        record. input_names, output_names: the signals' names.
+    """
+
+    data: str
+    split: str
+    records: Sequence[Any]
+    instrument: Literal["excitation", "inputs"]
+    signals: Sequence[np.ndarray]
+    input_names: Sequence[str]
+    output_names: Sequence[str]
+
+    @classmethod
+    def of(cls, dataset: Dataset, split: str | None, *, where: str) -> CheckedRecords:
+        """The split ``split`` of ``dataset`` (read from ``where``) and its instrument."""
+        from canonid.runfolder import pick_split
+
+        name, records = pick_split(dataset, split, where=where)
+        excitation = generated_excitation(dataset, name)
+        return cls(
+            data=str(where),
+            split=name,
+            records=records,
+            instrument="excitation" if excitation is not None else "inputs",
+            signals=excitation if excitation is not None else [tr.u for tr in records],
+            input_names=dataset.input_names,
+            output_names=dataset.output_names,
+        )
+
+    def tests(self, model: Any, horizons: Sequence[int]) -> tuple[int, dict[int, CorrelationTest]]:
+        """``model``'s k-step residuals on the records tested for every k of ``horizons``:
+        ``(first row, {k: test})``; a :class:`DataError` where the records are too short."""
+        from canonid.learning.evaluate import kstep_residuals
+
+        ell, top = model.window, max(horizons)
+        first = ell + top - 1
+        needed = first + PREWHITEN + top + 1  # rows past the filter's start at the longest lag
+        longest = max((tr.T for tr in self.records), default=0)  # 0: an empty split
+        if longest < needed:
+            raise DataError(
+                f"{self.data} [{self.split}]: records of at most {longest} samples; "
+                f"the check at k = {top} needs one of {needed} or more (ℓ + k − 1 skipped, "
+                f"AR({PREWHITEN}) prewhitening, lags up to k); give a smaller K"
+            )
+        eps = kstep_residuals(model, self.records, horizons)
+        return first, residual_tests(
+            eps,
+            self.signals,
+            ell,
+            what=self.instrument,
+            instrument_names=self.input_names,
+            output_names=self.output_names,
+        )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -244,8 +307,6 @@ class ResidualCheck:
 def check_residuals(request: ResidualRequest) -> ResidualCheck:
     """The residual check of ``request.run`` on its data's split (module docstring)."""
     from canonid.learning import Model
-    from canonid.learning.evaluate import kstep_residuals
-    from canonid.runfolder import pick_split
 
     if request.residuals is None:
         raise OptionError("--json FILE writes the residual check: give --residuals [K] too")
@@ -262,36 +323,20 @@ def check_residuals(request: ResidualRequest) -> ResidualCheck:
         request.run, request.data, request.data_options, split=request.split, model=model.info
     )
     # a check that chooses a model reads validation data by default, never the test part unasked
-    if split is None and dataset.splits.get("val"):
+    # (for the run's own data scoring_data names the split that scores them: test)
+    if request.split is None and dataset.splits.get("val"):
         split = "val"
-    name, records = pick_split(dataset, split, where=data_path)
-    ell, top = model.window, max(horizons)
-    first = ell + top - 1
-    needed = first + PREWHITEN + top + 1  # rows past the filter's start at the longest lag
-    longest = max((tr.T for tr in records), default=0)  # 0: an empty split
-    if longest < needed:
-        raise DataError(
-            f"{data_path} [{name}]: records of at most {longest} samples; "
-            f"the check at k = {top} needs one of {needed} or more (ℓ + k − 1 skipped, "
-            f"AR({PREWHITEN}) prewhitening, lags up to k); give a smaller K"
-        )
-    excitation = generated_excitation(dataset, name)
-    instrument: Literal["excitation", "inputs"] = "excitation" if excitation else "inputs"
-    signals = excitation if excitation is not None else [tr.u for tr in records]
-    inputs, outputs = dataset.input_names, dataset.output_names
-    eps = kstep_residuals(model, records, horizons)
-    tests = residual_tests(
-        eps, signals, ell, what=instrument, instrument_names=inputs, output_names=outputs
-    )
+    checked = CheckedRecords.of(dataset, split, where=data_path)
+    first, tests = checked.tests(model, horizons)
     check = ResidualCheck(
         run=str(request.run),
         data=str(data_path),
-        split=name,
+        split=checked.split,
         model=model.name,
-        window=ell,
-        records=len(records),
+        window=model.window,
+        records=len(checked.records),
         first_row=first,
-        instrument=instrument,
+        instrument=checked.instrument,
         tests=tests,
     )
     if request.json is not None:

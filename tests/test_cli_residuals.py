@@ -54,10 +54,15 @@ def test_the_check_reads_the_regenerated_excitation_and_writes_nothing_to_the_ru
 
 
 def test_without_split_the_check_reads_validation_not_test(trained, capsys):
+    """With --data and with the run's own data (whose scores read test): validation."""
     data, run = trained
     capsys.readouterr()
     assert main(["evaluate", str(run), "--data", str(data), "--residuals"]) == 0
     assert "[val], 2 records" in capsys.readouterr().out  # the data have a test split too
+    assert main(["evaluate", str(run), "--residuals"]) == 0
+    assert "[val], 2 records" in capsys.readouterr().out
+    assert main(["evaluate", str(run), "--residuals", "--split", "test"]) == 0
+    assert "[test], 1 record" in capsys.readouterr().out  # asked for by name
 
 
 def test_json_is_the_typed_result_and_is_not_overwritten(trained, tmp_path, capsys):
