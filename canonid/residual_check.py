@@ -39,13 +39,13 @@ from canonid.scoring import EvaluateRequest, scoring_data
 
 __all__ = [
     "CONFIDENCE",
-    "CheckedRecords",
     "DEFAULT_HORIZONS",
     "DEFAULT_K",
     "INPUTS_NOTE",
     "JSON_HELP",
     "PREWHITEN",
     "RESIDUALS_HELP",
+    "CheckedRecords",
     "ResidualCheck",
     "ResidualRequest",
     "check_residuals",
