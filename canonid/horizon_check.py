@@ -25,6 +25,13 @@ carry an excitation, for a network trained on rollouts whose horizon the user di
    ``analyze``, ``export`` and ``--resume`` read it); the run's own files move to
    ``RUN/horizon-H`` (H its horizon) first.
 
+Where the alternative was kept and ``--members`` was not given, the run then trains
+:data:`MEMBERS` members of the kept recipe (:mod:`canonid.members`), each candidate held to the
+kept model's input response (:func:`response_count`): a single network trained on rollouts of 10
+can still stray where NMPC on it leaves the training data, and the mean of members that answer
+the excitation as well as it does smooths that (benchmarks/RESULTS.md, "NMPC on a learned model:
+members behind the horizon check").
+
 ``RUN/horizon-check.json`` (:class:`HorizonChoice`) records both checks and the choice; a resumed
 run that has it decides nothing again. Every count is an estimate (sample correlations against an
 asymptotic band).
@@ -47,6 +54,7 @@ __all__ = [
     "ALTERNATIVE",
     "CHECK_K",
     "HORIZON_CHECK_FILE",
+    "MEMBERS",
     "HorizonCandidate",
     "HorizonChoice",
     "applies",
@@ -54,6 +62,7 @@ __all__ = [
     "choose_horizon",
     "finish_adoption",
     "horizon_dir",
+    "response_count",
 ]
 
 #: the alternative's training rollouts: the length the horizon study compared with the profile's
@@ -64,6 +73,9 @@ CHECK_K = 10
 #: the choice in a run folder
 HORIZON_CHECK_FILE = "horizon-check.json"
 HORIZON_FORMAT = "canonid-horizon-check"
+#: members trained where the check kept the alternative and ``--members`` was not given (module
+#: docstring; chosen on the loops of five drone datasets' validation references)
+MEMBERS = 3
 #: the controllers of ``canonid generate`` that do not feed back (their flights are open loop)
 OPEN_LOOP_CONTROLLERS = frozenset({"feedforward"})
 
@@ -234,6 +246,24 @@ def applies(run_dir: Path, horizon_given: bool) -> bool:
         return generated_excitation(dataset, "val") is not None  # none: nothing was added
     except DataError:
         return False
+
+
+def response_count(run_dir: Path) -> Callable[[Any], int]:
+    """The check's count for any model of the run in ``run_dir`` (a member, a mean of members):
+    its k = :data:`CHECK_K` residual correlations with the excitation outside the band on the
+    run's validation split, the records read once (an estimate, as every count here)."""
+    from canonid.residual_check import CheckedRecords, residual_horizons
+    from canonid.runfolder import RunRecipe, run_data
+
+    recipe = RunRecipe.read(run_dir)
+    dataset, _ = run_data(recipe)
+    checked = CheckedRecords.of(dataset, "val", where=recipe.data)
+
+    def outside(model: Any) -> int:
+        _, tests = checked.tests(model, residual_horizons(CHECK_K))
+        return int(tests[CHECK_K].outside.sum())
+
+    return outside
 
 
 def _checked(run_dir: Path, folder: str) -> HorizonCandidate:

@@ -16,12 +16,19 @@ candidates, their losses and the choice; every member's own model stays in its f
 first member's too, under ``members/sS``, once another candidate replaced it). The run folder's
 ``history.csv`` and checkpoint stay the first member's: ``--resume`` continues it, then the
 members, then chooses again.
+
+Where the run's input response was checked (:mod:`canonid.horizon_check`: closed-loop data with an
+excitation), every candidate is checked the same way, and one whose residuals correlate with the
+excitation more often than the run's own model's is not kept: validation loss rewards a model
+that reads the state from the feedback, the check does not (``response`` of
+:func:`choose_members`; the counts in ``members.json``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,12 +69,17 @@ class MemberChoice:
         losses: each member's validation loss, in the order of ``seeds``.
         means: ``(j, loss)`` of the mean of the j members of lowest loss, j = 2 … K.
         kept: ``"seed S"`` (a member alone) or ``"mean of j"``.
+        outside, mean_outside: where the input response was checked, each member's and each
+            mean's residual correlations with the excitation outside the band (estimates; a
+            candidate with more than the run's own member was not kept), else ``None``.
     """
 
     seeds: tuple[int, ...]
     losses: tuple[float, ...]
     means: tuple[tuple[int, float], ...]
     kept: str
+    outside: tuple[int, ...] | None = None
+    mean_outside: tuple[int, ...] | None = None
 
     @property
     def kept_loss(self) -> float:
@@ -78,11 +90,25 @@ class MemberChoice:
 
     def summary(self) -> str:
         """The choice in one line (what ``canonid train`` prints)."""
-        members = ", ".join(f"seed {s} {loss:.4g}" for s, loss in zip(self.seeds, self.losses))
-        means = ", ".join(f"mean of {j} {loss:.4g}" for j, loss in self.means)
+        if self.outside is None or self.mean_outside is None:
+            members = ", ".join(f"seed {s} {loss:.4g}" for s, loss in zip(self.seeds, self.losses))
+            means = ", ".join(f"mean of {j} {loss:.4g}" for j, loss in self.means)
+            return (
+                f"members (validation loss): {members}; {means}; kept: {self.kept} "
+                f"({self.kept_loss:.4g})"
+            )
+        members = ", ".join(
+            f"seed {s} {loss:.4g} ({n})"
+            for s, loss, n in zip(self.seeds, self.losses, self.outside, strict=True)
+        )
+        means = ", ".join(
+            f"mean of {j} {loss:.4g} ({n})"
+            for (j, loss), n in zip(self.means, self.mean_outside, strict=True)
+        )
         return (
-            f"members (validation loss): {members}; {means}; kept: {self.kept} "
-            f"({self.kept_loss:.4g})"
+            f"members (validation loss; correlations with the excitation outside the band): "
+            f"{members}; {means}; kept: {self.kept} ({self.kept_loss:.4g}), the lowest loss of "
+            f"those with at most the run's own {self.outside[0]}"
         )
 
     def folder(self, seed: int) -> str:
@@ -91,16 +117,21 @@ class MemberChoice:
         return "." if seed == self.seeds[0] and self.kept == f"seed {seed}" else member_folder(seed)
 
     def to_json(self) -> dict[str, Any]:
-        return {
-            "format": MEMBERS_FORMAT,
-            "count": len(self.seeds),
-            "members": [
-                {"seed": s, "folder": self.folder(s), "val_loss": loss}
-                for s, loss in zip(self.seeds, self.losses)
-            ],
-            "means": [{"members": j, "val_loss": loss} for j, loss in self.means],
-            "kept": self.kept,
-        }
+        members: list[dict[str, Any]] = [
+            {"seed": s, "folder": self.folder(s), "val_loss": loss}
+            for s, loss in zip(self.seeds, self.losses)
+        ]
+        means: list[dict[str, Any]] = [{"members": j, "val_loss": loss} for j, loss in self.means]
+        body: dict[str, Any] = {"format": MEMBERS_FORMAT, "count": len(self.seeds)}
+        if self.outside is not None and self.mean_outside is not None:
+            for entry, n in zip([*members, *means], [*self.outside, *self.mean_outside]):
+                entry["outside"] = n
+            body["criterion"] = (
+                "the lowest validation loss among the candidates with at most as many residual "
+                "correlations with the excitation outside the band as the run's own member "
+                "(estimates, validation split)"
+            )
+        return {**body, "members": members, "means": means, "kept": self.kept}
 
     @classmethod
     def read(cls, run_dir: Path) -> MemberChoice:
@@ -113,11 +144,14 @@ class MemberChoice:
         try:
             if body["format"] != MEMBERS_FORMAT:
                 raise ValueError
+            checked = "criterion" in body
             return cls(
                 seeds=tuple(int(m["seed"]) for m in body["members"]),
                 losses=tuple(float(m["val_loss"]) for m in body["members"]),
                 means=tuple((int(m["members"]), float(m["val_loss"])) for m in body["means"]),
                 kept=str(body["kept"]),
+                outside=tuple(int(m["outside"]) for m in body["members"]) if checked else None,
+                mean_outside=tuple(int(m["outside"]) for m in body["means"]) if checked else None,
             )
         except (KeyError, TypeError, ValueError):
             raise CheckpointError(f"{path} is not a canonid members file") from None
@@ -165,13 +199,20 @@ def _finite(loss: float) -> float:
 
 
 def kept_candidate(
-    seeds: Sequence[int], losses: Sequence[float], means: Sequence[tuple[int, float]]
+    seeds: Sequence[int],
+    losses: Sequence[float],
+    means: Sequence[tuple[int, float]],
+    outside: Sequence[int] | None = None,
 ) -> str:
     """The candidate of lowest validation loss, ``"seed S"`` or ``"mean of j"``: the members in
     seed order, then the means by size, the first on a tie; a loss that is not finite never
-    wins (the run's own member where none is finite)."""
+    wins (the run's own member where none is finite). ``outside``: every candidate's count of
+    residual correlations with the excitation outside the band, in the same order (members,
+    then means); a candidate with more than the run's own member (the first) is not kept."""
     named = [(loss, f"seed {s}") for s, loss in zip(seeds, losses, strict=True)]
     named += [(loss, f"mean of {j}") for j, loss in means]
+    if outside is not None:
+        named = [c for c, n in zip(named, outside, strict=True) if n <= outside[0]]
     finite = [c for c in named if math.isfinite(c[0])]
     return min(finite, key=lambda c: c[0])[1] if finite else f"seed {seeds[0]}"
 
@@ -208,12 +249,15 @@ def choose_members(
     train: Callable[[Sequence[MemberJob]], list[Model]],
     eval_horizon: int | None = None,
     figure_format: str = "png",
+    response: Callable[[Model], int] | None = None,
 ) -> MemberChoice:
     """Train the members of the run ``first`` (its own training, in ``run_dir``) that follow
     it, choose among them and their means on validation, and make the choice the run folder's
     model (see the module docstring). ``train(jobs)`` trains (or resumes) every member's
     :class:`MemberJob` and returns their models in the same order; they are independent, so
-    it may train them side by side."""
+    it may train them side by side. ``response(model)``: a candidate's count of residual
+    correlations with the excitation outside the band (:func:`canonid.horizon_check.
+    response_count`); given, no candidate with more than the run's own member is kept."""
     from canonid.learning.members import average_members, validation_losses
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.runfolder import load_splits, rescore_run
@@ -239,12 +283,22 @@ def choose_members(
     sizes = range(2, members + 1)
     means = [average_members([models[i] for i in order[:j]]) for j in sizes]
     mean_losses = tuple(zip(sizes, validation_losses(means, val, options) if means else []))
-    kept = kept_candidate(seeds, losses, mean_losses)
+    outside = None if response is None else tuple(response(m) for m in models)
+    mean_outside = None if response is None else tuple(response(m) for m in means)
+    counts = None if outside is None or mean_outside is None else (*outside, *mean_outside)
+    kept = kept_candidate(seeds, losses, mean_losses, counts)
     model = {
         **{f"seed {s}": m for s, m in zip(seeds, models, strict=True)},
         **{f"mean of {j}": m for j, m in zip(sizes, means, strict=True)},
     }[kept]
-    choice = MemberChoice(seeds=seeds, losses=tuple(losses), means=mean_losses, kept=kept)
+    choice = MemberChoice(
+        seeds=seeds,
+        losses=tuple(losses),
+        means=mean_losses,
+        kept=kept,
+        outside=outside,
+        mean_outside=mean_outside,
+    )
     if kept != f"seed {seed}":
         first.fit.model.save(run_dir / member_folder(seed))
         # the recipe's training record, and where the choice is written down
@@ -252,5 +306,9 @@ def choose_members(
         model.info = {**first.fit.model.info, "members": members_info}
         model.save(run_dir)
         rescore_run(run_dir, recipe, model, eval_horizon=eval_horizon, figure_format=figure_format)
+    elif (run_dir / member_folder(seed)).is_dir():  # a resumed choice keeps the run's own again
+        model.save(run_dir)
+        rescore_run(run_dir, recipe, model, eval_horizon=eval_horizon, figure_format=figure_format)
+        shutil.rmtree(run_dir / member_folder(seed))
     atomic_write_json(run_dir / MEMBERS_FILE, choice.to_json())
     return choice

@@ -121,8 +121,10 @@ CUBIC_HELP = (
 MEMBERS_HELP = (
     "Ours (MLP): train the run's recipe from K seeds (the run's seed and the K − 1 after it, "
     "each in RUN/members/sS) and keep the lowest validation loss among each alone and the means "
-    "of the 2 … K best (their regressors averaged: one canonical model); members.json records "
-    "the choice (default 1; K times the training)"
+    "of the 2 … K best (their regressors averaged: one canonical model); where the input "
+    "response was checked (closed-loop data with an excitation), none that answers the "
+    "excitation worse than the run's own; members.json records the choice (default 1, or 3 "
+    "where the horizon check kept the shorter rollouts; K times the training)"
 )
 
 
@@ -921,28 +923,34 @@ def _train_alternative(
     return _train_one(request, base, folder, resume=False, callback=None)
 
 
-def _member_count(request: TrainRequest, run_dir: Path) -> int:
-    """``--members``, else what a resumed run planned (``members.json``), else 1."""
+def _member_count(request: TrainRequest, outcome: TrainOutcome) -> int:
+    """``--members``, else what a resumed run planned (``members.json``), else
+    :data:`~canonid.horizon_check.MEMBERS` where the horizon check kept the alternative, else 1."""
+    from canonid.horizon_check import MEMBERS
     from canonid.members import planned_members
 
     if request.members is not None:
         return request.members
-    planned = planned_members(run_dir) if request.resume is not None else None
-    return planned or 1
+    planned = planned_members(outcome.run_dir) if request.resume is not None else None
+    if planned:
+        return planned
+    return MEMBERS if outcome.horizon is not None and outcome.horizon.adopted else 1
 
 
 def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     """After the run's own training: its members and the choice among them
     (:func:`canonid.members.choose_members`), where more than one is asked for."""
+    from canonid.horizon_check import response_count
     from canonid.jobs import run_folder_lock
     from canonid.kernel.io import read_json
     from canonid.members import choose_members
     from canonid.runfolder import METRICS_FILE
 
-    count = _member_count(request, outcome.run_dir)
+    count = _member_count(request, outcome)
     if count == 1 or outcome.result is None:
         return outcome
-
+    # where the input response was checked, no candidate may answer the excitation worse
+    response = None if outcome.horizon is None else response_count(outcome.run_dir)
     with run_folder_lock(outcome.run_dir, flag="--members"):
         choice = choose_members(
             outcome.result,
@@ -951,6 +959,7 @@ def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
             train=lambda jobs: _train_members(request, jobs),
             eval_horizon=request.eval_horizon,
             figure_format=request.figure_format,
+            response=response,
         )
         metrics = read_json(outcome.run_dir / METRICS_FILE, what="metrics")
     return dataclasses.replace(outcome, metrics=metrics, members=choice)

@@ -144,9 +144,11 @@ def test_an_alternative_with_fewer_correlations_becomes_the_run(
     choice is printed and recorded, and the run is read as the alternative by evaluate."""
     _counts(monkeypatch, {10: 8, SHORT: 0})
     run = tmp_path / "run"
-    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    argv = ["train", str(closed_loop_data), "--window", "3", "--members", "1", *FAST]
+    assert main([*argv, "--out", str(run)]) == 0
     out = capsys.readouterr().out
     assert "more than the 1 chance allows" in out and "kept (its files in horizon-5" in out
+    assert not (run / "members").exists()  # --members 1: the alternative alone
     choice = HorizonChoice.read(run)
     assert choice.adopted and choice.chosen == SHORT
     assert [c.outside for c in choice.candidates] == [8, 0]
@@ -168,6 +170,33 @@ def test_an_alternative_that_does_no_better_is_not_kept(
     choice = HorizonChoice.read(run)
     assert not choice.adopted and _recorded_horizon(run) == 10
     assert (run / "horizon-5" / "weights.pt").is_file() and not (run / "horizon-10").exists()
+    assert not (run / "members").exists()  # members by default only behind an adoption
+
+
+def test_an_adopted_alternative_trains_members_held_to_its_input_response(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path, capsys
+):
+    """Behind an adoption the defaults train hc.MEMBERS members of the kept recipe; every
+    candidate is checked as the run's model was, and the one kept has at most the run's own
+    member's count of correlations outside the band."""
+    from canonid.learning import Model
+    from canonid.members import MEMBERS_FILE, MemberChoice
+
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    body = json.loads((run / MEMBERS_FILE).read_text())
+    assert body["count"] == hc.MEMBERS and "excitation" in body["criterion"]
+    choice = MemberChoice.read(run)
+    assert choice.outside is not None and choice.mean_outside is not None
+    counts = dict(zip([f"seed {s}" for s in choice.seeds], choice.outside))
+    counts.update({f"mean of {j}": n for (j, _), n in zip(choice.means, choice.mean_outside)})
+    assert counts[choice.kept] <= choice.outside[0]
+    own = run if choice.kept == "seed 0" else run / "members" / "s0"
+    assert hc.response_count(run)(Model.load(own)) == choice.outside[0]  # the check's own count
+    members = sorted((run / "members").glob("s[12]"))
+    assert len(members) == hc.MEMBERS - 1 and all(_recorded_horizon(m) == SHORT for m in members)
+    assert "correlations with the excitation outside the band" in capsys.readouterr().out
 
 
 def test_resume_reads_the_choice_and_decides_nothing_again(

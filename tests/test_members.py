@@ -213,6 +213,27 @@ def test_the_kept_candidate_has_the_lowest_finite_loss(losses, extra):
     assert kept == first  # the first on a tie: members in seed order, then the means
 
 
+@given(
+    losses=st.lists(st.floats(0, 10), min_size=1, max_size=4),
+    extra=st.lists(st.floats(0, 10), max_size=3),
+    counts=st.lists(st.integers(0, 30), min_size=7, max_size=7),
+)
+def test_a_candidate_answering_the_excitation_worse_than_the_runs_own_is_never_kept(
+    losses, extra, counts
+):
+    """With the check's counts, the kept candidate has at most the run's own member's count and
+    the lowest loss of those that do; the run's own member always qualifies."""
+    seeds = list(range(len(losses)))
+    means = list(zip(range(2, 2 + len(extra)), extra))
+    outside = counts[: len(losses) + len(extra)]
+    kept = kept_candidate(seeds, losses, means, outside)
+    names = [f"seed {s}" for s in seeds] + [f"mean of {j}" for j, _ in means]
+    table = dict(zip(names, [*losses, *extra]))
+    allowed = [n for n, c in zip(names, outside) if c <= outside[0]]
+    assert kept in allowed
+    assert table[kept] == min(table[n] for n in allowed)
+
+
 # ----------------------------------------------------------------- the command, as typed
 @pytest.fixture(scope="module")
 def dataset_path(tmp_path_factory):
@@ -322,7 +343,7 @@ def test_members_side_by_side_train_as_they_would_alone_on_one_thread(
 def test_the_mean_becomes_the_run_model_when_it_validates_best(dataset_path, tmp_path, monkeypatch):
     from canonid import members as members_module
 
-    monkeypatch.setattr(members_module, "kept_candidate", lambda seeds, losses, means: "mean of 2")
+    monkeypatch.setattr(members_module, "kept_candidate", lambda *candidates: "mean of 2")
     run = tmp_path / "run"
     assert _train(dataset_path, run, "--members", "2") == 0
     kept = Model.load(run)
@@ -335,6 +356,13 @@ def test_the_mean_becomes_the_run_model_when_it_validates_best(dataset_path, tmp
         kept.predict(u, y0), average_members([first, second]).predict(u, y0), atol=1e-6
     )
     assert json.loads((run / MEMBERS_FILE).read_text())["members"][0]["folder"] == "members/s0"
+    # chosen again on --resume, the run's own member: its model is the run folder's again
+    own = (run / "members" / "s0" / "weights.pt").read_bytes()
+    monkeypatch.setattr(members_module, "kept_candidate", lambda *candidates: "seed 0")
+    assert main(["train", "--resume", "--out", str(run), "--no-progress", "--threads", "1"]) == 0
+    assert (run / "weights.pt").read_bytes() == own and not (run / "members" / "s0").exists()
+    assert "members" not in Model.load(run).info
+    assert json.loads((run / MEMBERS_FILE).read_text())["members"][0]["folder"] == "."
 
 
 @pytest.mark.parametrize(
