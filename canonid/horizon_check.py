@@ -30,7 +30,7 @@ Where the alternative was kept and ``--members`` was not given, the run then tra
 kept model's input response (:func:`response_count`): a single network trained on rollouts of 10
 can still stray where NMPC on it leaves the training data, and the mean of members that answer
 the excitation as well as it does smooths that (benchmarks/RESULTS.md, "NMPC on a learned model:
-members behind the horizon check").
+the defaults on informative data").
 
 ``RUN/horizon-check.json`` (:class:`HorizonChoice`) records both checks and the choice; a resumed
 run that has it decides nothing again. Every count is an estimate (sample correlations against an
