@@ -299,16 +299,16 @@ def choose_members(
         outside=outside,
         mean_outside=mean_outside,
     )
+    own = run_dir / member_folder(seed)  # where the run's own model waits while another is kept
     if kept != f"seed {seed}":
-        first.fit.model.save(run_dir / member_folder(seed))
+        first.fit.model.save(own)
         # the recipe's training record, and where the choice is written down
         members_info = {"kept": kept, "seeds": list(seeds), "file": MEMBERS_FILE}
         model.info = {**first.fit.model.info, "members": members_info}
+    if kept != f"seed {seed}" or own.is_dir():  # a resumed choice may keep the run's own again
         model.save(run_dir)
         rescore_run(run_dir, recipe, model, eval_horizon=eval_horizon, figure_format=figure_format)
-    elif (run_dir / member_folder(seed)).is_dir():  # a resumed choice keeps the run's own again
-        model.save(run_dir)
-        rescore_run(run_dir, recipe, model, eval_horizon=eval_horizon, figure_format=figure_format)
-        shutil.rmtree(run_dir / member_folder(seed))
+    if kept == f"seed {seed}" and own.is_dir():
+        shutil.rmtree(own)
     atomic_write_json(run_dir / MEMBERS_FILE, choice.to_json())
     return choice

@@ -856,9 +856,7 @@ def train(
     if recipe is not None:
         resume = request.resume is not None
         if resume and (run_dir / SCREEN_FILE).is_file():  # the recorded choice, never redone
-            with run_folder_lock(run_dir, flag="--resume"):  # its full runs continue too
-                outcome = _train_one(request, recipe, run_dir, resume=True, callback=callback)
-                outcome = _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
+            outcome = _continued(request, recipe, run_dir, callback)
         else:
             outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
     elif _mode(request) == "screen":
@@ -898,6 +896,23 @@ def _horizon(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     return dataclasses.replace(outcome, horizon=choice)
 
 
+def _continued(
+    request: TrainRequest,
+    recipe: RunRecipe,
+    run_dir: Path,
+    callback: Callable[[EpochReport], None] | None,
+) -> TrainOutcome:
+    """The run in ``run_dir`` continued from its checkpoint under its lock, then, where it
+    screened windows, the near ties' full runs its recorded screen still owes."""
+    from canonid.jobs import run_folder_lock
+
+    with run_folder_lock(run_dir, flag="--resume"):
+        outcome = _train_one(request, recipe, run_dir, resume=True, callback=callback)
+        if (run_dir / SCREEN_FILE).is_file():
+            outcome = _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
+    return outcome
+
+
 def _train_alternative(
     request: TrainRequest, run_dir: Path, folder: Path, resume: bool
 ) -> TrainOutcome:
@@ -905,16 +920,10 @@ def _train_alternative(
     samples, into ``folder``: its recipe with that horizon (the screen again over the same
     windows where the run screened them), or continued from ``folder``'s checkpoint."""
     from canonid.horizon_check import ALTERNATIVE  # read when called (tests set it)
-    from canonid.jobs import run_folder_lock
     from canonid.runfolder import RunRecipe
 
     if resume:
-        recipe = RunRecipe.read(folder)
-        with run_folder_lock(folder, flag="--resume"):
-            outcome = _train_one(request, recipe, folder, resume=True, callback=None)
-            if (folder / SCREEN_FILE).is_file():
-                outcome = _follow_up(request, recipe, folder, WindowScreen.read(folder), outcome)
-        return outcome
+        return _continued(request, RunRecipe.read(folder), folder, None)
     own = RunRecipe.read(run_dir)
     base = dataclasses.replace(own, train_options={**own.train_options, "horizon": ALTERNATIVE})
     if (run_dir / SCREEN_FILE).is_file():
