@@ -285,6 +285,13 @@ def input_response(learned: LearnedSystem, case: Case, flights, step: list[float
     the recorded state of the given flights at five samples each, the change of the outputs after
     ``HORIZON`` samples (the NMPC's horizon) between the recorded inputs plus ``step`` and the
     recorded inputs alone; returns the true and the learned changes ``(starts, n_y)``."""
+    true_paths, learned_paths = response_paths(learned, case, flights, step)
+    return true_paths[:, -1], learned_paths[:, -1]
+
+
+def response_paths(learned: LearnedSystem, case: Case, flights, step: list[float]):
+    """:func:`input_response` at every sample: the changes after 1 … ``HORIZON`` samples, true
+    and learned, each ``(starts, HORIZON, n_y)``."""
     ell, true = learned.regressor.window, case.system
     du = np.asarray(step)
     out: dict[str, list[np.ndarray]] = {"true": [], "learned": []}
@@ -292,16 +299,45 @@ def input_response(learned: LearnedSystem, case: Case, flights, step: list[float
         for t in np.linspace(2 * ell, flight.T - HORIZON, 5).astype(int):
             u = flight.u[t : t + HORIZON]
             z = np.concatenate([flight.u[t - ell : t], flight.y[t - ell : t]], 1).ravel()
-            ends = {}
+            paths = {}
             for key, system, x0 in (("true", true, flight.x[t]), ("learned", learned, z)):
                 for sign, inputs in (("step", u + du), ("base", u)):
-                    x = np.asarray(x0, dtype=np.float64)
-                    for uk in inputs[:-1]:
-                        x = np.asarray(system.step(x, uk)).ravel()
-                    ends[key, sign] = np.asarray(system.output(x, inputs[-1])).ravel()
+                    x, ys = np.asarray(x0, dtype=np.float64), []
+                    for k, uk in enumerate(inputs):
+                        ys.append(np.asarray(system.output(x, uk)).ravel())
+                        if k < len(inputs) - 1:
+                            x = np.asarray(system.step(x, uk)).ravel()
+                    paths[key, sign] = np.array(ys)
             for key in out:
-                out[key].append(ends[key, "step"] - ends[key, "base"])
+                out[key].append(paths[key, "step"] - paths[key, "base"])
     return np.array(out["true"]), np.array(out["learned"])
+
+
+#: the judged steps scaled by these factors for the table of the response by size
+STEP_SCALES = (0.25, 0.5, 1.0, 2.0)
+
+
+def response_by_size(
+    learned: LearnedSystem, case: Case, flights, step: list[float], judged: list[int]
+) -> list[dict[str, Any]]:
+    """The judged outputs' learned / true change (means over the starts) for the step scaled by
+    each of :data:`STEP_SCALES`, after ``HORIZON // 2`` and ``HORIZON`` samples."""
+    rows = []
+    for scale in STEP_SCALES:
+        true_paths, learned_paths = response_paths(
+            learned, case, flights, list(scale * np.asarray(step))
+        )
+        for samples in (HORIZON // 2, HORIZON):
+            t, lr = true_paths[:, samples - 1].mean(0), learned_paths[:, samples - 1].mean(0)
+            rows.append(
+                {
+                    "scale": scale,
+                    "samples": samples,
+                    "true": [float(t[j]) for j in judged],
+                    "ratios": [float(lr[j] / t[j]) for j in judged],
+                }
+            )
+    return rows
 
 
 def rest_response(learned: LearnedSystem, case: Case, step: list[float]) -> tuple[np.ndarray, ...]:
@@ -322,6 +358,46 @@ def rest_response(learned: LearnedSystem, case: Case, step: list[float]) -> tupl
             ends.append(np.asarray(system.output(x, u)).ravel())
         changes.append(ends[0] - ends[1])
     return changes[0], changes[1]
+
+
+def candidates_check(run_dir: Path, folders: list[str], split: str) -> list[str]:
+    """Lines for ``--candidates``: for each model folder under ``run_dir`` (a follow-up, a
+    member; ``.`` the run's own), its best validation loss, the horizon check's count of k = 10
+    residual correlations with the excitation outside the band (:func:`canonid.horizon_check.
+    response_count`, always on the run's validation split) and the judged step's learned / true
+    change from the recorded states of ``split``'s first five flights. No loop is flown."""
+    from canonid.horizon_check import response_count
+    from canonid.learned import learned_system
+    from canonid.learning import Model
+    from canonid.runfolder import RunRecipe
+
+    case = cases()["drone2d"]
+    probe, judged = next(iter(case.judged.items()))
+    count = response_count(run_dir)
+    data = Path(RunRecipe.read(run_dir).data)
+    lines = [
+        f"Candidates of `{run_dir}` (`--candidates`): validation loss, k = 10 correlations with "
+        f"the excitation outside the band (validation flights), and the learned / true change "
+        f"of ({', '.join(case.system.output_names[j] for j in judged)}) after {HORIZON} "
+        f"samples of {probe} from the recorded states of the first five {split} flights.",
+        "",
+        "| model | window | validation loss | outside the band | learned / true change |",
+        "|---|---:|---:|---:|---|",
+    ]
+    for folder in folders:
+        path = run_dir / folder
+        model = Model.load(path)
+        run = learned_system(path, data=data)
+        learned = with_sets(run.system, run.system.X, case.system.U)
+        flights = list(run.dataset.split(split))
+        true_change, learned_change = input_response(learned, case, flights, case.probes[probe])
+        ratios = judge(true_change.mean(axis=0), learned_change.mean(axis=0), judged)["ratios"]
+        loss = model.info.get("training", {}).get("best_val_loss")
+        lines.append(
+            f"| {folder} | {model.window} | {_num(loss)} | {count(model)} | {_vec(ratios)} |"
+        )
+        print(lines[-1], flush=True)
+    return lines
 
 
 def judge(true_change: np.ndarray, learned_change: np.ndarray, outputs: list[int]) -> dict:
@@ -502,7 +578,16 @@ def compare(case: Case, run_dir: Path, args: argparse.Namespace) -> dict[str, An
                     "true": rest_true.tolist(),
                     "learned": rest_learned.tolist(),
                 }
-            verdict = {"judged": judged, "recorded": recorded, "rest": rest}
+            by_size = response_by_size(learned, case, flights, step, judged)
+            train_y = np.vstack([f.y for f in run.dataset.split("train")])
+            spread = np.percentile(np.abs(train_y - train_y.mean(0)), 99, axis=0)
+            verdict = {
+                "judged": judged,
+                "recorded": recorded,
+                "rest": rest,
+                "by_size": by_size,
+                "train_p99": [float(spread[j]) for j in judged],
+            }
         responses[probe] = {
             **verdict,
             "true_mean": true_change.mean(axis=0).tolist(),
@@ -629,6 +714,23 @@ def model_check(key: str, res: dict[str, Any]) -> list[str]:
                 f"u_eq, the learned model from the window of ℓ samples of u_eq and the rest "
                 f"outputs, no noise), change of ({names}) after {HORIZON} samples: true model "
                 f"{_vec(r['rest']['true'])}, learned model {_vec(r['rest']['learned'])}.",
+                "",
+            ]
+        if r.get("by_size"):
+            judged = ", ".join(res["outputs"][j] for j in r["judged"])
+            lines += [
+                f"{key}, the same step scaled, from the same recorded states: learned / true "
+                f"change of ({judged}) by the step's size and the samples after it (the judged "
+                f"figure is × 1 after {HORIZON}); the training flights' 99th percentile of "
+                f"|output − its mean|: {_vec(r['train_p99'])}.",
+                "",
+                f"| step × | samples | true change ({judged}) | learned / true ({judged}) |",
+                "|---:|---:|---|---|",
+                *(
+                    f"| {row['scale']:g} | {row['samples']} | {_vec(row['true'])} | "
+                    f"{_vec(row['ratios'])} |"
+                    for row in r["by_size"]
+                ),
                 "",
             ]
     return lines
@@ -777,7 +879,22 @@ def main() -> int:
         default=SECTION,
         help=f"the RESULTS.md section to write (default {SECTION!r}; another keeps that one)",
     )
+    parser.add_argument(
+        "--candidates",
+        nargs="+",
+        metavar="FOLDER",
+        help="with one --drone-run RUN: check these model folders under RUN (e.g. followups/l80 "
+        "members/s1; . the run's own) by validation loss, the horizon check's count and the "
+        "judged step, fly no loop, print the table and write nothing but --json",
+    )
     args = parser.parse_args()
+    if args.candidates:
+        if len(args.drone_run or []) != 1:
+            parser.error("--candidates needs exactly one --drone-run RUN")
+        checked = candidates_check(args.drone_run[0], args.candidates, args.split)
+        if args.json:
+            args.json.write_text(json.dumps({"candidates": checked}, indent=1))
+        return 0
     if not 0 <= args.theory_seconds < float("inf"):  # NaN fails too
         parser.error(f"--theory-seconds must be a finite number >= 0, got {args.theory_seconds}")
     started = time.perf_counter()

@@ -88,6 +88,27 @@ def test_an_exact_model_answers_an_input_step_as_the_true_system(bench, rng):
     np.testing.assert_allclose(learned_change, expected, rtol=1e-12)
 
 
+def test_the_response_by_size_is_the_closed_form_at_every_sample_and_scale(bench, rng):
+    true = LinearSystem([[A]], [[B]], [[1.0]])
+    case = bench.Case("linear", true, [0.0], [1.0], [1.0], [0], "", False, {"+1": [1.0]})
+    flights = [_flight(true, rng) for _ in range(2)]
+    true_paths, learned_paths = bench.response_paths(_model(), case, flights, [1.0])
+    assert true_paths.shape == (10, bench.HORIZON, 1)
+    # y_k changes by B Σ_{i<k−1} a^i after k samples (no feedthrough: nothing at the first)
+    expected = [B * sum(A**i for i in range(k - 1)) for k in range(1, bench.HORIZON + 1)]
+    np.testing.assert_allclose(true_paths[..., 0], np.tile(expected, (10, 1)), atol=1e-12)
+    np.testing.assert_allclose(learned_paths, true_paths, atol=1e-12)
+    rows = bench.response_by_size(_model(0.8), case, flights, [1.0], [0])
+    assert [(r["scale"], r["samples"]) for r in rows] == [
+        (s, k) for s in bench.STEP_SCALES for k in (bench.HORIZON // 2, bench.HORIZON)
+    ]
+    for row in rows:  # linear: the true change scales with the step, the ratio does not
+        k = row["samples"]
+        assert row["true"][0] == pytest.approx(row["scale"] * expected[k - 1], rel=1e-12)
+        slower = B * sum(0.8**i for i in range(k - 1))
+        assert row["ratios"][0] == pytest.approx(slower / expected[k - 1], rel=1e-9)
+
+
 def test_an_exact_model_answers_a_step_from_rest_as_the_true_system(bench):
     true = LinearSystem([[A]], [[B]], [[1.0]])
     case = bench.Case(
