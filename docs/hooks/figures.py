@@ -774,6 +774,27 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "horizon-check/drone2d-id/val-ratio": Prose(
         LEARNED_MPC_DEFAULTS, r"learned / true (\d+\.\d+) \("
     ),
+    # where the short θ comes from (validation flights): the step a quarter as large, after 20
+    # samples; the seed-0 member with the fewest correlations: its θ and its validation loop
+    "learned-mpc/by-size/s0/quarter-20": Cell(
+        LEARNED_MPC_DEFAULTS,
+        _row(**{"data (the kept model)": "`drone2d-id`, seed 0 (ℓ = 40, seed 0)"}),
+        "× 0.25, 20",
+    ),
+    "learned-mpc/candidates/s0-member2/theta": Cell(
+        LEARNED_MPC_DEFAULTS,
+        _row(data="seed 0", model="ℓ = 40, seed 2 (member)"),
+        "px, θ: learned / true, recorded states",
+        pick=1,
+    ),
+    "learned-mpc/candidates/s0-member2/outside": Cell(
+        LEARNED_MPC_DEFAULTS,
+        _row(data="seed 0", model="ℓ = 40, seed 2 (member)"),
+        "k = 10 correlations outside the band, of 60",
+    ),
+    "learned-mpc/candidates/s0-member2/val-loop": Prose(
+        LEARNED_MPC_DEFAULTS, r"seed-2 member tracks at \*\*([\d.]+)×"
+    ),
     "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
     # the records too short for the cubic test's peaks (cubic_fallback.py): cubic / plain
     **{
