@@ -5,7 +5,7 @@ parts: the one recipe the benchmark scripts that set deepSI beside canonid's def
 MLPs) trained by ``deepSI.fit`` (rollouts T = 50, batch 256, Adam at 1e-3, validation every 250
 iterations by a simulation of the validation part, the best model kept) for a given number of
 iterations (``deepSI.fit`` has no default for it), in this process with one torch thread and
-torch's seed 0; deepSI's checkpoint file goes to a temporary folder, not ``$HOME``.
+torch's seed (0 unless given); deepSI's checkpoint file goes to a temporary folder, not ``$HOME``.
 """
 
 from __future__ import annotations
@@ -30,9 +30,9 @@ class Subnet:
     iterations: int
 
 
-def fit_subnet(train: Sequence[Any], val: Sequence[Any], iterations: int) -> Subnet:
+def fit_subnet(train: Sequence[Any], val: Sequence[Any], iterations: int, seed: int = 0) -> Subnet:
     """Train deepSI's SUBNET with its defaults on the first training and validation record
-    (canonid :class:`~canonid.kernel.dataset.Trajectory` objects)."""
+    (canonid :class:`~canonid.kernel.dataset.Trajectory` objects), torch seeded by ``seed``."""
     os.environ.setdefault("TQDM_DISABLE", "1")  # deepSI draws a progress bar per fit
     import deepSI
     import deepSI.fitting
@@ -41,7 +41,7 @@ def fit_subnet(train: Sequence[Any], val: Sequence[Any], iterations: int) -> Sub
     from nonlinear_benchmarks import Input_output_data
 
     torch.set_num_threads(1)
-    torch.manual_seed(0)
+    torch.manual_seed(seed)
     records = [Input_output_data(u=t.u, y=t.y) for t in (train[0], val[0])]
     n_u, n_y, norm = deepSI.get_nu_ny_and_auto_norm(records[0])
     net = deepSI.SUBNET(n_u, n_y, norm)

@@ -36,12 +36,18 @@ Writes the section "Overflow tanks" of benchmarks/RESULTS.md.
   does not: overfitting); the test score is read for the run the validation loss picks, after
   it picked it.
 
+* How much of one comparison is chance (``--spread D S``): the defaults, the Classic GRU, ARX
+  and deepSI again with training seed ``S`` (``canonid train --seed S``; torch's seed ``S`` for
+  deepSI) on the data of ``canonid generate tanks-overflow --seed D`` (another realisation of
+  both multisines), each cell in ``runs/overflow-tanks/spread/dD-sS``; the section's last table
+  lists every cell trained, the main table's runs as cell (0, 0). Nothing is chosen from it.
+
 The run folders, deepSI's scores and the CPU seconds stay in ``runs/overflow-tanks``;
 ``--record`` writes the section again from them without training; ``--only FOLDER`` trains that
 canonid contestant alone and keeps the others' runs and CPU times.
 
 Usage: python benchmarks/bench_overflow_tanks.py [--deepsi-iterations N] [--only FOLDER] [--record]
-(about 16 CPU-minutes)
+(about 16 CPU-minutes); python benchmarks/bench_overflow_tanks.py --spread D S (about 14 per cell)
 """
 
 from __future__ import annotations
@@ -92,6 +98,8 @@ VARIANTS = {
 }
 #: CPU seconds of every child and the load readings of the last full run
 CPU_FILE = "cpu.json"
+#: the contestants of a spread cell (``--spread D S``): folders of CANONID trained there
+SPREAD_FOLDERS = ("mlp-default", "classic-gru", "arx")
 
 
 @dataclass(frozen=True)
@@ -207,26 +215,57 @@ def canonid_score(label: str, run: Path, data: Path, cpu: float) -> Score:
     return score(label, Model.load(run), data, cpu, best)
 
 
-def deepsi_child(data: Path, iterations: int, out: Path) -> int:
-    """Train deepSI's SUBNET with its defaults (this process: one torch thread) and write its
-    scores to ``out`` as JSON."""
+def deepsi_child(data: Path, iterations: int, out: Path, seed: int = 0) -> int:
+    """Train deepSI's SUBNET with its defaults (this process: one torch thread, torch's seed
+    ``seed``) and write its scores to ``out`` as JSON."""
     from _deepsi import fit_subnet
 
     from canonid.kernel.dataset import Dataset
 
     ds = Dataset.load(data)
-    found = fit_subnet(ds.split("train"), ds.split("val"), iterations)
+    found = fit_subnet(ds.split("train"), ds.split("val"), iterations, seed=seed)
     best_val = f"iteration {found.at} of {iterations}"
     result = score(DEEPSI_LABEL, found.model, data, 0.0, best_val)
     out.write_text(json.dumps(asdict(result)))
     return 0
 
 
-def deepsi_train(data: Path, iterations: int) -> float:
-    """deepSI in a child process (its scores land in ``RUNS/deepsi.json``); its CPU seconds."""
-    RUNS.mkdir(parents=True, exist_ok=True)
-    cmd = [sys.executable, __file__, "--deepsi-child", str(RUNS / "deepsi.json")]
-    return child_cpu([*cmd, "--deepsi-iterations", str(iterations)])
+def deepsi_train(data: Path, iterations: int, runs: Path = RUNS, seed: int = 0) -> float:
+    """deepSI in a child process (its scores land in ``runs/deepsi.json``); its CPU seconds."""
+    runs.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, __file__, "--deepsi-child", str(runs / "deepsi.json")]
+    extra = ["--deepsi-data", str(data), "--deepsi-seed", str(seed)]
+    return child_cpu([*cmd, "--deepsi-iterations", str(iterations), *extra])
+
+
+def spread_data(data_seed: int) -> Path:
+    """The dataset of ``canonid generate tanks-overflow --seed D`` (generated when missing)."""
+    if data_seed == 0:
+        data = DATA
+    else:
+        data = DATA.with_name(f"{DATA.name}-s{data_seed}")
+    if not (data / "dataset.npz").is_file():
+        cmd = [sys.executable, "-m", "canonid", "generate", "tanks-overflow"]
+        child_cpu([*cmd, "--seed", str(data_seed), "--out", str(data)])
+    return data
+
+
+def spread_cell(data_seed: int, seed: int) -> Path:
+    return RUNS / "spread" / f"d{data_seed}-s{seed}"
+
+
+def spread_train(data_seed: int, seed: int, iterations: int) -> int:
+    """Train one cell of the spread: every contestant of SPREAD_FOLDERS and deepSI, training
+    seed ``seed``, on the data of generation seed ``data_seed``; CPU seconds in its cpu.json."""
+    data, cell = spread_data(data_seed), spread_cell(data_seed, seed)
+    cpu: dict[str, float] = {}
+    for folder in SPREAD_FOLDERS:
+        cmd = [sys.executable, "-m", "canonid", "train", str(data), *_extra(folder)]
+        out = ["--seed", str(seed), "--threads", "1", "--no-progress", "--out", str(cell / folder)]
+        cpu[folder] = child_cpu([*cmd, *out])
+    cpu["deepsi"] = deepsi_train(data, iterations, cell, seed)
+    atomic_write_json(cell / CPU_FILE, cpu)
+    return 0
 
 
 def main() -> int:
@@ -245,16 +284,33 @@ def main() -> int:
         choices=[folder for folder, _ in [*CANONID.values(), *VARIANTS.values()]],
         help="train this canonid contestant alone; the others' runs and CPU times are kept",
     )
+    parser.add_argument(
+        "--spread",
+        nargs=2,
+        type=int,
+        metavar=("D", "S"),
+        help="train the defaults, the Classic GRU, ARX and deepSI with training seed S on the "
+        "data of generation seed D (one cell of the section's last table; --record writes it)",
+    )
     parser.add_argument("--deepsi-child", type=Path, help=argparse.SUPPRESS)
+    parser.add_argument("--deepsi-data", type=Path, default=DATA, help=argparse.SUPPRESS)
+    parser.add_argument("--deepsi-seed", type=int, default=0, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.deepsi_child is not None:
-        return deepsi_child(DATA, args.deepsi_iterations, args.deepsi_child)
-    if (args.only is not None or args.record) and not (RUNS / CPU_FILE).is_file():
+        return deepsi_child(
+            args.deepsi_data, args.deepsi_iterations, args.deepsi_child, args.deepsi_seed
+        )
+    needs_runs = args.only is not None or args.record or args.spread is not None
+    if needs_runs and not (RUNS / CPU_FILE).is_file():
         # checked before training: --only merges into the full run's records, --record reads them
         parser.error(
-            f"{RUNS / CPU_FILE} not found: --only and --record need the runs of a full "
+            f"{RUNS / CPU_FILE} not found: --only, --spread and --record need the runs of a full "
             "`python bench_overflow_tanks.py` in that folder"
         )
+    if args.spread is not None:
+        # the section is written by --record: cells may train side by side
+        data_seed, seed = args.spread
+        return spread_train(data_seed, seed, args.deepsi_iterations)
     if args.only is not None:
         seconds = canonid_train(args.only, _extra(args.only), DATA)
         # read after training: another --only may have written its time meanwhile
@@ -303,7 +359,71 @@ def record(*, rewritten: bool = False) -> int:
             "`python bench_overflow_tanks.py`; a contestant added later was trained alone by "
             "`--only FOLDER` and its CPU time merged.)",
         ]
-    return publish(SECTION, [*lines, "", *diagnosis(cpu)], cpu["minutes"])
+    return publish(SECTION, [*lines, "", *diagnosis(cpu), *spread_lines(scores)], cpu["minutes"])
+
+
+def spread_lines(main: list[Score]) -> list[str]:
+    """The spread table: the main table's runs as cell (0, 0), then every cell trained by
+    ``--spread D S``; RMSE on each cell's own test record, nothing chosen from it."""
+    cells = sorted(
+        (int(d), int(s), path)
+        for path in (RUNS / "spread").glob("d*-s*/")
+        if (path / CPU_FILE).is_file()
+        for d, s in [path.name[1:].split("-s")]
+    )
+    if not cells:
+        return []
+    labels = dict(zip(SPREAD_FOLDERS, (DEFAULTS_LABEL, "Classic GRU", "ARX (linear)")))
+    table = {(0, 0): {s.label: s for s in main}}
+    for d, seed, path in cells:
+        cpu = json.loads((path / CPU_FILE).read_text())
+        data = spread_data(d)
+        found = {
+            labels[f]: canonid_score(labels[f], path / f, data, cpu[f]) for f in SPREAD_FOLDERS
+        }
+        deepsi = json.loads((path / "deepsi.json").read_text())
+        found[DEEPSI_LABEL] = Score(**{**deepsi, "cpu_s": cpu["deepsi"]})
+        table[(d, seed)] = found
+    order = (DEFAULTS_LABEL, "Classic GRU", "ARX (linear)", DEEPSI_LABEL)
+    rows = []
+    for (d, seed), found in sorted(table.items()):
+        ours = found[DEFAULTS_LABEL]
+        cells_text = " | ".join(f"{found[k].rmse:.4f}" for k in order)
+        rows.append(
+            f"| {d} | {seed} | {ours.window} | {cells_text} | "
+            f"{found[DEEPSI_LABEL].rmse / ours.rmse:.2f} | "
+            f"{found['Classic GRU'].rmse / ours.rmse:.2f} | "
+            f"{ours.cpu_s:.0f} | {found[DEEPSI_LABEL].cpu_s:.0f} |"
+        )
+    below = sum(f[DEEPSI_LABEL].rmse > f[DEFAULTS_LABEL].rmse for f in table.values())
+    target = sum(
+        f[DEEPSI_LABEL].rmse > f[DEFAULTS_LABEL].rmse
+        and min(f["Classic GRU"].rmse, f["ARX (linear)"].rmse) >= 1.5 * f[DEFAULTS_LABEL].rmse
+        for f in table.values()
+    )
+    ratio = [f[DEEPSI_LABEL].rmse / f[DEFAULTS_LABEL].rmse for f in table.values()]
+    return [
+        "",
+        "### Seeds and data: how much of one comparison is chance",
+        "",
+        "The same contestants with another training seed (`canonid train --seed S`; torch's "
+        "seed S for deepSI) or on another realisation of the data (`canonid generate "
+        "tanks-overflow --seed D`: both records' multisines drawn again), each cell trained by "
+        "`python bench_overflow_tanks.py --spread D S`; cell (0, 0) is the table above. Test RMSE "
+        "[V] on each cell's own test record, after n_init = 50; every model kept on its "
+        "validation part; nothing is chosen here.",
+        "",
+        "| data seed D | training seed S | canonid's window | canonid defaults | Classic GRU "
+        "| ARX | deepSI (its defaults) | deepSI / canonid | GRU / canonid | canonid CPU s "
+        "| deepSI CPU s |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        *rows,
+        "",
+        f"canonid's defaults below deepSI's in {below} of {len(table)} cells (deepSI / canonid "
+        f"from {min(ratio):.2f} to {max(ratio):.2f}, geometric mean "
+        f"{math.exp(sum(map(math.log, ratio)) / len(ratio)):.2f}); the issue's whole target "
+        f"(also 1.5× below the Classic GRU and ARX) in {target} of {len(table)}.",
+    ]
 
 
 def screen_lines(run: Path) -> str:

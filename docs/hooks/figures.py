@@ -294,6 +294,23 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         )
         for ell in (10, 20)
     },
+    # the spread over training seeds and data draws (bench_overflow_tanks.py --spread D S)
+    "overflow/spread/below": Prose(
+        "Overflow tanks", r"canonid's defaults below deepSI's in (\d+) of (\d+) cells"
+    ),
+    "overflow/spread/cells": Prose(
+        "Overflow tanks", r"canonid's defaults below deepSI's in (\d+) of (\d+) cells", group=2
+    ),
+    "overflow/spread/geomean": Prose("Overflow tanks", r"geometric mean ([\d.]+)\)"),
+    **{
+        f"overflow/spread/d{d}s{s_}/{who}": Cell(
+            "Overflow tanks",
+            _row(**{"data seed D": str(d), "training seed S": str(s_)}),
+            column,
+        )
+        for d, s_ in ((0, 1), (0, 2), (1, 0), (2, 0))
+        for who, column in (("defaults", "canonid defaults"), ("deepsi", "deepSI (its defaults)"))
+    },
     "overflow/full/l10/ended": Prose("Overflow tanks", _OVERFLOW_L10_FULL),
     "overflow/full/l10/budget": Prose("Overflow tanks", _OVERFLOW_L10_FULL, group=2),
     # the ARX start (round 1 of the defaults study), seed 0: score, and on the drone CPU seconds
