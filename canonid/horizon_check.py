@@ -18,16 +18,18 @@ carry an excitation, for a network trained on rollouts whose horizon the user di
    the excitation outside the :data:`~canonid.residual_check.CONFIDENCE` band, on the validation
    split;
 2. when more lie outside than chance allows (:func:`chance_limit`: the binomial count of the
-   null at the band's confidence), trains the same request with rollouts of
-   :data:`ALTERNATIVE` samples in ``RUN/horizon-10`` (its own window screen) and checks it too;
-3. keeps the model with fewer correlations outside the band, the run's own on a tie. An
-   alternative kept becomes the run folder's (its files copied into ``RUN``, so ``evaluate``,
-   ``analyze``, ``export`` and ``--resume`` read it); the run's own files move to
-   ``RUN/horizon-H`` (H its horizon) first.
+   null at the band's confidence), trains the same request with the shorter rollouts of
+   :data:`ALTERNATIVES` in turn, each in ``RUN/horizon-H`` (its own window screen), and checks
+   each; the first whose count chance allows ends the ladder (the longest rollouts that do not
+   read the state from the feedback fit best);
+3. keeps the model with the fewest correlations outside the band, the longer rollouts on a tie
+   (the run's own first). An alternative kept becomes the run folder's (its files copied into
+   ``RUN``, so ``evaluate``, ``analyze``, ``export`` and ``--resume`` read it); the run's own
+   files move to ``RUN/horizon-H`` (H its horizon) first.
 
-Where the alternative was kept and ``--members`` was not given, the run then trains
+Where an alternative was kept and ``--members`` was not given, the run then trains
 :data:`MEMBERS` members of the kept recipe (:mod:`canonid.members`), each candidate held to the
-kept model's input response (:func:`response_count`): a single network trained on rollouts of 10
+kept model's input response (:func:`response_count`): a single network trained on short rollouts
 can still stray where NMPC on it leaves the training data, and the mean of members that answer
 the excitation as well as it does smooths that (benchmarks/RESULTS.md, "NMPC on a learned model:
 the defaults on informative data").
@@ -51,7 +53,7 @@ from canonid.kernel.errors import CheckpointError, DataError
 from canonid.kernel.io import atomic_copy, atomic_copy_tree, atomic_write_json, read_json
 
 __all__ = [
-    "ALTERNATIVE",
+    "ALTERNATIVES",
     "CHECK_K",
     "HORIZON_CHECK_FILE",
     "MEMBERS",
@@ -65,9 +67,11 @@ __all__ = [
     "response_count",
 ]
 
-#: the alternative's training rollouts: the length the horizon study compared with the profile's
-#: 50 (benchmarks/RESULTS.md, "Training horizon on validation")
-ALTERNATIVE = 10
+#: the alternatives' training rollouts, tried in this order after the profile's 50: 10 is the
+#: length the horizon study compared with 50 (benchmarks/RESULTS.md, "Training horizon on
+#: validation"), 20 the NMPC's horizon there, tried first where 50 is flagged (records, "NMPC on a
+#: learned model: the defaults on informative data")
+ALTERNATIVES = (20, 10)
 #: the residuals' horizon whose correlations decide (the residual check's default K)
 CHECK_K = 10
 #: the choice in a run folder
@@ -125,10 +129,11 @@ class HorizonChoice:
     """What :func:`choose_horizon` decided: the candidates checked and the one kept.
 
     Attributes:
-        candidates: the run's own model first, then the alternative when it was trained.
+        candidates: the run's own model first, then the alternatives trained, in the ladder's
+            order.
         limit: the most correlations outside the band that chance allows (:func:`chance_limit`).
         chosen: the horizon of the kept model.
-        state: ``"decided"``, or ``"adopting"`` while the alternative's files are copied in
+        state: ``"decided"``, or ``"adopting"`` while the kept alternative's files are copied in
             (a resumed run finishes the copy).
         k, confidence: the check's horizon and band.
         kind: every count is an ``"estimate"``.
@@ -152,6 +157,11 @@ class HorizonChoice:
         """Whether the run folder's model is the alternative."""
         return self.chosen != self.own.horizon
 
+    @property
+    def kept(self) -> HorizonCandidate:
+        """The kept candidate."""
+        return next(c for c in self.candidates if c.horizon == self.chosen)
+
     def summary(self) -> str:
         """The choice in one line (what ``canonid train`` prints)."""
         own = self.own
@@ -162,27 +172,30 @@ class HorizonChoice:
         )
         if len(self.candidates) == 1:
             return f"{head}, within the {self.limit} chance allows: H = {own.horizon} kept"
-        other = self.candidates[1]
+        others = "; ".join(
+            f"with H = {c.horizon} (ℓ = {c.window}): {c.outside} of {c.tests}"
+            for c in self.candidates[1:]
+        )
+        kept = self.kept
         verdict = (
-            f"kept (its files in {other.folder}; the H = {own.horizon} run's in "
+            f"H = {kept.horizon} kept (its files in {kept.folder}; the H = {own.horizon} run's in "
             f"horizon-{own.horizon})"
             if self.adopted
-            else f"not kept (it is in {other.folder})"
+            else f"H = {own.horizon} kept (the others in their horizon-H folders)"
         )
         return (
             f"{head}, more than the {self.limit} chance allows (closed-loop data: long rollouts "
-            f"can read the state from the feedback); with H = {other.horizon} (ℓ = "
-            f"{other.window}): {other.outside} of {other.tests}, {verdict}; --train-horizon H "
+            f"can read the state from the feedback); {others}; {verdict}; --train-horizon H "
             "decides instead"
         )
 
     def to_dict(self) -> dict[str, Any]:
         return {
             "format": HORIZON_FORMAT,
-            "version": 1,
-            "criterion": "fewer k-step residual correlations with the excitation outside the band "
-            "(the run's own on a tie); the alternative is trained only when the run's own has "
-            "more than chance allows",
+            "version": 2,
+            "criterion": "the fewest k-step residual correlations with the excitation outside the "
+            "band (the longer rollouts on a tie); shorter rollouts are trained in turn only while "
+            "every model so far has more than chance allows",
             "checked": self.checked,
             "kind": self.kind,
             "k": self.k,
@@ -308,12 +321,12 @@ def _copy_entry(source: Path, target: Path) -> None:
 
 
 def _adopt(run_dir: Path, choice: HorizonChoice) -> None:
-    """Make the alternative the run folder's run: the run's own entries first copied whole to
+    """Make the kept alternative the run folder's run: the run's own entries first copied whole to
     ``RUN/horizon-H`` (staged, then renamed: complete before anything is replaced), then the
     alternative's entries copied in and the run's others removed. Repeating it after an
     interruption finishes it."""
     own = horizon_dir(run_dir, choice.own.horizon)
-    alternative = run_dir / choice.candidates[1].folder
+    alternative = run_dir / choice.kept.folder
     if not own.is_dir():
         staged = run_dir / f".{own.name}.staged"
         shutil.rmtree(staged, ignore_errors=True)
@@ -347,16 +360,17 @@ def finish_adoption(run_dir: Path) -> HorizonChoice | None:
 
 def choose_horizon(
     run_dir: Path,
-    train_alternative: Callable[[Path, bool], None],
+    train_alternative: Callable[[Path, bool, int], None],
     *,
     say: Callable[[str], None] = lambda line: None,
 ) -> HorizonChoice | None:
-    """Check the run in ``run_dir`` and, when its residuals correlate with the excitation more
-    than chance allows, train the alternative (``train_alternative(folder, resume)``: the same
-    request with rollouts of :data:`ALTERNATIVE` samples into ``folder``, continued when
-    ``resume``) and keep the model with fewer correlations outside the band (module docstring).
-    A recorded choice is finished (an interrupted adoption) and returned, not made again;
-    ``None`` (and a line said) when the validation records are too short for the check."""
+    """Check the run in ``run_dir`` and, while every model so far has more residual correlations
+    with the excitation than chance allows, train the next alternative of :data:`ALTERNATIVES`
+    (``train_alternative(folder, resume, horizon)``: the same request with rollouts of
+    ``horizon`` samples into ``folder``, continued when ``resume``); keep the model with the
+    fewest correlations outside the band (module docstring). A recorded choice is finished (an
+    interrupted adoption) and returned, not made again; ``None`` (and a line said) when the
+    validation records are too short for the check."""
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.residual_check import CONFIDENCE
 
@@ -368,28 +382,27 @@ def choose_horizon(
         say(f"input response not checked: {exc}")
         return None
     limit = chance_limit(own.tests, CONFIDENCE)
-    if own.outside <= limit or own.horizon == ALTERNATIVE:
-        choice = HorizonChoice((own,), limit, own.horizon, confidence=CONFIDENCE)
-        choice.write(run_dir)
-        return choice
-    folder = horizon_dir(run_dir, ALTERNATIVE)
-    say(
-        f"input response: {own.outside} of {own.tests} residual correlations with the excitation "
-        f"outside the band (chance allows {limit}); training with rollouts of H = {ALTERNATIVE} "
-        f"too, in {folder}"
-    )
-    train_alternative(folder, (folder / CHECKPOINT_FILE).is_file())
-    try:
-        other = _checked(folder, folder.name)
-    except DataError as exc:  # its window leaves the records too short for the check
-        say(f"input response of the H = {ALTERNATIVE} run not checked ({exc}): not kept")
-        choice = HorizonChoice((own,), limit, own.horizon, confidence=CONFIDENCE)
-        choice.write(run_dir)
-        return choice
-    chosen = other.horizon if other.outside < own.outside else own.horizon
-    choice = HorizonChoice((own, other), limit, chosen, confidence=CONFIDENCE)
+    candidates = [own]
+    for horizon in (h for h in ALTERNATIVES if h < own.horizon):
+        if min(c.outside for c in candidates) <= limit:
+            break
+        folder = horizon_dir(run_dir, horizon)
+        say(
+            f"input response: {candidates[-1].outside} of {candidates[-1].tests} residual "
+            f"correlations with the excitation outside the band with H = "
+            f"{candidates[-1].horizon} (chance allows {limit}); training with rollouts of "
+            f"H = {horizon} too, in {folder}"
+        )
+        train_alternative(folder, (folder / CHECKPOINT_FILE).is_file(), horizon)
+        try:
+            candidates.append(_checked(folder, folder.name))
+        except DataError as exc:  # its window leaves the records too short for the check
+            say(f"input response of the H = {horizon} run not checked ({exc}): not kept")
+    # the fewest outside; on a tie the earlier, longer rollouts (the run's own first)
+    kept = min(candidates, key=lambda c: c.outside)
+    choice = HorizonChoice(tuple(candidates), limit, kept.horizon, confidence=CONFIDENCE)
     if choice.adopted:
-        pending = HorizonChoice((own, other), limit, chosen, "adopting", confidence=CONFIDENCE)
+        pending = dataclasses.replace(choice, state="adopting")
         pending.write(run_dir)
         _adopt(run_dir, choice)
     choice.write(run_dir)

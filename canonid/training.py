@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from canonid.horizon_check import ALTERNATIVE as HORIZON_ALTERNATIVE
+from canonid.horizon_check import ALTERNATIVES as HORIZON_ALTERNATIVES
 from canonid.horizon_check import HORIZON_CHECK_FILE
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
 from canonid.learning.extrapolation import (
@@ -103,9 +103,10 @@ REQUEST_TEXT_FIELDS = ("window", "hidden", "weight_decay", "cubic", "max_window"
 #: ``canonid train --train-horizon``'s help
 HORIZON_HELP = (
     "override the profile's final training rollout length (default: the profile's; on a canonid "
-    "generate dataset flown in closed loop with an excitation, that or "
-    f"{HORIZON_ALTERNATIVE}, whichever model's residuals correlate less with the excitation on "
-    f"validation: RUN/{HORIZON_CHECK_FILE})"
+    "generate dataset flown in closed loop with an excitation, where that model's residuals "
+    "correlate with the excitation on validation more than chance allows, also "
+    f"{' then '.join(map(str, HORIZON_ALTERNATIVES))} until one passes, the fewest kept: "
+    f"RUN/{HORIZON_CHECK_FILE})"
 )
 #: ``canonid train --cubic``: what the branch is and how ``auto`` decides it
 CUBIC_HELP = (
@@ -878,10 +879,10 @@ def _horizon(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     run_dir = outcome.run_dir
     if outcome.result is None or not applies(run_dir, horizon_given=request.horizon is not None):
         return outcome
-    trained: list[TrainOutcome] = []
+    trained: dict[int, TrainOutcome] = {}
 
-    def alternative(folder: Path, resume: bool) -> None:
-        trained.append(_train_alternative(request, run_dir, folder, resume))
+    def alternative(folder: Path, resume: bool, horizon: int) -> None:
+        trained[horizon] = _train_alternative(request, run_dir, folder, resume, horizon)
 
     def say(line: str) -> None:
         if request.progress:
@@ -891,8 +892,8 @@ def _horizon(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
         choice = choose_horizon(run_dir, alternative, say=say)
     if choice is None:
         return outcome
-    if choice.adopted and trained:  # the alternative trained here: its outcome is the run's now
-        outcome = dataclasses.replace(trained[-1], run_dir=run_dir)
+    if choice.adopted and choice.chosen in trained:  # trained here: its outcome is the run's now
+        outcome = dataclasses.replace(trained[choice.chosen], run_dir=run_dir)
     return dataclasses.replace(outcome, horizon=choice)
 
 
@@ -914,18 +915,18 @@ def _continued(
 
 
 def _train_alternative(
-    request: TrainRequest, run_dir: Path, folder: Path, resume: bool
+    request: TrainRequest, run_dir: Path, folder: Path, resume: bool, horizon: int
 ) -> TrainOutcome:
-    """The run of ``run_dir`` again with rollouts of :data:`~canonid.horizon_check.ALTERNATIVE`
-    samples, into ``folder``: its recipe with that horizon (the screen again over the same
-    windows where the run screened them), or continued from ``folder``'s checkpoint."""
-    from canonid.horizon_check import ALTERNATIVE  # read when called (tests set it)
+    """The run of ``run_dir`` again with rollouts of ``horizon`` samples (one of
+    :data:`~canonid.horizon_check.ALTERNATIVES`), into ``folder``: its recipe with that horizon
+    (the screen again over the same windows where the run screened them), or continued from
+    ``folder``'s checkpoint."""
     from canonid.runfolder import RunRecipe
 
     if resume:
         return _continued(request, RunRecipe.read(folder), folder, None)
     own = RunRecipe.read(run_dir)
-    base = dataclasses.replace(own, train_options={**own.train_options, "horizon": ALTERNATIVE})
+    base = dataclasses.replace(own, train_options={**own.train_options, "horizon": horizon})
     if (run_dir / SCREEN_FILE).is_file():
         windows = [c.window for c in WindowScreen.read(run_dir).candidates]
         return _screen_into(request, base, folder, windows, None)
@@ -934,7 +935,7 @@ def _train_alternative(
 
 def _member_count(request: TrainRequest, outcome: TrainOutcome) -> int:
     """``--members``, else what a resumed run planned (``members.json``), else
-    :data:`~canonid.horizon_check.MEMBERS` where the horizon check kept the alternative, else 1."""
+    :data:`~canonid.horizon_check.MEMBERS` where the horizon check kept an alternative, else 1."""
     from canonid.horizon_check import MEMBERS
     from canonid.members import planned_members
 

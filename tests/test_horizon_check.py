@@ -22,6 +22,8 @@ from canonid.horizon_check import HORIZON_CHECK_FILE, HorizonCandidate, HorizonC
 FAST = ["--profile", "tiny", "--epochs", "3", "--no-progress", "--device", "cpu", "--threads", "1"]
 #: the alternative's rollouts in these tests: the tiny profile's own are 10
 SHORT = 5
+#: a ladder of two alternatives, tried in this order
+MIDDLE = 7
 
 
 @pytest.fixture(scope="module")
@@ -36,7 +38,12 @@ def closed_loop_data(tmp_path_factory):
 
 @pytest.fixture
 def short_alternative(monkeypatch):
-    monkeypatch.setattr(hc, "ALTERNATIVE", SHORT)
+    monkeypatch.setattr(hc, "ALTERNATIVES", (SHORT,))
+
+
+@pytest.fixture
+def ladder(monkeypatch):
+    monkeypatch.setattr(hc, "ALTERNATIVES", (MIDDLE, SHORT))
 
 
 def _counts(monkeypatch, by_horizon):
@@ -147,7 +154,7 @@ def test_an_alternative_with_fewer_correlations_becomes_the_run(
     argv = ["train", str(closed_loop_data), "--window", "3", "--members", "1", *FAST]
     assert main([*argv, "--out", str(run)]) == 0
     out = capsys.readouterr().out
-    assert "more than the 1 chance allows" in out and "kept (its files in horizon-5" in out
+    assert "more than the 1 chance allows" in out and "H = 5 kept (its files in horizon-5" in out
     assert not (run / "members").exists()  # --members 1: the alternative alone
     choice = HorizonChoice.read(run)
     assert choice.adopted and choice.chosen == SHORT
@@ -310,3 +317,86 @@ def test_members_follow_the_kept_horizon(
     assert HorizonChoice.read(run).adopted
     members = sorted((run / "members").glob("s*"))
     assert members and all(_recorded_horizon(m) == SHORT for m in members)
+
+
+def test_the_ladder_stops_at_the_first_alternative_chance_allows(
+    closed_loop_data, ladder, monkeypatch, tmp_path
+):
+    """Flagged at 10, the run tries 7 first; its count within what chance allows (1 of 10 here)
+    ends the ladder: 5 is never trained, and 7 becomes the run."""
+    _counts(monkeypatch, {10: 8, MIDDLE: 1, SHORT: 0})
+    run = tmp_path / "run"
+    argv = ["train", str(closed_loop_data), "--window", "3", "--members", "1", *FAST]
+    assert main([*argv, "--out", str(run)]) == 0
+    choice = HorizonChoice.read(run)
+    assert [c.horizon for c in choice.candidates] == [10, MIDDLE] and choice.chosen == MIDDLE
+    assert not (run / "horizon-5").exists() and _recorded_horizon(run) == MIDDLE
+    assert _bytes(run / "weights.pt") == _bytes(run / "horizon-7" / "weights.pt")
+    assert _recorded_horizon(run / "horizon-10") == 10
+
+
+@pytest.mark.parametrize(
+    ("counts", "chosen"),
+    [
+        ({10: 8, MIDDLE: 4, SHORT: 2}, SHORT),  # every rung flagged: the fewest
+        ({10: 8, MIDDLE: 4, SHORT: 6}, MIDDLE),  # the shortest is worse than the middle one
+        ({10: 8, MIDDLE: 8, SHORT: 8}, 10),  # a tie keeps the longer rollouts: the run's own
+    ],
+)
+def test_where_every_rung_is_flagged_the_fewest_is_kept(
+    closed_loop_data, ladder, monkeypatch, tmp_path, counts, chosen
+):
+    _counts(monkeypatch, counts)
+    run = tmp_path / "run"
+    argv = ["train", str(closed_loop_data), "--window", "3", "--members", "1", *FAST]
+    assert main([*argv, "--out", str(run)]) == 0
+    choice = HorizonChoice.read(run)
+    assert [c.horizon for c in choice.candidates] == [10, MIDDLE, SHORT]
+    assert [c.outside for c in choice.candidates] == [counts[h] for h in (10, MIDDLE, SHORT)]
+    assert choice.chosen == chosen == _recorded_horizon(run)
+    for horizon in (10, MIDDLE, SHORT):  # every model stays where it can be read
+        folder = run if horizon == chosen else run / f"horizon-{horizon}"
+        assert _recorded_horizon(folder) == horizon
+    if chosen != 10:
+        assert _bytes(run / "weights.pt") == _bytes(run / f"horizon-{chosen}" / "weights.pt")
+
+
+def test_a_ladder_interrupted_between_its_rungs_continues_to_the_same_bytes(
+    closed_loop_data, ladder, monkeypatch, tmp_path
+):
+    """Stopped after the first alternative trained, while the second trains: --resume checks
+    the run and the first again, continues the second and keeps what an uninterrupted run
+    keeps."""
+    _counts(monkeypatch, {10: 8, MIDDLE: 4, SHORT: 2})
+    argv = ["train", str(closed_loop_data), "--window", "3", "--members", "1", *FAST]
+    whole = tmp_path / "whole"
+    assert main([*argv, "--out", str(whole)]) == 0
+
+    run = tmp_path / "run"
+    counted = hc._checked
+
+    def stop_at_the_second(run_dir, folder):
+        if folder == "horizon-5":
+            raise KeyboardInterrupt
+        return counted(run_dir, folder)
+
+    monkeypatch.setattr(hc, "_checked", stop_at_the_second)
+    assert main([*argv, "--out", str(run)]) != 0
+    assert not (run / HORIZON_CHECK_FILE).exists() and (run / "horizon-5" / "weights.pt").is_file()
+    monkeypatch.setattr(hc, "_checked", counted)
+    resume = ["train", "--resume", "--out", str(run), "--members", "1", "--no-progress"]
+    assert main(resume) == 0
+    assert HorizonChoice.read(run).chosen == SHORT
+    assert _bytes(run / "weights.pt") == _bytes(whole / "weights.pt")
+
+
+def test_a_recorded_check_of_an_earlier_canonid_reads_as_its_choice(tmp_path):
+    """horizon-check.json version 1 (one alternative) reads as before: the ladder only adds
+    candidates."""
+    own = HorizonCandidate(50, ".", 20, 20, 60, 3.1, 0.19)
+    other = HorizonCandidate(10, "horizon-10", 40, 6, 60, 1.8, 0.31)
+    body = HorizonChoice((own, other), 3, 10).to_dict() | {"version": 1}
+    (tmp_path / HORIZON_CHECK_FILE).write_text(json.dumps(body))
+    choice = HorizonChoice.read(tmp_path)
+    assert choice.adopted and choice.kept == other and choice.own == own
+    assert "H = 10 kept (its files in horizon-10" in choice.summary()

@@ -174,6 +174,35 @@ _OVERFLOW_L10_FULL = r"ℓ = 10: [\d.e-]+ at epoch \d+, ended at epoch (\d+) of 
 LEARNED_MPC_ID = "NMPC on a learned model: informative drone data"
 LEARNED_MPC_MEAN = "NMPC on a learned model: ensembles"
 LEARNED_MPC_DEFAULTS = "NMPC on a learned model: the defaults on informative data"
+LEARNED_MPC_LADDER = "NMPC on a learned model: the horizon ladder"
+
+
+def _loop_figures(prefix: str, section: str, model: str) -> dict[str, Cell | Prose]:
+    """The figures of one learned_mpc.py drone section: the loop's ratio and loops out, the
+    judged step's learned / true change (px, θ; recorded states, rest), and γ_f and the bound's
+    factor beside the loop."""
+    row = {"model": model, "data": "drone2d-id"}
+    figures: dict[str, Cell | Prose] = {
+        f"{prefix}/ratio": Cell(section, _row(**row, output="px"), "learned / true tracking RMSE"),
+        f"{prefix}/left": Cell(
+            section, _row(**row, output="px"), "learned loops that left X", True
+        ),
+        f"{prefix}/gamma-low": Prose(
+            section, r"loops visit \(600 samples\): sampled lower bound ([\d.]+)"
+        ),
+        f"{prefix}/gamma-high": Prose(
+            section, r"exhausted\) and ([\d.]+) \(product of layer norms"
+        ),
+        f"{prefix}/factor-exponent": Prose(section, r"Factor 2 γ_f\^ℓ / α_ℓ = [\d.]+e\+(\d+)"),
+    }
+    for output in ("px", "theta"):
+        for start, column in (("recorded", "recorded states"), ("rest", "from rest")):
+            figures[f"{prefix}/{output}/{start}"] = Cell(
+                section, _row(**row, output=output), f"learned / true change, {column}"
+            )
+    return figures
+
+
 CANDIDATES = "Candidates side by side"
 MEMBERS = "Members on small records"
 _MEMBERS_LOOP = "`--members 4`: seed 3 alone, chosen on validation"
@@ -683,36 +712,26 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
     "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
     "code/horizon-check-k": Code(lambda: _horizon_check().CHECK_K),
-    "code/horizon-alternative": Code(lambda: _horizon_check().ALTERNATIVE),
-    # the defaults on the informative drone data (learned_mpc.py, and the hand note beside it)
-    "learned-mpc/defaults/ratio": Cell(
-        LEARNED_MPC_DEFAULTS,
-        _row(model="mlp, horizon 10", data="drone2d-id", output="px"),
-        "learned / true tracking RMSE",
-    ),
-    "learned-mpc/defaults/left": Cell(
-        LEARNED_MPC_DEFAULTS,
-        _row(model="mlp, horizon 10", data="drone2d-id", output="px"),
-        "learned loops that left X",
-        True,
-    ),
+    "code/horizon-alternative/first": Code(lambda: _horizon_check().ALTERNATIVES[0]),
+    "code/horizon-alternative/second": Code(lambda: _horizon_check().ALTERNATIVES[1]),
+    # the defaults on the informative drone data (learned_mpc.py, and the hand note beside it),
+    # before and with the horizon ladder
+    **_loop_figures("learned-mpc/defaults", LEARNED_MPC_DEFAULTS, "mlp, horizon 10"),
+    **_loop_figures("learned-mpc/ladder", LEARNED_MPC_LADDER, "mlp, horizon 20"),
     **{
-        f"learned-mpc/defaults/{output}/{start}": Cell(
-            LEARNED_MPC_DEFAULTS,
-            _row(model="mlp, horizon 10", data="drone2d-id", output=output),
-            f"learned / true change, {column}",
+        f"learned-mpc/ladder/{slug}/{what}": Cell(
+            LEARNED_MPC_LADDER, _row(data=data), column, pick=pick
         )
-        for output in ("px", "theta")
-        for start, column in (("recorded", "recorded states"), ("rest", "from rest"))
+        for slug, data in (("s0", "`drone2d-id`, seed 0"), ("s1", "`drone2d-id`, seed 1"))
+        for what, column, pick in (
+            ("h50", "H = 50 / 20 / 10: outside", 0),
+            ("h20", "H = 50 / 20 / 10: outside", 1),
+            ("val-before", "earlier defaults (H = 10): val loop", 0),
+            ("val", "the ladder: val loop", 0),
+        )
     },
-    "learned-mpc/defaults/gamma-low": Prose(
-        LEARNED_MPC_DEFAULTS, r"loops visit \(600 samples\): sampled lower bound ([\d.]+)"
-    ),
-    "learned-mpc/defaults/gamma-high": Prose(
-        LEARNED_MPC_DEFAULTS, r"exhausted\) and ([\d.]+) \(product of layer norms"
-    ),
-    "learned-mpc/defaults/factor-exponent": Prose(
-        LEARNED_MPC_DEFAULTS, r"Factor 2 γ_f\^ℓ / α_ℓ = [\d.]+e\+(\d+)"
+    "learned-mpc/ladder/s1/test": Prose(
+        LEARNED_MPC_LADDER, r"--json runs/hz5/loop-s1-test\.json`\): \*\*([\d.]+)\*\*"
     ),
     # the hand-added table of the same section: the defaults on two more drone datasets
     "learned-mpc/defaults-s1/px-rest": Cell(
