@@ -238,6 +238,7 @@ def member_recipe(recipe: RunRecipe, model: Model, seed: int) -> RunRecipe:
         recipe,
         net_options=net_options,
         train_options={**recipe.train_options, "seed": seed},
+        members=None,  # a member is one training: it trains no members of its own
     )
 
 

@@ -182,6 +182,8 @@ class RunRecipe(RunSource):
         given_options: the names of the training options the request set (the others are the
             profile's; empty in a recipe of an older canonid), so that a resumed run knows what
             its user chose even where it equals the profile's value.
+        members: the ``--members`` the command gave (``None``: not given, the default decides),
+            so that a run interrupted before its members started keeps the count on ``--resume``.
     """
 
     model: str
@@ -189,6 +191,7 @@ class RunRecipe(RunSource):
     train_options: Mapping[str, Any]
     net_options: Mapping[str, Any] = field(default_factory=dict)
     given_options: Sequence[str] = ()
+    members: int | None = None
     kind: ClassVar[str] = "train"
 
     def __post_init__(self) -> None:
@@ -209,6 +212,8 @@ class RunRecipe(RunSource):
             "profile": self.profile,
             "train_options": dict(self.train_options),
             "given_options": list(self.given_options),
+            # only where given: the recipes of runs without it stay as they were
+            **({} if self.members is None else {"members": self.members}),
             "command": list(self.command),
         }
 
@@ -368,6 +373,7 @@ _FIELD_TYPES: dict[str, tuple[Callable[[Any], bool], str]] = {
         "a list of option names",
     ),
     "net_options": (lambda v: isinstance(v, Mapping), "an object"),
+    "members": (_is_count, "an integer >= 1"),
     "reduction_options": (lambda v: isinstance(v, Mapping), "an object"),
 }
 

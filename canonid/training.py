@@ -420,6 +420,7 @@ def _recipe(request: TrainRequest) -> RunRecipe:
         profile=profile,
         train_options=opts.to_dict(),
         given_options=tuple(key for key, value in overrides.items() if value is not None),
+        members=request.members,
         command=request.command,
     )
 
@@ -488,6 +489,7 @@ def _resume_recipe(request: TrainRequest, run_dir: Path) -> RunRecipe:
         recipe,
         train_options=TrainOptions.from_dict(opts).to_dict(),
         given_options=(*recipe.given_options, *changes),
+        members=recipe.members if request.members is None else request.members,
     )
 
 
@@ -812,7 +814,7 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
             )
         request = dataclasses.replace(request, window=recorded.window)
     # how the options were asked for is not what runs: --epochs 600 continues a run of the profile's
-    ignored = {"command", "given_options", "data", "data_sha256", "val_sha256"}
+    ignored = {"command", "given_options", "members", "data", "data_sha256", "val_sha256"}
     there = _flat({k: v for k, v in recorded.to_dict().items() if k not in ignored})
     wanted = _flat({k: v for k, v in _recipe(request).to_dict().items() if k not in ignored})
     diffs = [
@@ -934,16 +936,19 @@ def _train_alternative(
 
 
 def _member_count(request: TrainRequest, outcome: TrainOutcome) -> int:
-    """``--members``, else what a resumed run planned (``members.json``), else
-    :data:`~canonid.horizon_check.MEMBERS` where the horizon check kept an alternative, else 1."""
+    """``--members``, else what a resumed run planned (``members.json``) or was given when it
+    began (``run.json``), else :data:`~canonid.horizon_check.MEMBERS` where the horizon check
+    kept an alternative, else 1."""
     from canonid.horizon_check import MEMBERS
     from canonid.members import planned_members
+    from canonid.runfolder import RunRecipe
 
     if request.members is not None:
         return request.members
-    planned = planned_members(outcome.run_dir) if request.resume is not None else None
-    if planned:
-        return planned
+    if request.resume is not None:
+        planned = planned_members(outcome.run_dir) or RunRecipe.read(outcome.run_dir).members
+        if planned:
+            return planned
     return MEMBERS if outcome.horizon is not None and outcome.horizon.adopted else 1
 
 

@@ -319,6 +319,20 @@ def test_members_follow_the_kept_horizon(
     assert members and all(_recorded_horizon(m) == SHORT for m in members)
 
 
+def test_members_not_given_are_not_recorded_and_the_default_decides(
+    closed_loop_data, short_alternative, monkeypatch, tmp_path
+):
+    """Without --members the recipe records none (runs as before), and the members behind an
+    adoption are the default's."""
+    _counts(monkeypatch, {10: 8, SHORT: 0})
+    run = tmp_path / "run"
+    assert main(["train", str(closed_loop_data), "--window", "3", *FAST, "--out", str(run)]) == 0
+    assert "members" not in json.loads((run / "run.json").read_text())
+    assert len(list((run / "members").glob("s[12]"))) == hc.MEMBERS - 1
+    members = json.loads((run / "members" / "s1" / "run.json").read_text())
+    assert "members" not in members  # a member trains no members of its own
+
+
 def test_the_ladder_stops_at_the_first_alternative_chance_allows(
     closed_loop_data, ladder, monkeypatch, tmp_path
 ):
@@ -384,8 +398,10 @@ def test_a_ladder_interrupted_between_its_rungs_continues_to_the_same_bytes(
     assert main([*argv, "--out", str(run)]) != 0
     assert not (run / HORIZON_CHECK_FILE).exists() and (run / "horizon-5" / "weights.pt").is_file()
     monkeypatch.setattr(hc, "_checked", counted)
-    resume = ["train", "--resume", "--out", str(run), "--members", "1", "--no-progress"]
-    assert main(resume) == 0
+    # --members 1 is not given again: run.json kept it, so no members train behind the adoption
+    assert json.loads((run / "run.json").read_text())["members"] == 1
+    assert main(["train", "--resume", "--out", str(run), "--no-progress"]) == 0
+    assert not (run / "members").exists()
     assert HorizonChoice.read(run).chosen == SHORT
     assert _bytes(run / "weights.pt") == _bytes(whole / "weights.pt")
 

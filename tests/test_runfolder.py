@@ -61,6 +61,14 @@ def test_the_recipe_round_trips_and_names_an_unknown_key(tmp_path):
     assert RunRecipe.from_dict(older, where="run.json").given_options == ()
     with pytest.raises(CheckpointError, match=r"given_options.*a list of option names"):
         RunRecipe.from_dict({**body, "given_options": "horizon"}, where="run.json")
+    # --members is recorded only where given, so a recipe without it reads (and writes) as before
+    assert "members" not in body and RunRecipe.from_dict(body, where="run.json").members is None
+    counted = dataclasses.replace(recipe, members=1)
+    written = json.loads(json.dumps(counted.to_dict()))
+    assert written["members"] == 1 and RunRecipe.from_dict(written, where="run.json") == counted
+    for bad in (0, "3", True):
+        with pytest.raises(CheckpointError, match=r"'members' must be an integer >= 1"):
+            RunRecipe.from_dict({**body, "members": bad}, where="run.json")
     with pytest.raises(CheckpointError, match=r"unknown run recipe key\(s\) \['windw'\]"):
         RunRecipe.from_dict({**body, "windw": 3}, where="run.json")
     with pytest.raises(CheckpointError, match="version 2"):
