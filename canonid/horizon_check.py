@@ -34,7 +34,7 @@ can still stray where NMPC on it leaves the training data, and the mean of membe
 the excitation as well as it does smooths that (benchmarks/RESULTS.md, "NMPC on a learned model:
 the defaults on informative data").
 
-``RUN/horizon-check.json`` (:class:`HorizonChoice`) records both checks and the choice; a resumed
+``RUN/horizon-check.json`` (:class:`HorizonChoice`) records every check and the choice; a resumed
 run that has it decides nothing again. Every count is an estimate (sample correlations against an
 asymptotic band).
 """
@@ -154,7 +154,7 @@ class HorizonChoice:
 
     @property
     def adopted(self) -> bool:
-        """Whether the run folder's model is the alternative."""
+        """Whether the run folder's model is an alternative."""
         return self.chosen != self.own.horizon
 
     @property
