@@ -77,7 +77,7 @@ CHECK_K = 10
 #: the choice in a run folder
 HORIZON_CHECK_FILE = "horizon-check.json"
 HORIZON_FORMAT = "canonid-horizon-check"
-#: members trained where the check kept the alternative and ``--members`` was not given (module
+#: members trained where the check kept an alternative and ``--members`` was not given (module
 #: docstring; chosen on the loops of five drone datasets' validation references)
 MEMBERS = 3
 #: the controllers of ``canonid generate`` that do not feed back (their flights are open loop)
