@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from canonid.coverage import OutsideRange, outside_training_range
 from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
 from canonid.datagen.loaders import data_checksum
 from canonid.kernel.catalog import model_label
@@ -88,6 +89,8 @@ class PartScore:
         units: the benchmark's scoring units (``mV``).
         n_init: measured samples given to the model (never scored).
         n_scored: samples scored (``T − n_init``).
+        outside: the part's signals outside the model's training span
+            (:func:`canonid.coverage.outside_training_range`; ``None``: the model recorded none).
     """
 
     test: str
@@ -95,6 +98,7 @@ class PartScore:
     units: str
     n_init: int
     n_scored: int
+    outside: tuple[OutsideRange, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -156,6 +160,12 @@ def score_parts(
                 units=bench.score_units,
                 n_init=bench.n_init,
                 n_scored=int(err.shape[0]),
+                outside=outside_training_range(
+                    model.info,
+                    [part],
+                    input_names=dataset.input_names,
+                    output_names=dataset.output_names,
+                ),
             )
         )
     return scores, sims
@@ -232,9 +242,18 @@ def report_table(report: BenchmarkReport) -> str:
         f"{report.profile}; simulation RMSE [{units}] after the first n_init = {n_init} "
         "measured samples of each test part"
     )
+    outside = [
+        f"test part {s.test!r} leaves the training range: "
+        + "; ".join(o.describe() for o in s.outside)
+        for s in report.scores
+        if s.outside
+    ]
     if not sources:
-        return "\n".join([head, *lines, "published baselines: none entered for this benchmark"])
+        return "\n".join(
+            [head, *lines, *outside, "published baselines: none entered for this benchmark"]
+        )
     tail = [
+        *outside,
         "* the lowest published figure on the test part",
         *(f"[{i}] {source}" for i, source in enumerate(sources, 1)),
         f"how the published figures were made and how canonid's differ: {PROTOCOL_DOCS}",

@@ -62,6 +62,7 @@ from canonid.runfolder import (
     METRICS_FILE,
     Recipe,
     ReductionRecipe,
+    data_info,
     eval_defaults,
     evaluate_run,
     figure_file,
@@ -353,10 +354,7 @@ def _reduce_locked(
         info={
             "profile": job.profile,
             "source_run": str(source),
-            "data": {"path": data_path, "splits": dataset.counts()},
-            "input_names": list(dataset.input_names),
-            "output_names": list(dataset.output_names),
-            "dt": dataset.dt,
+            **data_info(dataset, data_path, train),
         },
     )
     seconds = time.perf_counter() - t0

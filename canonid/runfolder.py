@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, TypeAlias, TypeVar
 
+from canonid.coverage import INFO_KEY as COVERAGE_KEY
+from canonid.coverage import OutsideRange, outside_training_range, training_ranges
 from canonid.data_options import DATA_FLAGS
 from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
 from canonid.jobs import run_folder_lock
@@ -72,6 +74,7 @@ __all__ = [
     "RunSource",
     "check_compatible",
     "check_recorded",
+    "data_info",
     "eval_defaults",
     "evaluate_run",
     "figure_file",
@@ -454,6 +457,9 @@ class RunEvaluation:
         data_sha256: the checksum of the data scored (:func:`data_checksum`), if recorded.
         request: what asked for the scores (``canonid evaluate``'s options and the checksum of
             the weights scored), written as ``evaluation``; ``None`` for training's own score.
+        outside: the signals of the data scored that leave the model's training span
+            (:func:`canonid.coverage.outside_training_range`; ``()``: none), written as
+            ``outside_training_range``; ``None`` where the model recorded no spans.
     """
 
     scores: Evaluation
@@ -463,6 +469,7 @@ class RunEvaluation:
     figure: str | None = None
     data_sha256: str | None = None
     request: Mapping[str, Any] | None = None
+    outside: tuple[OutsideRange, ...] | None = None
 
     @property
     def rollout_mse(self) -> float:
@@ -489,6 +496,11 @@ class RunEvaluation:
             "data": data,
             **({"figure": self.figure} if self.figure else {}),
             **({} if self.request is None else {"evaluation": dict(self.request)}),
+            **(
+                {}
+                if self.outside is None
+                else {"outside_training_range": [o.to_json() for o in self.outside]}
+            ),
         }
 
 
@@ -731,6 +743,19 @@ def rescore_run(
     )
 
 
+def data_info(dataset: Dataset, path: str, train: Sequence[Trajectory]) -> dict[str, Any]:
+    """What a trained model's ``info`` says of its data: the file and its splits' sizes, the
+    signals' names, the sampling time and each signal's span over the ``train`` part
+    (:func:`canonid.coverage.training_ranges`)."""
+    return {
+        "data": {"path": path, "splits": dataset.counts()},
+        "input_names": list(dataset.input_names),
+        "output_names": list(dataset.output_names),
+        "dt": dataset.dt,
+        COVERAGE_KEY: training_ranges(train),
+    }
+
+
 def evaluate_run(
     run_dir: Path,
     model: Model,
@@ -762,8 +787,21 @@ def evaluate_run(
         output_names=dataset.output_names,
     )
     figure = figure_file("rollouts", figure_format)
+    outside = outside_training_range(
+        model.info,
+        trajs,
+        input_names=dataset.input_names,
+        output_names=dataset.output_names,
+    )
     result = RunEvaluation(
-        ev, data_path, name, len(trajs), figure, data_sha256=data_sha256, request=request
+        ev,
+        data_path,
+        name,
+        len(trajs),
+        figure,
+        data_sha256=data_sha256,
+        request=request,
+        outside=outside,
     )
     plot_rollouts(
         model,
@@ -835,13 +873,7 @@ def train_run(
                 resume=resume,
                 callback=callback,
                 executor=executor,
-                info={
-                    "profile": recipe.profile,
-                    "data": {"path": recipe.data, "splits": dataset.counts()},
-                    "input_names": list(dataset.input_names),
-                    "output_names": list(dataset.output_names),
-                    "dt": dataset.dt,
-                },
+                info={"profile": recipe.profile, **data_info(dataset, recipe.data, train)},
             )
         except BaseException:
             if not resume and not (run_dir / CHECKPOINT_FILE).exists():

@@ -345,7 +345,7 @@ def metrics_table(metrics: Mapping[str, Any]) -> str:
             "--linear off / --linear arx"
         ]
     )
-    return "\n".join([head, *lines, *diverged, *_worst_records(metrics)])
+    return "\n".join([head, *lines, *diverged, *_worst_records(metrics), *_outside(metrics)])
 
 
 def _scores(scores: Mapping[str, Any], suffix: str, index: int | None = None) -> tuple[str, ...]:
@@ -360,6 +360,17 @@ def _scores(scores: Mapping[str, Any], suffix: str, index: int | None = None) ->
 def _number(value: float | None, spec: str) -> str:
     """``value`` formatted, or ``not finite`` for a score written ``null``."""
     return "not finite" if value is None else format(value, spec)
+
+
+def _outside(metrics: Mapping[str, Any]) -> list[str]:
+    """One line naming the signals of the data scored outside the model's training span."""
+    from canonid.coverage import OutsideRange
+
+    found = [OutsideRange.from_json(o) for o in metrics.get("outside_training_range") or []]
+    if not found:
+        return []
+    said = "; ".join(o.describe() for o in found)
+    return [f"outside the training range (the scores there measure extrapolation): {said}"]
 
 
 def _worst_records(metrics: Mapping[str, Any], count: int = 3) -> list[str]:

@@ -337,6 +337,17 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
     assert metrics["rmse"] == pytest.approx(np.sqrt(np.sum(n * rmse_v**2) / n.sum()), rel=1e-6)
     for name in report["scores"]:
         assert (run / f"benchmark-{name['test']}.png").stat().st_size > 0
+    # each part names its signals outside the training part's span, in the file and the table
+    from canonid.coverage import outside_training_range, training_ranges
+
+    data = Dataset.load(run / "benchmark-data.npz")
+    spans = {"training_range": training_ranges(data.split("train"))}
+    names = {"input_names": data.input_names, "output_names": data.output_names}
+    for part, score in zip(data.split("test"), report["scores"], strict=True):
+        expected = outside_training_range(spans, [part], **names)
+        assert expected is not None and score["outside"] == [o.to_json() for o in expected]
+        said = f"test part '{score['test']}' leaves the training range" in out
+        assert said == bool(expected)
     # a normal run: canonid evaluate reads its recipe and data
     recipe = json.loads((run / "run.json").read_text())
     assert recipe["data"] == str(run / "benchmark-data.npz") and recipe["window"] == 5

@@ -165,6 +165,39 @@ def test_a_held_out_csv_without_the_experiment_column_is_scored_beside_training(
     assert after == before
 
 
+def test_evaluate_data_names_the_signals_outside_the_training_span(
+    trained, csv_files, tmp_path, capsys
+):
+    """Training records each signal's span over the training records; a held-out CSV whose pump
+    runs above it on half its samples is scored, and the scores say so in one line and in
+    metrics.json (the level, held inside its span, is not named)."""
+    table = np.genfromtxt(csv_files[0], delimiter=",", names=True, dtype=None, encoding=None)
+    config = json.loads((trained / "config.json").read_text())
+    spans = config["info"]["training_range"]
+    assert spans == {
+        "inputs": [[float(table["pump"].min()), float(table["pump"].max())]],
+        "outputs": [[float(table["level"].min()), float(table["level"].max())]],
+    }
+    (lo, hi), level = spans["inputs"][0], sum(spans["outputs"][0]) / 2
+    high = hi + 0.5 * (hi - lo)
+    pumps = [high] * 30 + [(lo + hi) / 2] * 30
+    beyond = tmp_path / "beyond.csv"
+    rows = "".join(f"r9,{t * DT},{p!r},{level!r}\n" for t, p in enumerate(pumps))
+    beyond.write_text("run,time,pump,level\n" + rows)
+    capsys.readouterr()
+    assert main(["evaluate", str(trained), "--data", str(beyond)]) == 0
+    out = capsys.readouterr().out
+    (entry,) = evaluated(trained, out)["outside_training_range"]
+    assert entry["name"] == "pump" and entry["kind"] == "input" and entry["share"] == 0.5
+    assert entry["beyond"] == pytest.approx(0.5) and entry["train_high"] == hi
+    (line,) = [line for line in out.splitlines() if line.startswith("outside the training range")]
+    assert "input pump on 50 % of samples" in line and "level" not in line
+    assert main(["evaluate", str(trained), "--split", "train"]) == 0  # its own training records
+    out = capsys.readouterr().out
+    assert evaluated(trained, out)["outside_training_range"] == []
+    assert "outside the training range" not in out
+
+
 def test_an_evaluation_of_other_weights_is_not_overwritten(trained, tmp_path, capsys):
     run = tmp_path / "run"
     shutil.copytree(trained, run)

@@ -1,0 +1,72 @@
+"""Training spans and where scored data leave them (:mod:`canonid.coverage`): closed forms."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from canonid.coverage import INFO_KEY, OutsideRange, outside_training_range, training_ranges
+from canonid.kernel.dataset import Trajectory
+
+NAMES = {"input_names": ["pump"], "output_names": ["level", "flow"]}
+
+
+def _traj(u, y):
+    return Trajectory(u=np.asarray(u, float)[:, None], y=np.asarray(y, float))
+
+
+def test_training_ranges_are_each_signals_extremes_over_every_record():
+    a = _traj([1.0, 3.0, 2.0], [[0.5, 4.0], [0.7, 4.0], [0.6, 4.0]])
+    b = _traj([0.5, 2.5], [[0.9, 4.0], [0.4, 4.0]])
+    assert training_ranges([a, b]) == {"inputs": [[0.5, 3.0]], "outputs": [[0.4, 0.9], [4.0, 4.0]]}
+
+
+def test_data_inside_the_spans_report_nothing_and_a_model_without_spans_is_unknown():
+    train = [_traj([1.0, 3.0], [[0.0, 4.0], [1.0, 4.0]])]
+    info = {INFO_KEY: training_ranges(train)}
+    inside = [_traj([1.0, 2.0, 3.0], [[0.0, 4.0], [0.5, 4.0], [1.0, 4.0]])]
+    assert outside_training_range(info, inside, **NAMES) == ()
+    assert outside_training_range({}, inside, **NAMES) is None
+    other = {INFO_KEY: {"inputs": [[0, 1], [0, 1]], "outputs": [[0, 1], [0, 1]]}}
+    assert outside_training_range(other, inside, **NAMES) is None  # spans of other signals
+
+
+def test_share_and_distance_outside_are_counted_on_both_sides():
+    info = {INFO_KEY: {"inputs": [[1.0, 3.0]], "outputs": [[0.0, 1.0], [4.0, 4.0]]}}
+    # pump: 4.0 is 1.0 above (half the span), 0.5 is 0.5 below; 2 of 5 samples outside;
+    # flow: constant 4 in training, 4.25 once (no span to compare with)
+    u = [4.0, 2.0, 0.5, 1.0, 3.0]
+    y = [[0.5, 4.0], [0.5, 4.0], [0.5, 4.25], [0.5, 4.0], [0.5, 4.0]]
+    found = outside_training_range(info, [_traj(u, y)], **NAMES)
+    assert found == (
+        OutsideRange("pump", "input", 1.0, 3.0, share=0.4, distance=1.0, beyond=0.5),
+        OutsideRange("flow", "output", 4.0, 4.0, share=0.2, distance=0.25, beyond=None),
+    )
+    assert [OutsideRange.from_json(o.to_json()) for o in found] == list(found)
+    assert found[0].describe() == (
+        "input pump on 40 % of samples (training span [1, 3], up to 0.5 × its span beyond)"
+    )
+    assert found[1].describe().endswith("up to 0.25 beyond)")
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    st.lists(st.floats(-1e3, 1e3), min_size=2, max_size=30),
+    st.lists(st.floats(-1e3, 1e3), min_size=1, max_size=30),
+)
+def test_training_data_never_leave_their_own_span_and_the_share_counts_samples(train_u, new_u):
+    train = [_traj(train_u, np.zeros((len(train_u), 2)))]
+    info = {INFO_KEY: training_ranges(train)}
+    assert outside_training_range(info, train, **NAMES) == ()
+    found = outside_training_range(info, [_traj(new_u, np.zeros((len(new_u), 2)))], **NAMES)
+    lo, hi = min(train_u), max(train_u)
+    out = [v for v in new_u if v < lo or v > hi]
+    assert found is not None
+    if not out:
+        assert found == ()
+    else:
+        (pump,) = found
+        assert pump.share == pytest.approx(len(out) / len(new_u))
+        assert pump.distance == pytest.approx(max(max(lo - v, v - hi) for v in out))
