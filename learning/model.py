@@ -186,7 +186,9 @@ class Model:
 def check_info(info: Any, net: SequenceModel, *, where: Path) -> dict[str, Any]:
     """The ``info`` field of ``config.json``, its fields that canonid reads checked by type: an
     object; ``dt`` a positive finite number of seconds; ``input_names`` / ``output_names`` lists
-    of ``n_u`` / ``n_y`` strings (each may be absent: models saved without data have none)."""
+    of ``n_u`` / ``n_y`` strings; ``training_range`` an object whose ``inputs`` / ``outputs`` are
+    ``n_u`` / ``n_y`` pairs ``[low, high]`` of finite numbers, ``low <= high`` (each may be
+    absent: models saved without data have none)."""
     if not isinstance(info, Mapping):
         raise CheckpointError(f"{where}: field 'info' must be an object, got {_kind(info)}")
     dt = info.get("dt")
@@ -207,7 +209,35 @@ def check_info(info: Any, net: SequenceModel, *, where: Path) -> dict[str, Any]:
                 f"{where}: field 'info.{key}' names {len(names)} signal(s) {names}; the "
                 f"network has {count}"
             )
+    _check_spans(info.get("training_range"), net, where=where)
     return dict(info)
+
+
+def _check_spans(spans: Any, net: SequenceModel, *, where: Path) -> None:
+    """``info.training_range``: absent, or ``n_u`` / ``n_y`` finite ``[low, high]`` pairs."""
+    if spans is None:
+        return
+    field = "info.training_range"
+    if not isinstance(spans, Mapping):
+        raise CheckpointError(f"{where}: field '{field}' must be an object, got {_kind(spans)}")
+    for key, count in (("inputs", net.n_u), ("outputs", net.n_y)):
+        pairs = spans.get(key)
+        good = (
+            isinstance(pairs, list)
+            and len(pairs) == count
+            and all(
+                isinstance(p, list)
+                and len(p) == 2
+                and all(_is_number(v) and math.isfinite(v) for v in p)
+                and p[0] <= p[1]
+                for p in pairs
+            )
+        )
+        if not good:
+            raise CheckpointError(
+                f"{where}: field '{field}.{key}' must be {count} pair(s) [low, high] of finite "
+                f"numbers, low <= high, got {pairs!r}"
+            )
 
 
 def _is_number(value: Any) -> bool:

@@ -94,6 +94,25 @@ def test_a_text_sampling_time_in_config_json_is_one_line(root, tmp_path, capsys)
 
 
 @pytest.mark.parametrize(
+    "spans",
+    [
+        "wide",
+        {"inputs": [[0, 1]]},
+        {"inputs": [[0, 1]], "outputs": [[2, 1]]},
+        {"inputs": [["a", 1]], "outputs": [[0, 1]]},
+        {"inputs": [[0, 1, 2]], "outputs": [[0, 1]]},
+    ],
+)
+def test_a_malformed_training_range_in_config_json_is_one_line(spans, root, tmp_path, capsys):
+    run = _run(root, tmp_path)
+    assert json.loads((run / "config.json").read_text())["info"]["training_range"]
+    _edit_json(run / "config.json", lambda c: c["info"].update(training_range=spans))
+    before = _snapshot(run)
+    _refused(capsys, ["evaluate", str(run)], "info.training_range", "config.json")
+    assert _snapshot(run) == before
+
+
+@pytest.mark.parametrize(
     ("field", "value"), [("data", {"x": 1}), ("window", "five"), ("data_options", {"dt": "x"})]
 )
 def test_a_run_json_field_of_the_wrong_type_is_one_line(field, value, root, tmp_path, capsys):
