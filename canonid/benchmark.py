@@ -244,9 +244,9 @@ def report_table(report: BenchmarkReport) -> str:
     )
     outside = [
         f"test part {s.test!r} leaves the training range: "
-        + "; ".join(o.describe() for o in s.outside)
+        + "; ".join(o.describe() for o in s.outside if o.noted)
         for s in report.scores
-        if s.outside
+        if s.outside and any(o.noted for o in s.outside)
     ]
     if not sources:
         return "\n".join(

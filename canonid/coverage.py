@@ -21,10 +21,15 @@ import numpy as np
 
 from canonid.kernel.dataset import Trajectory
 
-__all__ = ["INFO_KEY", "OutsideRange", "outside_training_range", "training_ranges"]
+__all__ = ["INFO_KEY", "NOTED_BEYOND", "OutsideRange", "outside_training_range", "training_ranges"]
 
 #: the key of the model's ``info`` that holds the training spans
 INFO_KEY = "training_range"
+#: the printed tables name a signal that goes more than this share of its training span beyond
+#: it (``metrics.json`` keeps every one): a record drawn like the training data leaves a finite
+#: span a little at its tails, a part made to extrapolate by much more (RESULTS.md, "Test parts
+#: outside the training range")
+NOTED_BEYOND = 0.05
 
 Kind = Literal["input", "output"]
 _KINDS: tuple[tuple[Kind, str, str], ...] = (
@@ -78,6 +83,12 @@ class OutsideRange:
             distance=float(data["distance"]),
             beyond=None if data.get("beyond") is None else float(data["beyond"]),
         )
+
+    @property
+    def noted(self) -> bool:
+        """Whether the printed tables name it: beyond :data:`NOTED_BEYOND` of its span, or any
+        distance outside a span of width zero."""
+        return self.beyond is None or self.beyond > NOTED_BEYOND
 
     def describe(self) -> str:
         """``input u0 on 12.3 % of samples, up to 0.35 × its training span [2.1, 7.9] beyond``."""

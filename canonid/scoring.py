@@ -363,14 +363,13 @@ def _number(value: float | None, spec: str) -> str:
 
 
 def _outside(metrics: Mapping[str, Any]) -> list[str]:
-    """One line naming the signals of the data scored outside the model's training span."""
+    """One line naming the signals of the data scored that go beyond the model's training span
+    by more than :data:`canonid.coverage.NOTED_BEYOND` of it."""
     from canonid.coverage import OutsideRange
 
     found = [OutsideRange.from_json(o) for o in metrics.get("outside_training_range") or []]
-    if not found:
-        return []
-    said = "; ".join(o.describe() for o in found)
-    return [f"outside the training range (the scores there measure extrapolation): {said}"]
+    said = "; ".join(o.describe() for o in found if o.noted)
+    return [f"outside the training range (the model extrapolates there): {said}"] if said else []
 
 
 def _worst_records(metrics: Mapping[str, Any], count: int = 3) -> list[str]:

@@ -192,6 +192,17 @@ def test_evaluate_data_names_the_signals_outside_the_training_span(
     assert entry["beyond"] == pytest.approx(0.5) and entry["train_high"] == hi
     (line,) = [line for line in out.splitlines() if line.startswith("outside the training range")]
     assert "input pump on 50 % of samples" in line and "level" not in line
+    # a pump a twentieth of its span above: kept in metrics.json, not named in the table
+    near = tmp_path / "near.csv"
+    rows = "".join(
+        f"r9,{t * DT},{p!r},{level!r}\n" for t, p in enumerate([hi + 0.04 * (hi - lo)] * 60)
+    )
+    near.write_text("run,time,pump,level\n" + rows)
+    assert main(["evaluate", str(trained), "--data", str(near)]) == 0
+    out = capsys.readouterr().out
+    (entry,) = evaluated(trained, out)["outside_training_range"]
+    assert entry["share"] == 1.0 and entry["beyond"] == pytest.approx(0.04)
+    assert "outside the training range" not in out
     assert main(["evaluate", str(trained), "--split", "train"]) == 0  # its own training records
     out = capsys.readouterr().out
     assert evaluated(trained, out)["outside_training_range"] == []

@@ -7,7 +7,13 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from canonid.coverage import INFO_KEY, OutsideRange, outside_training_range, training_ranges
+from canonid.coverage import (
+    INFO_KEY,
+    NOTED_BEYOND,
+    OutsideRange,
+    outside_training_range,
+    training_ranges,
+)
 from canonid.kernel.dataset import Trajectory
 
 NAMES = {"input_names": ["pump"], "output_names": ["level", "flow"]}
@@ -49,6 +55,20 @@ def test_share_and_distance_outside_are_counted_on_both_sides():
         "input pump on 40 % of samples (training span [1, 3], up to 0.5 × its span beyond)"
     )
     assert found[1].describe().endswith("up to 0.25 beyond)")
+
+
+def test_the_tables_name_a_signal_beyond_a_twentieth_of_its_span_or_off_a_constant_one():
+    def outside(beyond):
+        return OutsideRange("u", "input", 0.0, 1.0, share=0.1, distance=0.0, beyond=beyond)
+
+    assert NOTED_BEYOND == 0.05
+    assert [outside(b).noted for b in (0.01, 0.05, 0.0501, 2.0, None)] == [
+        False,
+        False,
+        True,
+        True,
+        True,
+    ]
 
 
 @settings(max_examples=40, deadline=None)

@@ -647,6 +647,7 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/screen-tolerance": Code(lambda: f"{_screen_tolerance():g}"),
     "code/followup-share": Code(lambda: _followup_share()),
     "code/pool-min-steps": Code(lambda: _jobs().POOL_MIN_STEPS),
+    "code/noted-beyond": Code(lambda: f"{100 * _coverage().NOTED_BEYOND:g}"),
     # Silverbox's defaults with the short trainings side by side or one after the other
     **{
         f"candidates/{slug}/{what}": Cell(CANDIDATES, _row(run=run), column)
@@ -994,6 +995,13 @@ def _feedthrough_gain() -> float:
     from canonid.learning.linear import FEEDTHROUGH_GAIN
 
     return FEEDTHROUGH_GAIN
+
+
+def _coverage() -> Any:
+    """Where scores leave the training range (the tables' threshold)."""
+    from canonid import coverage
+
+    return coverage
 
 
 def _screen_fraction() -> str:
