@@ -91,7 +91,8 @@ class OutsideRange:
         return self.beyond is None or self.beyond > NOTED_BEYOND
 
     def describe(self) -> str:
-        """``input u0 on 12.3 % of samples, up to 0.35 × its training span [2.1, 7.9] beyond``."""
+        """E.g. ``input u0 on 12.3 % of samples (training span [2.1, 7.9], up to 0.35 × its span
+        beyond)``."""
         how_far = (
             f"up to {self.distance:.3g} beyond"
             if self.beyond is None
