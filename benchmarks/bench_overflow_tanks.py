@@ -393,7 +393,7 @@ def spread_lines(main: list[Score]) -> list[str]:
             f"| {d} | {seed} | {ours.window} | {cells_text} | "
             f"{found[DEEPSI_LABEL].rmse / ours.rmse:.2f} | "
             f"{found['Classic GRU'].rmse / ours.rmse:.2f} | "
-            f"{ours.cpu_s:.0f} | {found[DEEPSI_LABEL].cpu_s:.0f} |"
+            f"{ours.cpu_s:.0f} | {found[DEEPSI_LABEL].cpu_s:.0f} | {_levels_unseen(d)} |"
         )
     below = sum(f[DEEPSI_LABEL].rmse > f[DEFAULTS_LABEL].rmse for f in table.values())
     target = sum(
@@ -415,15 +415,32 @@ def spread_lines(main: list[Score]) -> list[str]:
         "",
         "| data seed D | training seed S | canonid's window | canonid defaults | Classic GRU "
         "| ARX | deepSI (its defaults) | deepSI / canonid | GRU / canonid | canonid CPU s "
-        "| deepSI CPU s |",
-        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+        "| deepSI CPU s | validation span of the level; training samples outside it |",
+        "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|",
         *rows,
         "",
         f"canonid's defaults below deepSI's in {below} of {len(table)} cells (deepSI / canonid "
         f"from {min(ratio):.2f} to {max(ratio):.2f}, geometric mean "
         f"{math.exp(sum(map(math.log, ratio)) / len(ratio)):.2f}); the issue's whole target "
-        f"(also 1.5× below the Classic GRU and ARX) in {target} of {len(table)}.",
+        f"(also 1.5× below the Classic GRU and ARX) in {target} of {len(table)}. The last "
+        "column: the span of the level over the validation part, and the share of the training "
+        "samples outside it (`canonid.coverage.unvalidated`; `canonid train` prints it where "
+        "it is more than a twentieth of the span): levels the choices made on validation "
+        "cannot judge.",
     ]
+
+
+def _levels_unseen(data_seed: int) -> str:
+    """The validation part's span of the level and the share of training samples outside it."""
+    from canonid.coverage import training_ranges, unvalidated
+    from canonid.kernel.dataset import Dataset
+
+    data = Dataset.load(spread_data(data_seed) / "dataset.npz")
+    train, val = data.split("train"), data.split("val")
+    ((low, high),) = training_ranges(val)["outputs"]
+    names = {"input_names": data.input_names, "output_names": data.output_names}
+    share = sum(o.share for o in unvalidated(train, val, **names) if o.kind == "output")
+    return f"{low:.2f} to {high:.2f} V; {100 * share:.0f} %"
 
 
 def screen_lines(run: Path) -> str:

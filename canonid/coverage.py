@@ -21,10 +21,22 @@ import numpy as np
 
 from canonid.kernel.dataset import Trajectory
 
-__all__ = ["INFO_KEY", "NOTED_BEYOND", "OutsideRange", "outside_training_range", "training_ranges"]
+__all__ = [
+    "INFO_KEY",
+    "NOTED_BEYOND",
+    "VALIDATION_KEY",
+    "OutsideRange",
+    "outside_training_range",
+    "training_ranges",
+    "unvalidated",
+    "unvalidated_line",
+]
 
 #: the key of the model's ``info`` that holds the training spans
 INFO_KEY = "training_range"
+#: the key of the model's ``info`` that holds where the training part leaves the validation
+#: part's spans (:func:`unvalidated`)
+VALIDATION_KEY = "training_outside_validation"
 #: the printed tables name a signal that goes more than this share of its training span beyond
 #: it (``metrics.json`` keeps every one): a record drawn like the training data leaves a finite
 #: span a little at its tails, a part made to extrapolate by much more (RESULTS.md, "Test parts
@@ -50,21 +62,23 @@ def training_ranges(trajectories: Sequence[Trajectory]) -> dict[str, list[list[f
 
 @dataclass(frozen=True)
 class OutsideRange:
-    """One signal of the scored data outside its training span ``[low, high]``.
+    """One signal of some samples outside a reference span ``[span_low, span_high]``: the
+    training part's span for scored data (:func:`outside_training_range`), the validation
+    part's for the training part (:func:`unvalidated`).
 
     Attributes:
         name, kind: the signal and whether it is an input or an output.
-        train_low, train_high: its span over the training part.
-        share: the share of the scored samples outside the span (0 … 1).
+        span_low, span_high: the reference span.
+        share: the share of the samples outside the span (0 … 1).
         distance: the largest distance of a sample outside the span, in the signal's units.
-        beyond: ``distance`` as a multiple of the span's width (``None`` for a signal constant
-            in training).
+        beyond: ``distance`` as a multiple of the span's width (``None`` for a span of width
+            zero: a signal constant there).
     """
 
     name: str
     kind: Kind
-    train_low: float
-    train_high: float
+    span_low: float
+    span_high: float
     share: float
     distance: float
     beyond: float | None
@@ -77,8 +91,8 @@ class OutsideRange:
         return cls(
             name=str(data["name"]),
             kind=data["kind"],
-            train_low=float(data["train_low"]),
-            train_high=float(data["train_high"]),
+            span_low=float(data["span_low"]),
+            span_high=float(data["span_high"]),
             share=float(data["share"]),
             distance=float(data["distance"]),
             beyond=None if data.get("beyond") is None else float(data["beyond"]),
@@ -90,17 +104,17 @@ class OutsideRange:
         distance outside a span of width zero."""
         return self.beyond is None or self.beyond > NOTED_BEYOND
 
-    def describe(self) -> str:
+    def describe(self, *, samples: str = "samples", span: str = "training span") -> str:
         """E.g. ``input u0 on 12.3 % of samples (training span [2.1, 7.9], up to 0.35 × its span
-        beyond)``."""
+        beyond)``; ``samples`` and ``span`` name what was counted and against what."""
         how_far = (
             f"up to {self.distance:.3g} beyond"
             if self.beyond is None
             else f"up to {self.beyond:.2g} × its span beyond"
         )
         return (
-            f"{self.kind} {self.name} on {100 * self.share:.3g} % of samples "
-            f"(training span [{self.train_low:.4g}, {self.train_high:.4g}], {how_far})"
+            f"{self.kind} {self.name} on {100 * self.share:.3g} % of {samples} "
+            f"({span} [{self.span_low:.4g}, {self.span_high:.4g}], {how_far})"
         )
 
 
@@ -137,11 +151,43 @@ def outside_training_range(
                 OutsideRange(
                     name=str(name),
                     kind=kind,
-                    train_low=float(low),
-                    train_high=float(high),
+                    span_low=float(low),
+                    span_high=float(high),
                     share=float(outside.mean()),
                     distance=distance,
                     beyond=distance / width if width > 0 else None,
                 )
             )
     return tuple(found)
+
+
+def unvalidated(
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
+    *,
+    input_names: Sequence[str],
+    output_names: Sequence[str],
+) -> tuple[OutsideRange, ...]:
+    """The signals whose training samples leave the validation part's span: levels the model is
+    trained on that validation never shows it, so that a choice made on validation (the epoch,
+    the window, the network) cannot judge how the model treats them. Each
+    :class:`OutsideRange` is of the training part against the validation part's span."""
+    spans = {INFO_KEY: training_ranges(val)}
+    found = outside_training_range(spans, train, input_names=input_names, output_names=output_names)
+    assert found is not None  # the spans were made for these signals
+    return found
+
+
+def unvalidated_line(info: Mapping[str, Any]) -> str | None:
+    """What ``canonid train`` prints of :data:`VALIDATION_KEY` in a model's ``info``: the
+    signals beyond :data:`NOTED_BEYOND` of their validation span; ``None`` if there are none."""
+    found = [OutsideRange.from_json(o) for o in info.get(VALIDATION_KEY) or []]
+    said = "; ".join(
+        o.describe(samples="the training samples", span="validation span") for o in found if o.noted
+    )
+    if not said:
+        return None
+    return (
+        f"validation does not reach every level the training part holds: {said}; the choices "
+        "made on validation cannot judge the model there (give --val data that reach them)"
+    )

@@ -354,7 +354,7 @@ def _reduce_locked(
         info={
             "profile": job.profile,
             "source_run": str(source),
-            **data_info(dataset, data_path, train),
+            **data_info(dataset, data_path, train, val),
         },
     )
     seconds = time.perf_counter() - t0

@@ -41,7 +41,13 @@ from pathlib import Path
 from typing import Any, ClassVar, TypeAlias, TypeVar
 
 from canonid.coverage import INFO_KEY as COVERAGE_KEY
-from canonid.coverage import OutsideRange, outside_training_range, training_ranges
+from canonid.coverage import (
+    VALIDATION_KEY,
+    OutsideRange,
+    outside_training_range,
+    training_ranges,
+    unvalidated,
+)
 from canonid.data_options import DATA_FLAGS
 from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
 from canonid.jobs import run_folder_lock
@@ -743,16 +749,20 @@ def rescore_run(
     )
 
 
-def data_info(dataset: Dataset, path: str, train: Sequence[Trajectory]) -> dict[str, Any]:
+def data_info(
+    dataset: Dataset, path: str, train: Sequence[Trajectory], val: Sequence[Trajectory]
+) -> dict[str, Any]:
     """What a trained model's ``info`` says of its data: the file and its splits' sizes, the
-    signals' names, the sampling time and each signal's span over the ``train`` part
-    (:func:`canonid.coverage.training_ranges`)."""
+    signals' names, the sampling time, each signal's span over the ``train`` part
+    (:func:`canonid.coverage.training_ranges`) and where the ``train`` part leaves the ``val``
+    part's spans (:func:`canonid.coverage.unvalidated`)."""
+    names = {"input_names": list(dataset.input_names), "output_names": list(dataset.output_names)}
     return {
         "data": {"path": path, "splits": dataset.counts()},
-        "input_names": list(dataset.input_names),
-        "output_names": list(dataset.output_names),
+        **names,
         "dt": dataset.dt,
         COVERAGE_KEY: training_ranges(train),
+        VALIDATION_KEY: [o.to_json() for o in unvalidated(train, val, **names)],
     }
 
 
@@ -873,7 +883,7 @@ def train_run(
                 resume=resume,
                 callback=callback,
                 executor=executor,
-                info={"profile": recipe.profile, **data_info(dataset, recipe.data, train)},
+                info={"profile": recipe.profile, **data_info(dataset, recipe.data, train, val)},
             )
         except BaseException:
             if not resume and not (run_dir / CHECKPOINT_FILE).exists():

@@ -187,8 +187,10 @@ def check_info(info: Any, net: SequenceModel, *, where: Path) -> dict[str, Any]:
     """The ``info`` field of ``config.json``, its fields that canonid reads checked by type: an
     object; ``dt`` a positive finite number of seconds; ``input_names`` / ``output_names`` lists
     of ``n_u`` / ``n_y`` strings; ``training_range`` an object whose ``inputs`` / ``outputs`` are
-    ``n_u`` / ``n_y`` pairs ``[low, high]`` of finite numbers, ``low <= high`` (each may be
-    absent: models saved without data have none)."""
+    ``n_u`` / ``n_y`` pairs ``[low, high]`` of finite numbers, ``low <= high``;
+    ``training_outside_validation`` a list of objects with a string ``name``, a ``kind``
+    ``input`` or ``output`` and numbers ``span_low``, ``span_high``, ``share``, ``distance`` and
+    ``beyond`` (or null) (each may be absent: models saved without data have none)."""
     if not isinstance(info, Mapping):
         raise CheckpointError(f"{where}: field 'info' must be an object, got {_kind(info)}")
     dt = info.get("dt")
@@ -210,7 +212,31 @@ def check_info(info: Any, net: SequenceModel, *, where: Path) -> dict[str, Any]:
                 f"network has {count}"
             )
     _check_spans(info.get("training_range"), net, where=where)
+    _check_outside(info.get("training_outside_validation"), where=where)
     return dict(info)
+
+
+def _check_outside(found: Any, *, where: Path) -> None:
+    """``info.training_outside_validation``: absent, or a list of the records it names."""
+    if found is None:
+        return
+
+    def good(o: Any) -> bool:
+        numbers = ("span_low", "span_high", "share", "distance")
+        return (
+            isinstance(o, Mapping)
+            and isinstance(o.get("name"), str)
+            and o.get("kind") in ("input", "output")
+            and all(_is_number(o.get(k)) for k in numbers)
+            and (o.get("beyond") is None or _is_number(o["beyond"]))
+        )
+
+    if not isinstance(found, list) or not all(good(o) for o in found):
+        raise CheckpointError(
+            f"{where}: field 'info.training_outside_validation' must be a list of objects with "
+            "name, kind (input or output), span_low, span_high, share, distance and beyond, "
+            f"got {found!r}"
+        )
 
 
 def _check_spans(spans: Any, net: SequenceModel, *, where: Path) -> None:

@@ -189,7 +189,7 @@ def test_evaluate_data_names_the_signals_outside_the_training_span(
     out = capsys.readouterr().out
     (entry,) = evaluated(trained, out)["outside_training_range"]
     assert entry["name"] == "pump" and entry["kind"] == "input" and entry["share"] == 0.5
-    assert entry["beyond"] == pytest.approx(0.5) and entry["train_high"] == hi
+    assert entry["beyond"] == pytest.approx(0.5) and entry["span_high"] == hi
     (line,) = [line for line in out.splitlines() if line.startswith("outside the training range")]
     assert "input pump on 50 % of samples" in line and "level" not in line
     # a pump a twentieth of its span above: kept in metrics.json, not named in the table
@@ -207,6 +207,31 @@ def test_evaluate_data_names_the_signals_outside_the_training_span(
     out = capsys.readouterr().out
     assert evaluated(trained, out)["outside_training_range"] == []
     assert "outside the training range" not in out
+
+
+def test_train_says_where_validation_does_not_reach_the_training_levels(
+    csv_files, tmp_path, capsys
+):
+    """A validation file whose pump stays at one level: training names the pump, the share of
+    training samples off that level, and records it in the model's info; a validation file
+    covering the training records (the training file itself) gives no such line."""
+    train_csv = csv_files[0]
+    narrow = tmp_path / "narrow.csv"
+    rows = "".join(f"r9,{t * DT},2.0,{0.8 + 0.001 * t!r}\n" for t in range(RECORD))
+    narrow.write_text("run,time,pump,level\n" + rows)
+    argv = ["train", str(train_csv), *CSV_OPTIONS, "--dt", str(DT), "--window", "3"]
+    argv += ["--hidden", "8,8", "--cubic", "0", "--no-feedthrough", "--epochs", "1"]
+    argv += ["--device", "cpu", "--no-progress"]
+    assert main([*argv, "--val", str(narrow), "--out", str(tmp_path / "narrow")]) == 0
+    out = capsys.readouterr().out
+    (line,) = [line for line in out.splitlines() if line.startswith("validation does not reach")]
+    assert "input pump on" in line and "validation span [2, 2]" in line
+    info = json.loads((tmp_path / "narrow" / "config.json").read_text())["info"]
+    pump = next(o for o in info["training_outside_validation"] if o["name"] == "pump")
+    table = np.genfromtxt(train_csv, delimiter=",", names=True, dtype=None, encoding=None)
+    assert pump["share"] == pytest.approx(np.mean(table["pump"] != 2.0))
+    assert main([*argv, "--val", str(train_csv), "--out", str(tmp_path / "same")]) == 0
+    assert "validation does not reach" not in capsys.readouterr().out
 
 
 def test_an_evaluation_of_other_weights_is_not_overwritten(trained, tmp_path, capsys):

@@ -10,9 +10,12 @@ from hypothesis import strategies as st
 from canonid.coverage import (
     INFO_KEY,
     NOTED_BEYOND,
+    VALIDATION_KEY,
     OutsideRange,
     outside_training_range,
     training_ranges,
+    unvalidated,
+    unvalidated_line,
 )
 from canonid.kernel.dataset import Trajectory
 
@@ -90,3 +93,17 @@ def test_training_data_never_leave_their_own_span_and_the_share_counts_samples(t
         (pump,) = found
         assert pump.share == pytest.approx(len(out) / len(new_u))
         assert pump.distance == pytest.approx(max(max(lo - v, v - hi) for v in out))
+
+
+def test_training_levels_that_validation_never_shows_are_counted_against_its_span():
+    """Training u over 0 … 9, validation u over 2 … 6: 5 of 10 training samples lie outside,
+    the farthest 3 above (0.75 of the span); the outputs, equal in both, are not named."""
+    train = [_traj(np.arange(10.0), np.full((10, 2), 4.0))]
+    val = [_traj([2.0, 4.0, 6.0], np.full((3, 2), 4.0))]
+    found = unvalidated(train, val, **NAMES)
+    assert found == (OutsideRange("pump", "input", 2.0, 6.0, share=0.5, distance=3.0, beyond=0.75),)
+    line = unvalidated_line({VALIDATION_KEY: [o.to_json() for o in found]})
+    assert line is not None and line.startswith("validation does not reach every level")
+    assert "input pump on 50 % of the training samples (validation span [2, 6]" in line
+    assert unvalidated(val, val, **NAMES) == ()
+    assert unvalidated_line({VALIDATION_KEY: []}) is None and unvalidated_line({}) is None

@@ -112,6 +112,14 @@ def test_a_malformed_training_range_in_config_json_is_one_line(spans, root, tmp_
     assert _snapshot(run) == before
 
 
+@pytest.mark.parametrize("found", ["none", [{"name": "u"}], [{"name": 1, "kind": "input"}]])
+def test_a_malformed_record_of_levels_validation_misses_is_one_line(found, root, tmp_path, capsys):
+    run = _run(root, tmp_path)
+    assert "training_outside_validation" in json.loads((run / "config.json").read_text())["info"]
+    _edit_json(run / "config.json", lambda c: c["info"].update(training_outside_validation=found))
+    _refused(capsys, ["evaluate", str(run)], "info.training_outside_validation", "config.json")
+
+
 @pytest.mark.parametrize(
     ("field", "value"), [("data", {"x": 1}), ("window", "five"), ("data_options", {"dt": "x"})]
 )

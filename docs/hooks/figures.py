@@ -337,8 +337,22 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             _row(**{"data seed D": str(d), "training seed S": str(s_)}),
             column,
         )
-        for d, s_ in ((0, 1), (0, 2), (1, 0), (2, 0))
-        for who, column in (("defaults", "canonid defaults"), ("deepsi", "deepSI (its defaults)"))
+        for d, s_ in ((0, 1), (0, 2), (1, 0), (2, 0), (3, 0), (4, 0))
+        for who, column in (
+            ("defaults", "canonid defaults"),
+            ("deepsi", "deepSI (its defaults)"),
+            ("ratio", "deepSI / canonid"),
+        )
+    },
+    # the validation part's span of the level in a spread cell, and the training samples beyond
+    **{
+        f"overflow/spread/d4s0/{what}": Cell(
+            "Overflow tanks",
+            _row(**{"data seed D": "4", "training seed S": "0"}),
+            "validation span of the level; training samples outside it",
+            pick=pick,
+        )
+        for what, pick in (("val-low", 0), ("val-high", 1), ("unseen", 2))
     },
     "overflow/full/l10/ended": Prose("Overflow tanks", _OVERFLOW_L10_FULL),
     "overflow/full/l10/budget": Prose("Overflow tanks", _OVERFLOW_L10_FULL, group=2),
