@@ -365,6 +365,8 @@ def record(*, rewritten: bool = False) -> int:
 def spread_lines(main: list[Score]) -> list[str]:
     """The spread table: the main table's runs as cell (0, 0), then every cell trained by
     ``--spread D S``; RMSE on each cell's own test record, nothing chosen from it."""
+    from canonid.coverage import NOTED_BEYOND, UNVALIDATED_SHARE
+
     cells = sorted(
         (int(d), int(s), path)
         for path in (RUNS / "spread").glob("d*-s*/")
@@ -424,9 +426,10 @@ def spread_lines(main: list[Score]) -> list[str]:
         f"{math.exp(sum(map(math.log, ratio)) / len(ratio)):.2f}); the issue's whole target "
         f"(also 1.5× below the Classic GRU and ARX) in {target} of {len(table)}. The last "
         "column: the span of the level over the validation part, and the share of the training "
-        "samples outside it (`canonid.coverage.unvalidated`; `canonid train` prints it where "
-        "it is more than a twentieth of the span): levels the choices made on validation "
-        "cannot judge.",
+        "samples outside it (`canonid.coverage.unvalidated`; `canonid train` names the level "
+        f"where that share is {100 * UNVALIDATED_SHARE:g} % or more and the samples go more "
+        f"than {100 * NOTED_BEYOND:g} % of the span beyond): levels the choices made on "
+        "validation cannot judge.",
     ]
 
 

@@ -24,6 +24,7 @@ from canonid.kernel.dataset import Trajectory
 __all__ = [
     "INFO_KEY",
     "NOTED_BEYOND",
+    "UNVALIDATED_SHARE",
     "VALIDATION_KEY",
     "OutsideRange",
     "outside_training_range",
@@ -37,6 +38,11 @@ INFO_KEY = "training_range"
 #: the key of the model's ``info`` that holds where the training part leaves the validation
 #: part's spans (:func:`unvalidated`)
 VALIDATION_KEY = "training_outside_validation"
+#: ``canonid train`` names a signal whose training samples leave the validation span by more
+#: than :data:`NOTED_BEYOND` of it on at least this share of them: a few extreme samples do not
+#: make a validation part unrepresentative, a level held for a hundredth of the record does
+#: (RESULTS.md, "Test parts outside the training range")
+UNVALIDATED_SHARE = 0.01
 #: the printed tables name a signal that goes more than this share of its training span beyond
 #: it (``metrics.json`` keeps every one): a record drawn like the training data leaves a finite
 #: span a little at its tails, a part made to extrapolate by much more (RESULTS.md, "Test parts
@@ -180,10 +186,13 @@ def unvalidated(
 
 def unvalidated_line(info: Mapping[str, Any]) -> str | None:
     """What ``canonid train`` prints of :data:`VALIDATION_KEY` in a model's ``info``: the
-    signals beyond :data:`NOTED_BEYOND` of their validation span; ``None`` if there are none."""
+    signals beyond :data:`NOTED_BEYOND` of their validation span on at least
+    :data:`UNVALIDATED_SHARE` of the training samples; ``None`` if there are none."""
     found = [OutsideRange.from_json(o) for o in info.get(VALIDATION_KEY) or []]
     said = "; ".join(
-        o.describe(samples="the training samples", span="validation span") for o in found if o.noted
+        o.describe(samples="the training samples", span="validation span")
+        for o in found
+        if o.noted and o.share >= UNVALIDATED_SHARE
     )
     if not said:
         return None

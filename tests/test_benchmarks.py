@@ -611,3 +611,6 @@ def test_range_of_parts_tables_every_test_part_against_the_training_span(tmp_pat
         expected = {p.info["part"] for p in load_benchmark(name, files).split("test")}
         assert {r[1] for r in rows} == expected
         assert all(r[-1] in ("yes |", "no |") for r in rows)
+    # Silverbox's training part against its validation part (the generated sets are not here)
+    rows = [r for r in range_of_parts.validation_table(cache) if r.startswith("| silverbox |")]
+    assert rows and all(r.endswith(("| yes |", "| no |")) for r in rows)

@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 from canonid.coverage import (
     INFO_KEY,
     NOTED_BEYOND,
+    UNVALIDATED_SHARE,
     VALIDATION_KEY,
     OutsideRange,
     outside_training_range,
@@ -106,4 +107,9 @@ def test_training_levels_that_validation_never_shows_are_counted_against_its_spa
     assert line is not None and line.startswith("validation does not reach every level")
     assert "input pump on 50 % of the training samples (validation span [2, 6]" in line
     assert unvalidated(val, val, **NAMES) == ()
+    # one training sample of 200 far outside: counted, not said (below UNVALIDATED_SHARE)
+    spike = [_traj([4.0] * 199 + [30.0], np.full((200, 2), 4.0))]
+    (far,) = unvalidated(spike, val, **NAMES)
+    assert far.share == 0.005 < UNVALIDATED_SHARE and far.noted
+    assert unvalidated_line({VALIDATION_KEY: [far.to_json()]}) is None
     assert unvalidated_line({VALIDATION_KEY: []}) is None and unvalidated_line({}) is None

@@ -662,6 +662,7 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "code/followup-share": Code(lambda: _followup_share()),
     "code/pool-min-steps": Code(lambda: _jobs().POOL_MIN_STEPS),
     "code/noted-beyond": Code(lambda: f"{100 * _coverage().NOTED_BEYOND:g}"),
+    "code/unvalidated-share": Code(lambda: f"{100 * _coverage().UNVALIDATED_SHARE:g}"),
     # Silverbox's defaults with the short trainings side by side or one after the other
     **{
         f"candidates/{slug}/{what}": Cell(CANDIDATES, _row(run=run), column)
