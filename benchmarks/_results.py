@@ -24,6 +24,7 @@ __all__ = [
     "machine_description",
     "publish",
     "read_rows",
+    "record",
     "write_section",
 ]
 
@@ -83,6 +84,13 @@ def append_row(path: Path, row: dict) -> None:
     with path.open("a", encoding="utf-8") as f:
         f.write(json.dumps(row) + "\n")
     print(json.dumps(row))
+
+
+def record(name: str, body: str) -> int:
+    """Write ``body`` as section ``name`` and print it; 0 (a study's last step)."""
+    write_section(name, body)
+    print(body)
+    return 0
 
 
 def publish(name: str, lines: list[str], minutes: float) -> int:

@@ -138,15 +138,13 @@ def validation_table(directory: Path) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from _results import write_section
+    from _results import record
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--dir", type=Path, default=ROOT.parent / "shared" / "data")
     directory = parser.parse_args(argv).dir
     body = "\n".join([*table(directory), *validation_table(directory)])
-    write_section(SECTION, body)
-    print(body)
-    return 0
+    return record(SECTION, body)
 
 
 if __name__ == "__main__":

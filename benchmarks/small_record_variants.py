@@ -166,17 +166,14 @@ def _reading(rows: dict) -> str:
 
 
 def record(directory: Path) -> int:
-    from _results import write_section
+    from _results import record as write_and_print
 
     from canonid.kernel.io import atomic_write_text
 
     summaries = [json.loads(p.read_text()) for p in sorted(directory.glob("*/summary.json"))]
     study = {"summaries": summaries}
     atomic_write_text(STUDY_FILE, json.dumps(study, indent=1) + "\n")
-    body = render(study)
-    write_section(SECTION, body)
-    print(body)
-    return 0
+    return write_and_print(SECTION, render(study))
 
 
 def main(argv: list[str] | None = None) -> int:

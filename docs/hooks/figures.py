@@ -354,6 +354,9 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         )
         for what, pick in (("val-low", 0), ("val-high", 1), ("unseen", 2))
     },
+    "overflow/valblock/geomean": Prose(
+        "Validation block on one record (overflow tanks)", r"geometric mean ([\d.]+) over"
+    ),
     "overflow/full/l10/ended": Prose("Overflow tanks", _OVERFLOW_L10_FULL),
     "overflow/full/l10/budget": Prose("Overflow tanks", _OVERFLOW_L10_FULL, group=2),
     # the ARX start (round 1 of the defaults study), seed 0: score, and on the drone CPU seconds
