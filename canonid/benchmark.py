@@ -37,7 +37,12 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
-from canonid.coverage import OutsideRange, outside_training_range
+from canonid.coverage import (
+    OutsideRange,
+    outside_training_range,
+    recorded_unvalidated,
+    unvalidated_line,
+)
 from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
 from canonid.datagen.loaders import data_checksum
 from canonid.kernel.catalog import model_label
@@ -103,7 +108,9 @@ class PartScore:
 
 @dataclass(frozen=True)
 class BenchmarkReport:
-    """What ``canonid benchmark`` writes to ``benchmark.json``."""
+    """What ``canonid benchmark`` writes to ``benchmark.json``; ``unvalidated``: where the
+    training part leaves the validation part's spans (:func:`canonid.coverage.unvalidated`, as
+    the model recorded it)."""
 
     benchmark: str
     title: str
@@ -116,6 +123,7 @@ class BenchmarkReport:
     scores: list[PartScore]
     baselines: list[Baseline]
     rule: str
+    unvalidated: tuple[OutsideRange, ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         """The ``benchmark.json`` body; a score that is not finite (a simulation that blew up)
@@ -262,8 +270,16 @@ def report_table(report: BenchmarkReport) -> str:
 
 
 def benchmark_summary(report: BenchmarkReport, run_dir: Path) -> str:
-    """What ``canonid benchmark`` prints: :func:`report_table` and where the scores are."""
-    return f"{report_table(report)}\nscores written to {run_dir / REPORT_FILE}"
+    """What ``canonid benchmark`` prints: :func:`report_table`, what validation does not reach
+    (:func:`canonid.coverage.unvalidated_line`) and where the scores are."""
+    unseen = unvalidated_line(report.unvalidated)
+    return "\n".join(
+        [
+            report_table(report),
+            *([unseen] if unseen else []),
+            f"scores written to {run_dir / REPORT_FILE}",
+        ]
+    )
 
 
 #: canonid train options that the benchmark sets itself (and help, which would exit)
@@ -558,6 +574,7 @@ def _train_and_score(
         scores=scores,
         baselines=list(bench.baselines),
         rule=RULE,
+        unvalidated=recorded_unvalidated(model.info),
     )
     for part, sim, score in zip(split.split("test"), sims, scores, strict=True):
         plot_part(

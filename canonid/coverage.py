@@ -28,6 +28,7 @@ __all__ = [
     "VALIDATION_KEY",
     "OutsideRange",
     "outside_training_range",
+    "recorded_unvalidated",
     "training_ranges",
     "unvalidated",
     "unvalidated_line",
@@ -184,11 +185,16 @@ def unvalidated(
     return found
 
 
-def unvalidated_line(info: Mapping[str, Any]) -> str | None:
-    """What ``canonid train`` prints of :data:`VALIDATION_KEY` in a model's ``info``: the
-    signals beyond :data:`NOTED_BEYOND` of their validation span on at least
+def recorded_unvalidated(info: Mapping[str, Any]) -> tuple[OutsideRange, ...]:
+    """What a model's ``info`` recorded under :data:`VALIDATION_KEY` (none for a model saved
+    before it was recorded)."""
+    return tuple(OutsideRange.from_json(o) for o in info.get(VALIDATION_KEY) or [])
+
+
+def unvalidated_line(found: Sequence[OutsideRange]) -> str | None:
+    """What ``canonid train`` and ``canonid benchmark`` print of :func:`unvalidated`'s result:
+    the signals beyond :data:`NOTED_BEYOND` of their validation span on at least
     :data:`UNVALIDATED_SHARE` of the training samples; ``None`` if there are none."""
-    found = [OutsideRange.from_json(o) for o in info.get(VALIDATION_KEY) or []]
     said = "; ".join(
         o.describe(samples="the training samples", span="validation span")
         for o in found

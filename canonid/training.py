@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
-from canonid.coverage import unvalidated_line
+from canonid.coverage import recorded_unvalidated, unvalidated_line
 from canonid.horizon_check import ALTERNATIVES as HORIZON_ALTERNATIVES
 from canonid.horizon_check import HORIZON_CHECK_FILE
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
@@ -237,7 +237,7 @@ class TrainOutcome:
             cubic = fitted.model.info.get("cubic_test")
             if cubic:  # cubic "auto": say what the held-out peaks decided
                 head.append(f"{CubicTest.from_dict(cubic).summary()} (--cubic K decides instead)")
-            unseen = unvalidated_line(fitted.model.info)
+            unseen = unvalidated_line(recorded_unvalidated(fitted.model.info))
             if unseen:
                 head.append(unseen)
             if self.horizon is not None:

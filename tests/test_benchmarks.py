@@ -348,6 +348,13 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
         assert expected is not None and score["outside"] == [o.to_json() for o in expected]
         said = f"test part '{score['test']}' leaves the training range" in out
         assert said == any(o.noted for o in expected)
+    # and where training leaves the validation part's spans, as the model recorded it
+    from canonid.coverage import recorded_unvalidated, unvalidated_line
+
+    info = json.loads((run / "config.json").read_text())["info"]
+    assert report["unvalidated"] == info["training_outside_validation"]
+    line = unvalidated_line(recorded_unvalidated(info))
+    assert line in out if line else "validation does not reach" not in out
     # a normal run: canonid evaluate reads its recipe and data
     recipe = json.loads((run / "run.json").read_text())
     assert recipe["data"] == str(run / "benchmark-data.npz") and recipe["window"] == 5

@@ -82,10 +82,21 @@ def test_the_benchmarks_no_progress_reaches_training():
 
 
 def test_the_benchmark_summary_is_the_table_and_where_the_scores_are(tmp_path, monkeypatch):
-    monkeypatch.setattr(benchmark, "report_table", lambda report: f"the table of {report}")
-    assert benchmark_summary("RUN", tmp_path) == (
-        f"the table of RUN\nscores written to {tmp_path / 'benchmark.json'}"
-    )
+    """The table, then (where validation misses levels of the training part) that line, then
+    where the scores are."""
+    from types import SimpleNamespace
+
+    from canonid.coverage import OutsideRange, unvalidated_line
+
+    monkeypatch.setattr(benchmark, "report_table", lambda report: f"the table of {report.name}")
+    where = f"scores written to {tmp_path / 'benchmark.json'}"
+    report = SimpleNamespace(name="RUN", unvalidated=())
+    assert benchmark_summary(report, tmp_path) == f"the table of RUN\n{where}"
+    missed = (OutsideRange("y", "output", 0.0, 1.0, share=0.3, distance=0.5, beyond=0.5),)
+    line = unvalidated_line(missed)
+    assert line is not None
+    report = SimpleNamespace(name="RUN", unvalidated=missed)
+    assert benchmark_summary(report, tmp_path) == f"the table of RUN\n{line}\n{where}"
 
 
 def test_export_prints_the_model_then_each_file():

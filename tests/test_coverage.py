@@ -14,6 +14,7 @@ from canonid.coverage import (
     VALIDATION_KEY,
     OutsideRange,
     outside_training_range,
+    recorded_unvalidated,
     training_ranges,
     unvalidated,
     unvalidated_line,
@@ -103,7 +104,7 @@ def test_training_levels_that_validation_never_shows_are_counted_against_its_spa
     val = [_traj([2.0, 4.0, 6.0], np.full((3, 2), 4.0))]
     found = unvalidated(train, val, **NAMES)
     assert found == (OutsideRange("pump", "input", 2.0, 6.0, share=0.5, distance=3.0, beyond=0.75),)
-    line = unvalidated_line({VALIDATION_KEY: [o.to_json() for o in found]})
+    line = unvalidated_line(recorded_unvalidated({VALIDATION_KEY: [o.to_json() for o in found]}))
     assert line is not None and line.startswith("validation does not reach every level")
     assert "input pump on 50 % of the training samples (validation span [2, 6]" in line
     assert unvalidated(val, val, **NAMES) == ()
@@ -111,5 +112,5 @@ def test_training_levels_that_validation_never_shows_are_counted_against_its_spa
     spike = [_traj([4.0] * 199 + [30.0], np.full((200, 2), 4.0))]
     (far,) = unvalidated(spike, val, **NAMES)
     assert far.share == 0.005 < UNVALIDATED_SHARE and far.noted
-    assert unvalidated_line({VALIDATION_KEY: [far.to_json()]}) is None
-    assert unvalidated_line({VALIDATION_KEY: []}) is None and unvalidated_line({}) is None
+    assert unvalidated_line([far]) is None
+    assert unvalidated_line(()) is None and recorded_unvalidated({}) == ()
