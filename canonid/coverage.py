@@ -6,6 +6,9 @@ saw explains a test score far below the validation score. Training records each 
 over the training part in the model's ``info`` (:data:`INFO_KEY`, :func:`training_ranges`);
 :func:`outside_training_range` tells, for the data scored, which signals leave that span, on what
 share of their samples and by how far; ``metrics.json`` keeps it and the scores' table prints it.
+The same measure of the training part against the validation part's spans (:func:`unvalidated`)
+tells which levels no choice made on validation can judge; ``canonid train`` and ``canonid
+benchmark`` print them (:func:`unvalidated_line`).
 
 The module imports numpy only.
 """
