@@ -100,6 +100,7 @@ def chosen(found: dict[int, tuple[float, float]]) -> int:
 
 def prepare() -> dict[int, dict]:
     from canonid.kernel.dataset import Dataset
+    from canonid.kernel.io import atomic_write_text
 
     plan = {}
     for draw in DRAWS:
@@ -116,11 +117,16 @@ def prepare() -> dict[int, dict]:
         ).save(RUNS / "data" / f"d{draw}" / "dataset.npz")
         plan[draw] = {"start": start, "shares": {str(k): v for k, v in found.items()}}
         print(f"draw {draw}: block at {start}")
-    (RUNS / "plan.json").write_text(json.dumps(plan, indent=1))
+    atomic_write_text(RUNS / "plan.json", json.dumps(plan, indent=1))
     return plan
 
 
 def train(draw: int) -> int:
+    """Train the block's run of ``draw``; none where the block is the tail (the defaults' run)."""
+    start = json.loads((RUNS / "plan.json").read_text())[str(draw)]["start"]
+    if start == whole_record(draw)[1].T - BLOCK:
+        print(f"draw {draw}: the block is the tail; the defaults' run {defaults_run(draw)} stands")
+        return 0
     cmd = [sys.executable, "-m", "canonid", "train", str(RUNS / "data" / f"d{draw}")]
     cmd += ["--max-window", "50", "--seed", "0", "--threads", "1", "--no-progress"]
     return subprocess.run([*cmd, "--out", str(RUNS / f"d{draw}")], check=False).returncode

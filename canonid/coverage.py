@@ -22,6 +22,7 @@ from typing import Any, Literal
 
 import numpy as np
 
+from canonid.kernel.catalog import INFO_TRAINING_RANGE, INFO_UNVALIDATED
 from canonid.kernel.dataset import Trajectory
 
 __all__ = [
@@ -38,10 +39,10 @@ __all__ = [
 ]
 
 #: the key of the model's ``info`` that holds the training spans
-INFO_KEY = "training_range"
+INFO_KEY = INFO_TRAINING_RANGE
 #: the key of the model's ``info`` that holds where the training part leaves the validation
 #: part's spans (:func:`unvalidated`)
-VALIDATION_KEY = "training_outside_validation"
+VALIDATION_KEY = INFO_UNVALIDATED
 #: ``canonid train`` names a signal whose training samples leave the validation span by more
 #: than :data:`NOTED_BEYOND` of it on at least this share of them: a few extreme samples do not
 #: make a validation part unrepresentative, a level held for a hundredth of the record does

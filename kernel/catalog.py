@@ -10,6 +10,8 @@ its constructor's defaults. ``PAPER_NET_OPTIONS`` are the authors' published cod
 configuration, which produced the paper's numbers (the paper's text writes ``Ĥ(z_t, u_t)``, its
 code predicts the increment of ``y`` from ``z_t`` alone); ``canonid reproduce`` trains it.
 ``SMALL_RECORD_*`` say what training's ``weight_decay="auto"`` means, so that ``--help`` can too.
+``INFO_*`` name the fields of a trained model's ``info`` that the application writes
+(:mod:`canonid.coverage`) and the model's loader checks (:func:`canonid.learning.model.check_info`).
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ __all__ = [
     "ACTIVATION_NAMES",
     "DEFAULT_NET_OPTIONS",
     "DEVICE_NAMES",
+    "INFO_TRAINING_RANGE",
+    "INFO_UNVALIDATED",
     "LINEAR_PATHS",
     "MODEL_LABELS",
     "MODEL_NAMES",
@@ -68,6 +72,11 @@ DEVICE_NAMES = ("auto", "cpu", "cuda")
 #: over eight systems: benchmarks/RESULTS.md, "Weight decay on small records")
 SMALL_RECORD_SAMPLES = 5_000
 SMALL_RECORD_WEIGHT_DECAY = 1e-5
+
+#: a trained model's ``info``: each signal's span over the training part, and where the training
+#: part leaves the validation part's spans
+INFO_TRAINING_RANGE = "training_range"
+INFO_UNVALIDATED = "training_outside_validation"
 
 DEFAULT_NET_OPTIONS: dict[str, dict[str, Any]] = {
     "mlp": {

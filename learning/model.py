@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from canonid.kernel.catalog import INFO_TRAINING_RANGE, INFO_UNVALIDATED
 from canonid.kernel.errors import CanonidError, CheckpointError, DataError, ShapeError
 from canonid.kernel.io import atomic_write_bytes, atomic_write_json, read_json
 from canonid.learning.data import Normalisation
@@ -211,8 +212,8 @@ def check_info(info: Any, net: SequenceModel, *, where: Path) -> dict[str, Any]:
                 f"{where}: field 'info.{key}' names {len(names)} signal(s) {names}; the "
                 f"network has {count}"
             )
-    _check_spans(info.get("training_range"), net, where=where)
-    _check_outside(info.get("training_outside_validation"), where=where)
+    _check_spans(info.get(INFO_TRAINING_RANGE), net, where=where)
+    _check_outside(info.get(INFO_UNVALIDATED), where=where)
     return dict(info)
 
 
@@ -233,7 +234,7 @@ def _check_outside(found: Any, *, where: Path) -> None:
 
     if not isinstance(found, list) or not all(good(o) for o in found):
         raise CheckpointError(
-            f"{where}: field 'info.training_outside_validation' must be a list of objects with "
+            f"{where}: field 'info.{INFO_UNVALIDATED}' must be a list of objects with "
             "name, kind (input or output), span_low, span_high, share, distance and beyond, "
             f"got {found!r}"
         )
@@ -243,7 +244,7 @@ def _check_spans(spans: Any, net: SequenceModel, *, where: Path) -> None:
     """``info.training_range``: absent, or ``n_u`` / ``n_y`` finite ``[low, high]`` pairs."""
     if spans is None:
         return
-    field = "info.training_range"
+    field = f"info.{INFO_TRAINING_RANGE}"
     if not isinstance(spans, Mapping):
         raise CheckpointError(f"{where}: field '{field}' must be an object, got {_kind(spans)}")
     for key, count in (("inputs", net.n_u), ("outputs", net.n_y)):
