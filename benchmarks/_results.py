@@ -1,7 +1,9 @@
 """Write one benchmark's section of ``benchmarks/RESULTS.md``, leaving the others untouched.
 
 Each script owns the text between ``<!-- BEGIN name -->`` and ``<!-- END name -->``; the
-section starts with the command, the date and a description of the machine.
+section starts with the command, the date and a description of the machine. Notes a person added
+to a section (from its first line beginning :data:`HAND_NOTE`) stay, after the new text, when the
+script writes the section again.
 """
 
 from __future__ import annotations
@@ -17,8 +19,11 @@ from pathlib import Path
 from canonid.kernel.io import atomic_write_text
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
+#: how a note written by a person into a section begins (dated: what run it speaks of)
+HAND_NOTE = "Added by hand"
 
 __all__ = [
+    "HAND_NOTE",
     "append_row",
     "load_line",
     "machine_description",
@@ -51,25 +56,23 @@ def machine_description() -> str:
 
 
 def write_section(name: str, body: str, *, command: str | None = None) -> None:
-    """Replace (or append) section ``name`` of RESULTS.md with ``body`` (Markdown)."""
+    """Replace (or append) section ``name`` of RESULTS.md with ``body`` (Markdown), keeping the
+    section's hand notes after it."""
     cmd = command or "python " + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    block = (
-        f"<!-- BEGIN {name} -->\n"
-        f"## {name}\n\n"
-        f"Command: `{cmd}` — {stamp} — {machine_description()}\n\n"
-        f"{body.strip()}\n"
-        f"<!-- END {name} -->"
-    )
     text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else "# Benchmark results\n"
     pattern = re.compile(
         rf"<!-- BEGIN {re.escape(name)} -->.*?<!-- END {re.escape(name)} -->", re.S
     )
-    text = (
-        pattern.sub(lambda _: block, text)
-        if pattern.search(text)
-        else text.rstrip() + "\n\n" + block + "\n"
+    old = pattern.search(text)
+    notes = re.search(rf"^{HAND_NOTE}.*(?=^<!-- END )", old.group(0), re.S | re.M) if old else None
+    block = (
+        f"<!-- BEGIN {name} -->\n"
+        f"## {name}\n\n"
+        f"Command: `{cmd}` — {stamp} — {machine_description()}\n\n"
+        f"{body.strip()}\n" + (notes.group(0) if notes else "") + f"<!-- END {name} -->"
     )
+    text = pattern.sub(lambda _: block, text) if old else text.rstrip() + "\n\n" + block + "\n"
     atomic_write_text(RESULTS, text)
 
 

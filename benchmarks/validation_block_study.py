@@ -132,11 +132,25 @@ def train(draw: int) -> int:
     return subprocess.run([*cmd, "--out", str(RUNS / f"d{draw}")], check=False).returncode
 
 
+def rmse_on_others(model, draw: int, records: dict) -> float:
+    """The RMSE of ``model``'s simulations of every draw's record but ``draw``'s (``records``:
+    draw → whole record), after n_init = N_INIT measured samples."""
+    from canonid.learning.evaluate import simulate_records
+
+    judges = [records[k] for k in DRAWS if k != draw]
+    sims = simulate_records(model, judges, N_INIT)
+    err = np.concatenate([s - r.y[N_INIT:] for s, r in zip(sims, judges, strict=True)])
+    return float(np.sqrt(np.mean(err**2)))
+
+
+def geomean(values: list[float]) -> float:
+    return math.exp(sum(map(math.log, values)) / len(values))
+
+
 def judge() -> int:
     from _results import record
 
     from canonid.learning import Model
-    from canonid.learning.evaluate import simulate_records
 
     plan = {int(k): v for k, v in json.loads((RUNS / "plan.json").read_text()).items()}
     records = {draw: whole_record(draw)[1] for draw in DRAWS}
@@ -157,13 +171,10 @@ def judge() -> int:
         start = plan[draw]["start"]
         runs = {"tail": defaults_run(draw)}
         runs["block"] = runs["tail"] if start == records[draw].T - BLOCK else RUNS / f"d{draw}"
-        judges = [records[k] for k in DRAWS if k != draw]
         rmse, windows = {}, {}
         for name, run in runs.items():
             model = Model.load(run)
-            sims = simulate_records(model, judges, N_INIT)
-            err = np.concatenate([s - r.y[N_INIT:] for s, r in zip(sims, judges, strict=True)])
-            rmse[name], windows[name] = float(np.sqrt(np.mean(err**2))), model.window
+            rmse[name], windows[name] = rmse_on_others(model, draw, records), model.window
         ratios.append(rmse["block"] / rmse["tail"])
         tail = plan[draw]["shares"][str(records[draw].T - BLOCK)]
         block = plan[draw]["shares"][str(start)]
@@ -172,7 +183,7 @@ def judge() -> int:
             f"{block[1]:.3f} | {windows['tail']} / {windows['block']} | {rmse['tail']:.4f} | "
             f"{rmse['block']:.4f} | {ratios[-1]:.2f} |"
         )
-    mean = math.exp(sum(map(math.log, ratios)) / len(ratios))
+    mean = geomean(ratios)
     lines += [
         "",
         f"Block over tail: geometric mean {mean:.2f} over {len(ratios)} draws; lower in "

@@ -357,6 +357,12 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "overflow/valblock/geomean": Prose(
         "Validation block on one record (overflow tanks)", r"geometric mean ([\d.]+) over"
     ),
+    "overflow/activation/validation": Prose(
+        "Activation on one record (overflow tanks)", r"validation loss ([\d.]+) \(lower in"
+    ),
+    "overflow/activation/records": Prose(
+        "Activation on one record (overflow tanks)", r"other draws' records ([\d.]+) \(lower"
+    ),
     "overflow/full/l10/ended": Prose("Overflow tanks", _OVERFLOW_L10_FULL),
     "overflow/full/l10/budget": Prose("Overflow tanks", _OVERFLOW_L10_FULL, group=2),
     # the ARX start (round 1 of the defaults study), seed 0: score, and on the drone CPU seconds
