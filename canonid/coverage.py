@@ -98,7 +98,22 @@ class OutsideRange:
         return dataclasses.asdict(self)
 
     @classmethod
-    def from_json(cls, data: Mapping[str, Any]) -> OutsideRange:
+    def from_json(cls, data: Any) -> OutsideRange:
+        """The record of :meth:`to_json`; ``ValueError`` says what a damaged or hand-edited one
+        lacks."""
+        numbers = ("span_low", "span_high", "share", "distance")
+        good = (
+            isinstance(data, Mapping)
+            and isinstance(data.get("name"), str)
+            and data.get("kind") in ("input", "output")
+            and all(_is_number(data.get(k)) for k in numbers)
+            and (data.get("beyond") is None or _is_number(data["beyond"]))
+        )
+        if not good:
+            raise ValueError(
+                "expected an object with name, kind (input or output), span_low, span_high, "
+                f"share, distance and beyond (a number or null), got {data!r}"
+            )
         return cls(
             name=str(data["name"]),
             kind=data["kind"],
@@ -210,3 +225,7 @@ def unvalidated_line(found: Sequence[OutsideRange]) -> str | None:
         f"validation does not reach every level the training part holds: {said}; the choices "
         "made on validation cannot judge the model there (give --val data that reach them)"
     )
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)

@@ -68,6 +68,7 @@ from canonid.runfolder import (
     figure_file,
     load_splits,
     pick_split,
+    read_metrics,
     read_recipe,
     recipe_of,
     write_history,
@@ -240,7 +241,7 @@ class ReductionResult:
                 f"{self.rollout_mse:.4g}, full {self.full_rollout_mse:.4g} (ratio "
                 f"{self.ratio:.3g}); reconstruction MSE {self.reconstruction_mse:.3g} "
                 "(normalised)",
-                metrics_table(read_json(Path(self.out) / METRICS_FILE, what="metrics")),
+                metrics_table(read_metrics(Path(self.out) / METRICS_FILE)),
                 f"run written to {self.out}",
             ]
         )

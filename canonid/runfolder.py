@@ -38,7 +38,7 @@ from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar, TypeAlias, TypeVar
+from typing import Any, ClassVar, NoReturn, TypeAlias, TypeVar
 
 from canonid.coverage import INFO_KEY as COVERAGE_KEY
 from canonid.coverage import (
@@ -79,6 +79,7 @@ __all__ = [
     "RunResult",
     "RunSource",
     "check_compatible",
+    "check_metrics",
     "check_recorded",
     "data_info",
     "eval_defaults",
@@ -87,6 +88,7 @@ __all__ = [
     "load",
     "load_splits",
     "pick_split",
+    "read_metrics",
     "read_recipe",
     "recipe_of",
     "rescore_run",
@@ -508,6 +510,83 @@ class RunEvaluation:
                 else {"outside_training_range": [o.to_json() for o in self.outside]}
             ),
         }
+
+
+#: the scores :func:`canonid.scoring.metrics_table` prints, each with its per-output list
+_PRINTED_SCORES = ("rollout_mse", "rmse", "nrmse", "fit_percent")
+
+
+def read_metrics(path: Path) -> dict[str, Any]:
+    """A ``metrics.json`` body read back (:meth:`RunEvaluation.to_json`), its printed fields
+    checked (:func:`check_metrics`): a damaged or hand-edited file is one :class:`DataError`."""
+    body = read_json(path, what="metrics")
+    check_metrics(body, where=path)
+    return body
+
+
+def check_metrics(body: Any, *, where: Path) -> None:
+    """Refuse a ``metrics.json`` body whose fields that canonid prints are not of their type:
+    ``model`` a string; ``window``, ``n_rollouts``, ``rollout_horizon``, ``n_init`` integers
+    >= 0; ``data`` an object with string ``path`` and ``split``; ``output_names`` a non-empty
+    list of strings; the scores (top level and ``clean``, an object or null) numbers or null,
+    their ``_per_output`` lists one per output, ``rollout_mse_per_record`` a list of them;
+    ``finite`` a boolean; ``outside_training_range`` a list of
+    :meth:`~canonid.coverage.OutsideRange.to_json` records."""
+
+    def refuse(field: str, expected: str, got: Any) -> NoReturn:
+        raise DataError(f"{where}: field '{field}' must be {expected}, got {got!r}")
+
+    if not isinstance(body, Mapping):
+        refuse("(top level)", "an object", body)
+    if not isinstance(body.get("model"), str):
+        refuse("model", "a string", body.get("model"))
+    for key in ("window", "n_rollouts", "rollout_horizon", "n_init"):
+        value = body.get(key)
+        if not (isinstance(value, int) and not isinstance(value, bool) and value >= 0):
+            refuse(key, "an integer >= 0", value)
+    data = body.get("data")
+    if not (
+        isinstance(data, Mapping) and all(isinstance(data.get(k), str) for k in ("path", "split"))
+    ):
+        refuse("data", "an object with the strings path and split", data)
+    names = body.get("output_names")
+    if not (isinstance(names, list) and names and all(isinstance(n, str) for n in names)):
+        refuse("output_names", "a non-empty list of strings", names)
+    for prefix, scores in (("", body), ("clean.", body.get("clean"))):
+        if prefix and scores is None:
+            continue
+        if not isinstance(scores, Mapping):
+            refuse("clean", "an object or null", scores)
+        for key in _PRINTED_SCORES:
+            if not _score(scores.get(key)):
+                refuse(prefix + key, "a number or null", scores.get(key))
+            per = scores.get(f"{key}_per_output")
+            if not (isinstance(per, list) and len(per) == len(names) and all(map(_score, per))):
+                refuse(
+                    f"{prefix}{key}_per_output",
+                    f"a list of {len(names)} number(s) or null (one per output)",
+                    per,
+                )
+        per_record = scores.get("rollout_mse_per_record")
+        if per_record is not None and not (
+            isinstance(per_record, list) and all(map(_score, per_record))
+        ):
+            refuse(f"{prefix}rollout_mse_per_record", "a list of numbers or null", per_record)
+    if not isinstance(body.get("finite", True), bool):
+        refuse("finite", "a boolean", body.get("finite"))
+    outside = body.get("outside_training_range")
+    if outside is not None and not isinstance(outside, list):
+        refuse("outside_training_range", "a list or null", outside)
+    for i, found in enumerate(outside or []):
+        try:
+            OutsideRange.from_json(found)
+        except ValueError as exc:
+            raise DataError(f"{where}: field 'outside_training_range[{i}]': {exc}") from exc
+
+
+def _score(value: Any) -> bool:
+    """A score as ``metrics.json`` writes it: a number, or null where it was not finite."""
+    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
 
 
 @dataclass(frozen=True)

@@ -98,7 +98,7 @@ def score_run(request: EvaluateRequest) -> Scored:
     docstring): its own ``metrics.json`` and ``rollouts.png``."""
     from canonid.datagen.loaders import data_checksum
     from canonid.jobs import run_folder_lock
-    from canonid.kernel.io import read_json, sha256_file
+    from canonid.kernel.io import sha256_file
     from canonid.learning import Model
     from canonid.runfolder import (
         EVALUATIONS_DIR,
@@ -106,6 +106,7 @@ def score_run(request: EvaluateRequest) -> Scored:
         eval_defaults,
         evaluate_run,
         pick_split,
+        read_metrics,
         read_recipe,
         scoring_source,
     )
@@ -149,7 +150,7 @@ def score_run(request: EvaluateRequest) -> Scored:
     with run_folder_lock(request.run, flag="RUN"):  # no other writer of the run meanwhile
         done = folder / METRICS_FILE
         if done.is_file():
-            metrics = read_json(done, what="metrics")
+            metrics = read_metrics(done)
             if metrics.get("evaluation") == record:
                 return Scored(folder, metrics, reused=True)
             raise OutputError(

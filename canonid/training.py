@@ -566,8 +566,7 @@ def _select(request: TrainRequest) -> TrainOutcome:
     """A list of windows / ``hidden="auto"``: train the candidates, keep the best on
     validation (:mod:`canonid.selection`)."""
     from canonid.jobs import run_folder_lock
-    from canonid.kernel.io import read_json
-    from canonid.runfolder import METRICS_FILE
+    from canonid.runfolder import METRICS_FILE, read_metrics
     from canonid.selection import plan_candidates, select
 
     hidden_auto = request.hidden == AUTO
@@ -595,7 +594,7 @@ def _select(request: TrainRequest) -> TrainOutcome:
             scheduler=request.scheduler,
             progress=request.progress,
         )
-        metrics = read_json(run_dir / METRICS_FILE, what="metrics")
+        metrics = read_metrics(run_dir / METRICS_FILE)
     return TrainOutcome(run_dir, metrics, selection=selection)
 
 
@@ -961,9 +960,8 @@ def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     (:func:`canonid.members.choose_members`), where more than one is asked for."""
     from canonid.horizon_check import response_count
     from canonid.jobs import run_folder_lock
-    from canonid.kernel.io import read_json
     from canonid.members import choose_members
-    from canonid.runfolder import METRICS_FILE
+    from canonid.runfolder import METRICS_FILE, read_metrics
 
     count = _member_count(request, outcome)
     if count == 1 or outcome.result is None:
@@ -980,7 +978,7 @@ def _members(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
             figure_format=request.figure_format,
             response=response,
         )
-        metrics = read_json(outcome.run_dir / METRICS_FILE, what="metrics")
+        metrics = read_metrics(outcome.run_dir / METRICS_FILE)
     return dataclasses.replace(outcome, metrics=metrics, members=choice)
 
 

@@ -132,6 +132,38 @@ def test_a_run_json_field_of_the_wrong_type_is_one_line(field, value, root, tmp_
     assert _snapshot(run) == before and not (tmp_path / "m.casadi").exists()
 
 
+@pytest.mark.parametrize(
+    ("field", "edit"),
+    [
+        ("model", lambda m: m.pop("model")),
+        ("rmse", lambda m: m.update(rmse="small")),
+        ("rollout_mse_per_output", lambda m: m.update(output_names=["a", "b"])),
+        ("clean", lambda m: m.update(clean=3)),
+        ("data", lambda m: m.update(data=[])),
+        ("n_init", lambda m: m.update(n_init=-1)),
+        ("outside_training_range[0]", lambda m: m.update(outside_training_range=[{"name": 1}])),
+        ("outside_training_range", lambda m: m.update(outside_training_range="none")),
+        ("rollout_mse_per_record", lambda m: m.update(rollout_mse_per_record=5)),
+        ("finite", lambda m: m.update(finite="yes")),
+    ],
+)
+def test_a_hand_edited_metrics_json_read_back_by_evaluate_is_one_line(
+    field, edit, root, tmp_path, capsys
+):
+    """``canonid evaluate`` asked again prints the evaluation's stored ``metrics.json``: a field
+    of the wrong type there is named, not a traceback, and nothing is rewritten."""
+    run = _run(root, tmp_path)
+    assert main(["evaluate", str(run)]) == 0
+    (stored,) = (run / "evaluations").glob("*/metrics.json")
+    capsys.readouterr()
+    assert main(["evaluate", str(run)]) == 0  # the same evaluation: read back, printed
+    assert "already evaluated" in capsys.readouterr().out
+    _edit_json(stored, edit)
+    before = _snapshot(run)
+    _refused(capsys, ["evaluate", str(run)], str(stored), f"'{field}'")
+    assert _snapshot(run) == before
+
+
 # ------------------------------------------------------------------ data that do not fit the run
 def test_export_refuses_data_of_another_sampling_time(root, tmp_path, capsys):
     target = tmp_path / "m.casadi"
