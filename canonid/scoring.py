@@ -151,11 +151,20 @@ def score_run(request: EvaluateRequest) -> Scored:
         done = folder / METRICS_FILE
         if done.is_file():
             metrics = read_metrics(done)
-            if metrics.get("evaluation") == record:
+            stored = metrics.get("evaluation")
+            if stored == record:
                 return Scored(folder, metrics, reused=True)
+            if (
+                isinstance(stored, Mapping)
+                and stored.get("weights_sha256") != record["weights_sha256"]
+            ):
+                raise OutputError(
+                    f"{folder} holds this evaluation of other weights (the run was trained "
+                    "further since); remove that folder to score the run's weights now"
+                )
             raise OutputError(
-                f"{folder} holds this evaluation of other weights (the run was trained further "
-                "since); remove that folder to score the run's weights now"
+                f"{done}: field 'evaluation' does not record this evaluation (edited by hand?); "
+                "remove that folder to score again"
             )
         folder.mkdir(parents=True, exist_ok=True)
         try:

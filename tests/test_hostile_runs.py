@@ -145,6 +145,7 @@ def test_a_run_json_field_of_the_wrong_type_is_one_line(field, value, root, tmp_
         ("outside_training_range", lambda m: m.update(outside_training_range="none")),
         ("rollout_mse_per_record", lambda m: m.update(rollout_mse_per_record=5)),
         ("finite", lambda m: m.update(finite="yes")),
+        ("evaluation", lambda m: m["evaluation"].update(stride=2)),
     ],
 )
 def test_a_hand_edited_metrics_json_read_back_by_evaluate_is_one_line(
@@ -469,3 +470,43 @@ def test_random_hostile_run_folders_never_give_a_traceback_or_write_outside(
         assert _snapshot(outside) == before_outside
         assert _snapshot(root / "data") == before_data
         assert sorted(p.name for p in scratch.iterdir()) == ["outside", "run"]
+
+
+@pytest.fixture(scope="module")
+def evaluated(root, tmp_path_factory):
+    """A copy of the run with one evaluation of its test split stored (``evaluations/*/``)."""
+    run = Path(shutil.copytree(root / "run", tmp_path_factory.mktemp("evaluated") / "run"))
+    assert main(["evaluate", str(run)]) == 0
+    return run
+
+
+@pytest.mark.slow
+@settings(
+    max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(index=st.integers(0, 200), value=_json_values)
+def test_any_field_of_a_stored_evaluation_changed_is_printed_or_named_never_a_traceback(
+    evaluated, index, value, capsys
+):
+    """``canonid evaluate`` asked again reads the stored ``metrics.json`` back: with any one field
+    set to any JSON value it prints the scores (exit 0) or names the file (exit 1, one line), and
+    writes nothing."""
+    with tempfile.TemporaryDirectory() as scratch:
+        run = Path(shutil.copytree(evaluated, Path(scratch) / "run"))
+        (stored,) = (run / "evaluations").glob("*/metrics.json")
+        body = json.loads(stored.read_text(encoding="utf-8"))
+        paths = list(_field_paths(body))
+        _set(body, paths[index % len(paths)], value)
+        stored.write_text(json.dumps(body), encoding="utf-8")
+        before = _snapshot(run)
+        capsys.readouterr()
+        code = main(["evaluate", str(run)])
+        err = capsys.readouterr().err
+        event(f"exit {code}")
+        assert "Traceback" not in err, err
+        if code == 0:
+            assert not err.strip(), err
+        else:
+            assert code == 1 and len(err.strip().splitlines()) == 1, err
+            assert str(stored.parent) in err, err  # the file, or its folder of other weights
+        assert _snapshot(run) == before
