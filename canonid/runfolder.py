@@ -61,6 +61,7 @@ from canonid.kernel.io import (
 )
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, fit
 from canonid.learning.evaluate import default_n_init, evaluate
+from canonid.learning.model import CONFIG_FILE
 from canonid.learning.plots import plot_rollouts, plot_training_curve
 from canonid.learning.training import CHECKPOINT_FILE
 from canonid.models.registry import signal_units
@@ -422,6 +423,13 @@ def read_recipe(run_dir: Path) -> Recipe:
     """The recipe of any run folder (a training or a reduction run): ``run_dir/run.json``,
     refused in one line naming the file when missing, corrupt or of another version."""
     path = run_dir / RUN_FILE
+    if not run_dir.is_dir():
+        raise DataError(f"run folder not found: {run_dir}")
+    if not path.exists() and not (run_dir / CONFIG_FILE).exists():
+        raise DataError(
+            f"{run_dir} holds no run: no {RUN_FILE} (give a run folder that canonid train "
+            "wrote, its --out)"
+        )
     data = read_json(path, what="run recipe")
     kind = data.get("kind", "train") if isinstance(data, Mapping) else "train"
     recipe = _KINDS.get(kind, RunRecipe).from_dict(data, where=str(path))

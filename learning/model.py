@@ -156,6 +156,13 @@ class Model:
         :class:`CheckpointError`, as is any weight whose name or shape does not fit.
         """
         folder = Path(folder)
+        if not folder.is_dir():
+            raise CheckpointError(f"model folder not found: {folder}")
+        if not (folder / CONFIG_FILE).exists():
+            raise CheckpointError(
+                f"{folder} holds no model: no {CONFIG_FILE} (give a run folder that canonid "
+                "train wrote, its --out)"
+            )
         config = read_json(folder / CONFIG_FILE, what="model configuration")
         if not isinstance(config, dict) or config.get("format") != "canonid-model":
             raise CheckpointError(f"{folder / CONFIG_FILE} is not a canonid model configuration")

@@ -165,6 +165,25 @@ def test_a_hand_edited_metrics_json_read_back_by_evaluate_is_one_line(
     assert _snapshot(run) == before
 
 
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["evaluate"],
+        ["analyze", "--no-progress", "--run"],
+        ["export", "--casadi", "OUT", "--"],
+        ["reduce", "--compression", "0.5", "--no-progress"],
+    ],
+)
+def test_a_folder_that_holds_no_model_is_named_so(command, tmp_path, capsys):
+    """A mistyped or wrong folder: "not found", or the folder and the missing config.json with
+    what to give instead, one line, nothing written."""
+    (tmp_path / "notes").mkdir()
+    argv = [str(tmp_path / "m.casadi") if a == "OUT" else a for a in command]
+    _refused(capsys, [*argv, str(tmp_path / "typo")], "folder not found", "typo")
+    _refused(capsys, [*argv, str(tmp_path / "notes")], "holds no", "--out")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes"]
+
+
 # ------------------------------------------------------------------ data that do not fit the run
 def test_export_refuses_data_of_another_sampling_time(root, tmp_path, capsys):
     target = tmp_path / "m.casadi"
