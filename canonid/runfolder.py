@@ -697,7 +697,8 @@ def run_data(recipe: Recipe) -> tuple[Dataset, str]:
     """The data of a training run split as training used them, and the split that scores it.
 
     The splits are ``train``, ``val`` (from the ``--val`` file, else DATA's own ``val`` split,
-    else cut off DATA's ``train`` split by ``val_fraction``) and DATA's ``test`` split if any;
+    else — none or an empty one — cut off DATA's ``train`` split by ``val_fraction``) and DATA's
+    ``test`` split if any;
     the score uses ``test`` when there is one, else ``val``.
     """
     data_path, options = recipe.data, dict(recipe.data_options)
@@ -708,6 +709,11 @@ def run_data(recipe: Recipe) -> tuple[Dataset, str]:
     if "train" not in dataset.splits:
         raise DataError(
             f"{data_path}: no 'train' split to train on; it has {sorted(dataset.splits)}"
+        )
+    if not dataset.splits["train"]:
+        raise DataError(
+            f"{data_path}: its 'train' split holds no record (canonid generate --n-train 0?); "
+            "give data with training records"
         )
     if recipe.val is not None:
         val_path = recipe.val
@@ -722,13 +728,18 @@ def run_data(recipe: Recipe) -> tuple[Dataset, str]:
                 f"{val_path}: validation data need a 'val' split or a single split; it has "
                 f"{sorted(val_set.splits)}"
             )
+        if not val:
+            raise DataError(f"{val_path}: its validation split holds no record")
         dataset = dataclasses.replace(
             dataset,
             splits={**dataset.splits, "val": val},
             metadata={**dataset.metadata, "validation_split": f"the file {val_path}"},
         )
-    elif "val" not in dataset.splits:
-        dataset = split_train_val(dataset, val_fraction=recipe.val_fraction)
+    elif not dataset.splits.get("val"):  # none, or empty (canonid generate --n-val 0)
+        splits = {k: v for k, v in dataset.splits.items() if k != "val"}
+        dataset = split_train_val(
+            dataclasses.replace(dataset, splits=splits), val_fraction=recipe.val_fraction
+        )
     # an empty test split (``canonid generate --n-test 0``) scores like none: on validation
     return dataset, "test" if dataset.splits.get("test") else "val"
 

@@ -185,6 +185,46 @@ def test_a_folder_that_holds_no_model_is_named_so(command, tmp_path, capsys):
 
 
 # ------------------------------------------------------------------ data that do not fit the run
+def _with_empty(data: Dataset, split: str) -> Dataset:
+    return Dataset(
+        splits={**data.splits, split: ()},
+        dt=data.dt,
+        input_names=data.input_names,
+        output_names=data.output_names,
+    )
+
+
+def test_a_dataset_without_training_records_is_refused_in_one_line(tmp_path, capsys):
+    data = _dataset(2, 1, dt=0.5, names=("pump", "level"))
+    path = _with_empty(data, "train").save(tmp_path / "empty" / "dataset.npz")
+    out = tmp_path / "run"
+    argv = ["train", str(path), "--window", "3", "--hidden", "8,8", "--out", str(out), *COMMON]
+    _refused(capsys, argv, str(path), "'train' split holds no record")
+    assert not out.exists()
+    other = _with_empty(data, "val").save(tmp_path / "no-val" / "dataset.npz")
+    argv = ["train", str(other), "--val", str(other), *argv[2:]]  # a --val file of no record
+    _refused(capsys, argv, str(other), "validation split holds no record")
+    assert not out.exists()
+
+
+def test_an_empty_validation_split_is_cut_off_the_training_records_as_none_is(tmp_path):
+    """``canonid generate --n-val 0``: the dataset's ``val`` split is empty, so the run validates
+    on a part cut off its training records, exactly as for data without a ``val`` split."""
+    data = _dataset(4, 1, dt=0.5, names=("pump", "level"))
+    empty = _with_empty(data, "val").save(tmp_path / "empty-val" / "dataset.npz")
+    splits = {k: v for k, v in data.splits.items() if k != "val"}
+    none = Dataset(splits=splits, dt=0.5, input_names=("pump",), output_names=("level",))
+    none = none.save(tmp_path / "no-val" / "dataset.npz")
+    for path, out in ((empty, "a"), (none, "b")):
+        argv = ["train", str(path), "--window", "3", "--hidden", "8,8", *COMMON]
+        assert main([*argv, "--out", str(tmp_path / out)]) == 0
+    a, b = (json.loads((tmp_path / o / "config.json").read_text()) for o in "ab")
+    assert a["info"]["training"]["best_val_loss"] == b["info"]["training"]["best_val_loss"]
+    assert (tmp_path / "a" / "weights.pt").read_bytes() == (
+        tmp_path / "b" / "weights.pt"
+    ).read_bytes()
+
+
 def test_export_refuses_data_of_another_sampling_time(root, tmp_path, capsys):
     target = tmp_path / "m.casadi"
     argv = ["export", str(root / "run"), "--casadi", str(target)]
