@@ -161,9 +161,16 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
 
 #: the row of RESULTS.md's "make demo" section that the pages quote: the latest timing on an
 #: idle machine (later rows measured under load say so)
-DEMO_RUN = (
-    "the cubic test in canonid's defaults (the defaults column tests the branch and keeps the "
-    "plain network)"
+DEMO_RUN = "the same defaults, idle, on the AMD EPYC machine of 2026-11-29"
+#: Table 1 and the compression study of one demo run (benchmarks/demo_record.py)
+DEMO_TABLES = "make demo: Table 1 and compression"
+_DEMO_MODELS = (  # key slug, the model cell, the windows
+    ("classic-gru", "Classic GRU", (5, 10)),
+    ("masti", "Masti et al.", (5, 10)),
+    ("gru", "Ours (GRU)", (5, 10)),
+    ("mlp-paper", "Ours (MLP), paper options", (5, 10)),
+    ("mlp-defaults", "Ours (MLP), canonid defaults", (10,)),
+    ("arx", "ARX (linear)", (5, 10)),
 )
 _NOW = "feedthrough auto (now)"
 _FEEDTHROUGH = "3e-3, clip 1, skip from zero, feedthrough"
@@ -660,6 +667,22 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "analysis/slower": Prose("Analysis cost", r"Wall times are about ([\d.]+)× the old ones"),
     # how long `make demo` takes, and what it runs
     "demo/wall": Cell("make demo", _row(run=DEMO_RUN), "wall time", whole=True),
+    # Table 1 and the compression study of the demo run the Results page shows
+    **{
+        f"demo/t1/{slug}/{window}/{target}": Cell(
+            DEMO_TABLES, _row(**{"model": label, "ℓ": str(window)}), column
+        )
+        for slug, label, windows in _DEMO_MODELS
+        for window in windows
+        for target, column in (("y", "measured y"), ("clean", "noise-free y"))
+    },
+    **{
+        f"demo/compression/{rate}/{what}": Cell(
+            DEMO_TABLES, _row(compression=f"{rate} %"), column
+        )
+        for rate in (30, 60, 90)
+        for what, column in (("reduced", "reduced"), ("full", "full"), ("ratio", "reduced / full"))
+    },
     # the quick profile's training budget (canonid/profiles.py)
     "device/threshold": Code(lambda: _auto_cuda_work() / 1e6),
     "device/gpu/256/512": Cell(
