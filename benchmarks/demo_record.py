@@ -1,33 +1,45 @@
-"""Table 1 and the compression study of one `make demo` run, as the docs' Results page quotes them.
+"""Table 1 and the compression study of one `canonid reproduce` run, as the Results page quotes.
 
-`make demo` writes its numbers to ``OUT/reproduction.json`` (``OUT`` = ``runs/demo``, or the
-``DEMO_OUT`` given to make). This script reads that file and writes them into the section
-"make demo: Table 1 and compression" of RESULTS.md, with the run's software versions, so that the
-Results page quotes a measurement rather than typed numbers. The section "make demo" keeps the
-timings.
+`make demo` (`canonid reproduce --profile quick --systems tank`) writes its numbers to
+``OUT/reproduction.json`` (``OUT`` = ``runs/demo``, or the ``DEMO_OUT`` given to make). This
+script reads that file and writes one system's numbers into a section of RESULTS.md — the tank's
+into "make demo: Table 1 and compression", another system's into "Reproduce, quick profile:
+SYSTEM" — with the run's software versions, so that the Results page quotes a measurement rather
+than typed numbers. The section "make demo" keeps the timings.
 
-Usage: python demo_record.py [OUT]
+Usage: python demo_record.py [OUT] [--system NAME]
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 from _results import record
 
 ROOT = Path(__file__).resolve().parents[1]
-SECTION = "make demo: Table 1 and compression"
-SCALE = 1e-4  # the paper's scale of Table 1
+DEMO_SECTION = "make demo: Table 1 and compression"
 
 
-def _scaled(value: float | None) -> str:
-    return "—" if value is None else f"{value / SCALE:.4g}"
+def section(system: str) -> str:
+    return DEMO_SECTION if system == "tank" else f"Reproduce, quick profile: {system}"
 
 
-def table1_lines(rows: list[dict]) -> list[str]:
-    """One row per (model, options, ℓ) of the tank: this run against y and y_clean, the paper
+def scale(system: str) -> float:
+    """The paper's scale of the system's Table 1 (×10⁻⁴ for the tank, ×10⁻² for the drone)."""
+    from canonid.paper import TABLE1
+
+    return TABLE1[system].scale
+
+
+def _scaled(value: float | None, system: str) -> str:
+    return "—" if value is None else f"{value / scale(system):.4g}"
+
+
+def table1_lines(rows: list[dict], system: str = "tank") -> list[str]:
+    """One row per (model, options, ℓ) of ``system``: this run against y and y_clean, the paper
     (for the paper's options only: canonid's defaults are not in the paper)."""
     from canonid.reproduce_jobs import PAPER_OPTIONS
     from canonid.reproduce_report import column_label
@@ -37,17 +49,18 @@ def table1_lines(rows: list[dict]) -> list[str]:
         "|---|---:|---:|---:|---:|",
     ]
     for row in sorted(rows, key=lambda r: (column_label(r["model"], r["options"]), r["window"])):
-        if row["system"] != "tank":
+        if row["system"] != system:
             continue
+        paper = row["paper"] if row["options"] == PAPER_OPTIONS else None
         lines.append(
             f"| {column_label(row['model'], row['options'])} | {row['window']} | "
-            f"{_scaled(row['mean'])} | {_scaled(row['mean_clean'])} | "
-            f"{_scaled(row['paper'] if row['options'] == PAPER_OPTIONS else None)} |"
+            f"{_scaled(row['mean'], system)} | {_scaled(row['mean_clean'], system)} | "
+            f"{_scaled(paper, system)} |"
         )
     return lines
 
 
-def compression_lines(rows: list[dict]) -> list[str]:
+def compression_lines(rows: list[dict], system: str = "tank") -> list[str]:
     """One row per compression rate: the reduced model's 100-step MSE against the full one's."""
     lines = [
         "| compression | n̄ of dim z | reduced | full | reduced / full |",
@@ -57,34 +70,39 @@ def compression_lines(rows: list[dict]) -> list[str]:
         ratio = row["rollout_mse_mean"] / row["full_rollout_mse"]
         lines.append(
             f"| {100 * row['compression']:.0f} % | {row['latent_dim']} of {row['state_dim']} | "
-            f"{_scaled(row['rollout_mse_mean'])} | {_scaled(row['full_rollout_mse'])} | "
+            f"{_scaled(row['rollout_mse_mean'], system)} | "
+            f"{_scaled(row['full_rollout_mse'], system)} | "
             f"{ratio:.3g} |"
         )
     return lines
 
 
-def body(result: dict) -> str:
+def body(result: dict, system: str = "tank") -> str:
     machine = result["machine"]
     versions = ", ".join(
         f"{k} {machine[k]}" for k in ("canonid", "torch", "numpy", "casadi") if machine.get(k)
     )
-    compression = result["compression"]["tank"]["rows"]
+    compression = result["compression"][system]["rows"]
+    power = str(round(math.log10(scale(system))))
+    factor = "×10" + power.translate(str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹"))
+    windows = ", ".join(str(w) for w in sorted({r["window"] for r in compression}))
     return "\n".join(
         [
-            "The numbers of one `make demo` run (`canonid reproduce --profile quick --systems "
-            "tank`), read from its `reproduction.json`; every job is seeded and single-threaded, "
+            f"The numbers of one `canonid reproduce --profile quick --systems {system}` run"
+            + (" (`make demo`)" if system == "tank" else "")
+            + ", read from its `reproduction.json`; every job is seeded and single-threaded, "
             f"so the same software on the same processor gives them again ({versions}; "
             f"{machine.get('cpus')} CPUs, {machine.get('platform')}).",
             "",
-            "Table 1, tank: 100-step open-loop MSE, ×10⁻⁴ (the paper's scale), one seed; the "
-            "paper's column as printed (against its own noisy data).",
+            f"Table 1, {system}: 100-step open-loop MSE, {factor} (the paper's scale), one "
+            "seed; the paper's column as printed (against its own noisy data).",
             "",
-            *table1_lines(result["table1"]),
+            *table1_lines(result["table1"], system),
             "",
-            "Compression study (Ours (MLP), ℓ = 10, the run's Table-1 model): 100-step MSE "
-            "against the measured y, ×10⁻⁴.",
+            f"Compression study (Ours (MLP), ℓ = {windows}, the run's Table-1 model): 100-step "
+            f"MSE against the measured y, {factor}.",
             "",
-            *compression_lines(compression),
+            *compression_lines(compression, system),
         ]
     )
 
@@ -92,9 +110,10 @@ def body(result: dict) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", nargs="?", default=str(ROOT / "runs" / "demo"))
+    parser.add_argument("--system", default="tank")
     args = parser.parse_args(argv)
     result = json.loads((Path(args.out) / "reproduction.json").read_text(encoding="utf-8"))
-    return record(SECTION, body(result))
+    return record(section(args.system), body(result, args.system))
 
 
 if __name__ == "__main__":

@@ -53,3 +53,13 @@ def test_compression_rows_give_the_reduced_over_the_full_model():
         "| 30 % | 15 of 20 | 3 | 4 | 0.75 |",
         "| 60 % | 9 of 20 | 5 | 4 | 1.25 |",
     ]
+
+
+def test_each_system_is_written_in_the_papers_scale_into_its_own_section():
+    assert demo_record.scale("tank") == 1e-4 and demo_record.scale("drone2d") == 1e-2
+    assert demo_record.section("tank") == "make demo: Table 1 and compression"
+    assert demo_record.section("drone2d") == "Reproduce, quick profile: drone2d"
+    row = _cell("masti", "paper", 10, 0.4304, 0.4305)
+    assert demo_record.table1_lines([{**row, "system": "drone2d"}], "drone2d")[2:] == [
+        "| Masti et al. | 10 | 43.04 | 43.05 | 0.0093 |"
+    ]

@@ -164,6 +164,8 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
 DEMO_RUN = "the same defaults, idle, on the AMD EPYC machine of 2026-11-29"
 #: Table 1 and the compression study of one demo run (benchmarks/demo_record.py)
 DEMO_TABLES = "make demo: Table 1 and compression"
+#: the same of the planar drone's quick reproduce run
+DRONE_TABLES = "Reproduce, quick profile: drone2d"
 _DEMO_MODELS = (  # key slug, the model cell, the windows
     ("classic-gru", "Classic GRU", (5, 10)),
     ("masti", "Masti et al.", (5, 10)),
@@ -675,6 +677,20 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         for slug, label, windows in _DEMO_MODELS
         for window in windows
         for target, column in (("y", "measured y"), ("clean", "noise-free y"))
+    },
+    **{
+        f"drone/t1/{slug}/{window}": Cell(
+            DRONE_TABLES, _row(**{"model": label, "ℓ": str(window)}), "measured y"
+        )
+        for slug, label, windows in _DEMO_MODELS
+        for window in windows
+    },
+    **{
+        f"drone/compression/{rate}/{what}": Cell(
+            DRONE_TABLES, _row(compression=f"{rate} %"), column
+        )
+        for rate in (30, 60, 90)
+        for what, column in (("reduced", "reduced"), ("full", "full"))
     },
     **{
         f"demo/compression/{rate}/{what}": Cell(
