@@ -24,6 +24,7 @@ import numpy as np
 
 from canonid.kernel.catalog import INFO_TRAINING_RANGE, INFO_UNVALIDATED
 from canonid.kernel.dataset import Trajectory
+from canonid.kernel.io import is_json_number
 
 __all__ = [
     "INFO_KEY",
@@ -106,8 +107,8 @@ class OutsideRange:
             isinstance(data, Mapping)
             and isinstance(data.get("name"), str)
             and data.get("kind") in ("input", "output")
-            and all(_is_number(data.get(k)) for k in numbers)
-            and (data.get("beyond") is None or _is_number(data["beyond"]))
+            and all(is_json_number(data.get(k)) for k in numbers)
+            and (data.get("beyond") is None or is_json_number(data["beyond"]))
         )
         if not good:
             raise ValueError(
@@ -225,7 +226,3 @@ def unvalidated_line(found: Sequence[OutsideRange]) -> str | None:
         f"validation does not reach every level the training part holds: {said}; the choices "
         "made on validation cannot judge the model there (give --val data that reach them)"
     )
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)

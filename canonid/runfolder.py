@@ -57,6 +57,7 @@ from canonid.kernel.io import (
     atomic_write_json,
     atomic_write_text,
     figure_name,
+    is_json_number,
     read_json,
 )
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, fit
@@ -550,7 +551,7 @@ def check_metrics(body: Any, *, where: Path) -> None:
         refuse("model", "a string", body.get("model"))
     for key in ("window", "n_rollouts", "rollout_horizon", "n_init"):
         value = body.get(key)
-        if not (isinstance(value, int) and not isinstance(value, bool) and value >= 0):
+        if not (is_json_number(value) and isinstance(value, int) and value >= 0):
             refuse(key, "an integer >= 0", value)
     data = body.get("data")
     if not (
@@ -594,7 +595,7 @@ def check_metrics(body: Any, *, where: Path) -> None:
 
 def _score(value: Any) -> bool:
     """A score as ``metrics.json`` writes it: a number, or null where it was not finite."""
-    return value is None or (isinstance(value, (int, float)) and not isinstance(value, bool))
+    return value is None or is_json_number(value)
 
 
 @dataclass(frozen=True)

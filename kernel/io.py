@@ -45,6 +45,7 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_text",
     "figure_name",
+    "is_json_number",
     "jsonable",
     "npz_bytes",
     "read_json",
@@ -270,6 +271,11 @@ def jsonable(value: Any) -> Any:
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def is_json_number(value: Any) -> bool:
+    """Whether a value read from JSON is a number (``true`` and ``false`` are not)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
 def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:

@@ -29,7 +29,7 @@ import torch
 
 from canonid.kernel.catalog import INFO_TRAINING_RANGE, INFO_UNVALIDATED
 from canonid.kernel.errors import CanonidError, CheckpointError, DataError, ShapeError
-from canonid.kernel.io import atomic_write_bytes, atomic_write_json, read_json
+from canonid.kernel.io import atomic_write_bytes, atomic_write_json, is_json_number, read_json
 from canonid.learning.data import Normalisation
 from canonid.learning.export import NumpyModel, ReducedNumpyModel
 from canonid.learning.nets import ALL_NETS, ReducedNet, SequenceModel, build_net
@@ -202,7 +202,7 @@ def check_info(info: Any, net: SequenceModel, *, where: Path) -> dict[str, Any]:
     if not isinstance(info, Mapping):
         raise CheckpointError(f"{where}: field 'info' must be an object, got {_kind(info)}")
     dt = info.get("dt")
-    if dt is not None and not (_is_number(dt) and 0 < dt < math.inf):
+    if dt is not None and not (is_json_number(dt) and 0 < dt < math.inf):
         raise CheckpointError(
             f"{where}: field 'info.dt' must be a positive finite number of seconds, got {dt!r}"
         )
@@ -235,8 +235,8 @@ def _check_outside(found: Any, *, where: Path) -> None:
             isinstance(o, Mapping)
             and isinstance(o.get("name"), str)
             and o.get("kind") in ("input", "output")
-            and all(_is_number(o.get(k)) for k in numbers)
-            and (o.get("beyond") is None or _is_number(o["beyond"]))
+            and all(is_json_number(o.get(k)) for k in numbers)
+            and (o.get("beyond") is None or is_json_number(o["beyond"]))
         )
 
     if not isinstance(found, list) or not all(good(o) for o in found):
@@ -262,7 +262,7 @@ def _check_spans(spans: Any, net: SequenceModel, *, where: Path) -> None:
             and all(
                 isinstance(p, list)
                 and len(p) == 2
-                and all(_is_number(v) and math.isfinite(v) for v in p)
+                and all(is_json_number(v) and math.isfinite(v) for v in p)
                 and p[0] <= p[1]
                 for p in pairs
             )
@@ -274,14 +274,10 @@ def _check_spans(spans: Any, net: SequenceModel, *, where: Path) -> None:
             )
 
 
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _kind(value: Any) -> str:
     """The JSON kind of ``value`` for a message (``a string 'abc'``, ``a list``)."""
     names = {str: "a string", list: "a list", dict: "an object", bool: "a boolean"}
-    kind = names.get(type(value), "a number" if _is_number(value) else "null")
+    kind = names.get(type(value), "a number" if is_json_number(value) else "null")
     return f"{kind} {value!r}" if isinstance(value, (str, int, float)) else kind
 
 

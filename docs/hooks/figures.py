@@ -693,9 +693,7 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         for what, column in (("reduced", "reduced"), ("full", "full"))
     },
     **{
-        f"demo/compression/{rate}/{what}": Cell(
-            DEMO_TABLES, _row(compression=f"{rate} %"), column
-        )
+        f"demo/compression/{rate}/{what}": Cell(DEMO_TABLES, _row(compression=f"{rate} %"), column)
         for rate in (30, 60, 90)
         for what, column in (("reduced", "reduced"), ("full", "full"), ("ratio", "reduced / full"))
     },
