@@ -746,18 +746,21 @@ def run_data(recipe: Recipe) -> tuple[Dataset, str]:
 
 
 def pick_split(dataset: Dataset, name: str | None, *, where: str) -> tuple[str, list[Trajectory]]:
-    """Split ``name``; by default ``test`` if it holds records, else the only split there is."""
+    """Split ``name``; by default ``test`` if it holds records, else the only split there is.
+    A split without a record is refused, naming the splits that hold some."""
+    held = sorted(k for k, v in dataset.splits.items() if v)
     if name is None:
         if dataset.splits.get("test"):
             name = "test"
         elif len(dataset.splits) == 1:
             name = next(iter(dataset.splits))
         else:
-            raise DataError(
-                f"{where}: no 'test' split; choose one of {sorted(dataset.splits)} with --split"
-            )
+            what = "holds no record" if "test" in dataset.splits else "is missing"
+            raise DataError(f"{where}: its 'test' split {what}; choose one of {held} with --split")
     if name not in dataset.splits:
         raise DataError(f"{where}: no split {name!r}; it has {sorted(dataset.splits)}")
+    if not dataset.splits[name]:
+        raise DataError(f"{where}: its split {name!r} holds no record; splits with records: {held}")
     return name, list(dataset.split(name))
 
 

@@ -207,6 +207,16 @@ def test_a_dataset_without_training_records_is_refused_in_one_line(tmp_path, cap
     assert not out.exists()
 
 
+def test_evaluate_names_an_empty_split_and_the_splits_that_hold_records(root, tmp_path, capsys):
+    run = _run(root, tmp_path)
+    data = _with_empty(_dataset(2, 5, dt=0.5, names=("pump", "level")), "test")
+    path = _with_empty(data, "val").save(tmp_path / "empty" / "dataset.npz")
+    argv = ["evaluate", str(run), "--data", str(path)]
+    _refused(capsys, argv, str(path), "'test' split holds no record", "['train']", "--split")
+    _refused(capsys, [*argv, "--split", "val"], "split 'val' holds no record", "['train']")
+    assert main([*argv, "--split", "train"]) == 0
+
+
 def test_an_empty_validation_split_is_cut_off_the_training_records_as_none_is(tmp_path):
     """``canonid generate --n-val 0``: the dataset's ``val`` split is empty, so the run validates
     on a part cut off its training records, exactly as for data without a ``val`` split."""
