@@ -227,6 +227,7 @@ def reduce_model(
         info={**dict(info or {}), "reduction": facts},
         identity={k: v for k, v in facts.items() if k != "frozen_epochs"},
         before_epoch=freeze,
+        flush=True,  # the auto-encoder's weights fall into float32's subnormals on a CPU
     )
     reduced = result.model.net
     assert isinstance(reduced, ReducedNet)

@@ -426,14 +426,20 @@ def resolve_weight_decay(opts: TrainOptions, train: Sequence[Trajectory]) -> Tra
 
 
 @contextlib.contextmanager
-def flushed_subnormals(device: torch.device, weight_decay: float) -> Iterator[None]:
-    """Flush float32 subnormals to zero in CPU arithmetic while a run with weight decay trains.
+def flushed_subnormals(
+    device: torch.device, weight_decay: float, *, always: bool = False
+) -> Iterator[None]:
+    """Flush float32 subnormals to zero in CPU arithmetic while a run with weight decay (or any
+    run, ``always``) trains.
 
     Weight decay pulls many weights into the subnormal range, where a CPU computes several times
     slower (benchmarks/studies/defaults_study_notes.md); without it the defaults' runs hold none,
-    so they are left exactly as they were. Afterwards flushing is off again (torch's default).
+    so they are left exactly as they were. A reduction's auto-encoder falls there without weight
+    decay (benchmarks/RESULTS.md, "Reduction: tank"): its training flushes ``always``.
+    Afterwards flushing is off again (torch's default).
     """
-    if device.type != "cpu" or not weight_decay or not torch.set_flush_denormal(True):
+    wanted = always or bool(weight_decay)
+    if device.type != "cpu" or not wanted or not torch.set_flush_denormal(True):
         yield
         return
     try:
@@ -505,6 +511,7 @@ class _Run:
         val_bank: WindowBank,
         identity: dict[str, Any],
         before_epoch: Callable[[SequenceModel, int], None] | None = None,
+        flush: bool = False,
     ) -> None:
         self.net, self.opts, self.identity = net, opts, identity
         self.before_epoch = before_epoch
@@ -514,8 +521,9 @@ class _Run:
         self.optimiser = torch.optim.Adam(
             net.parameters(), lr=opts.lr, weight_decay=float(opts.weight_decay)
         )
-        # weight decay on a CPU: subnormal weights and moments are zeroed after every step
-        self.flush = bool(float(opts.weight_decay)) and all(
+        # weight decay (or ``flush``) on a CPU: subnormal weights and moments are zeroed after
+        # every step
+        self.flush = (flush or bool(float(opts.weight_decay))) and all(
             p.device.type == "cpu" for p in net.parameters()
         )
         self.rng = np.random.default_rng(opts.seed)
@@ -981,6 +989,7 @@ def fit_net(
     info: Mapping[str, Any] | None = None,
     identity: Mapping[str, Any] | None = None,
     before_epoch: Callable[[SequenceModel, int], None] | None = None,
+    flush: bool = False,
 ) -> FitResult:
     """The training loop of :func:`fit` for a network built by the caller.
 
@@ -993,6 +1002,8 @@ def fit_net(
         identity: extra JSON facts that a resumed run must match (saved in the checkpoint).
         before_epoch: called as ``before_epoch(net, epoch)`` before each epoch (1-based), also
             after a resume; it must depend on nothing but its arguments.
+        flush: on a CPU, flush float32 subnormals to zero whatever the weight decay
+            (:func:`flushed_subnormals`).
     """
     opts = options or TrainOptions()
     train, val = _training_pair(train, val)
@@ -1035,6 +1046,7 @@ def fit_net(
             WindowBank(val, norm, device=device),
             identity_all,
             before_epoch,
+            flush=flush,
         )
         if resume:
             assert run_path is not None
@@ -1049,7 +1061,7 @@ def fit_net(
         if ended:
             stopped = "early_stopping"
         try:
-            with flushed_subnormals(device, float(opts.weight_decay)):  # resolved above
+            with flushed_subnormals(device, float(opts.weight_decay), always=flush):
                 last = state.epoch if ended else (opts.epochs if net.iterative else 0)
                 for epoch in range(state.epoch + 1, last + 1):
                     row = state.train_epoch(epoch)

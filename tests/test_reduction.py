@@ -321,3 +321,27 @@ def test_gru_regressor_is_reduced_too(data):
     u, y0 = burn_in(test)
     assert res.model.simulate(u, y0).shape == (2, 60 - WINDOW, 1)
     assert np.isfinite(reconstruction_mse(res.model, test))
+
+
+def test_a_reduction_trains_with_subnormals_flushed_and_restores_the_default_after(data, full):
+    """A reduction's auto-encoder falls into float32's subnormals without weight decay, where a
+    CPU computes hundreds of times slower (RESULTS.md, "Reduction: tank"): its training flushes
+    them whatever the weight decay, and torch's default is back afterwards."""
+    tiny = torch.finfo(torch.float32).tiny
+
+    def subnormal_product() -> float:
+        return float(torch.tensor(tiny) * torch.tensor(0.5))
+
+    train, val, _ = data
+    seen: list[float] = []
+    reduce_model(
+        full,
+        train,
+        val,
+        compression=0.5,
+        options=options(epochs=2),
+        reduction=ReductionOptions(**SMALL_AE),
+        callback=lambda report: seen.append(subnormal_product()),
+    )
+    assert seen and all(v == 0.0 for v in seen)
+    assert subnormal_product() > 0

@@ -98,6 +98,9 @@ def test_subnormals_are_flushed_on_the_cpu_while_weight_decay_trains_and_only_th
     assert subnormal_product() > 0
     with flushed_subnormals(torch.device("cpu"), 0.0):
         assert subnormal_product() > 0  # no weight decay: the arithmetic is left as it is
+    with flushed_subnormals(torch.device("cpu"), 0.0, always=True):
+        assert subnormal_product() == 0.0  # a reduction's training asks for it regardless
+    assert subnormal_product() > 0
     with pytest.raises(RuntimeError), flushed_subnormals(torch.device("cpu"), 1e-5):
         raise RuntimeError("an interrupted run")
     assert subnormal_product() > 0

@@ -164,6 +164,8 @@ def _quick(stage: str, key: str) -> Callable[[], Any]:
 DEMO_RUN = "the same defaults, idle, on the AMD EPYC machine of 2026-11-29"
 #: Table 1 and the compression study of one demo run (benchmarks/demo_record.py)
 DEMO_TABLES = "make demo: Table 1 and compression"
+#: one reduction and a sweep of the tank (benchmarks/reduce_record.py)
+REDUCTION = "Reduction: tank"
 #: the same of the planar drone's quick reproduce run
 DRONE_TABLES = "Reproduce, quick profile: drone2d"
 _DEMO_MODELS = (  # key slug, the model cell, the windows
@@ -669,6 +671,28 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "analysis/slower": Prose("Analysis cost", r"Wall times are about ([\d.]+)× the old ones"),
     # how long `make demo` takes, and what it runs
     "demo/wall": Cell("make demo", _row(run=DEMO_RUN), "wall time", whole=True),
+    # the tank's reductions of the Reduction page (benchmarks/reduce_record.py)
+    **{
+        f"reduce/single/{row}/{what}": Cell(REDUCTION, _row(model=label), column)
+        for row, label in (
+            ("full", "full Ours (MLP), ℓ = 10"),
+            ("reduced", "reduced, r = 60 %"),
+        )
+        for what, column in (
+            ("y", "vs measured y"),
+            ("clean", "vs y_clean"),
+            ("fit", "fit % (y_clean, after n_init = 50)"),
+        )
+    },
+    "reduce/single/ratio": Prose(REDUCTION, r"Reduced over full: ([\d.]+)× \(measured\)"),
+    "reduce/single/ratio-clean": Prose(REDUCTION, r"× \(measured\), ([\d.]+)× \(noise-free\)"),
+    **{
+        f"reduce/sweep/{window}/{rate}": Cell(
+            REDUCTION, _row(**{"ℓ": str(window), "r": f"{rate} %"}), "reduced / full"
+        )
+        for window in (5, 10)
+        for rate in (15, 30, 45, 60, 75, 90)
+    },
     # Table 1 and the compression study of the demo run the Results page shows
     **{
         f"demo/t1/{slug}/{window}/{target}": Cell(
