@@ -25,13 +25,10 @@ def _read(path: Path) -> dict:
 def single_lines(folder: Path) -> list[str]:
     """The full model and its reduction on the test split: rollout MSE against y and y_clean as
     the reduction scored both (``reduction.json``), and the noise-free fit of each simulation
-    (``metrics.json`` of each run folder)."""
+    (``metrics.json`` of each run folder; the full model's folder from ``run.json``)."""
     found = _read(folder / "reduction.json")
     reduced = _read(folder / "metrics.json")
-    source = Path(found["source"])
-    if not source.is_absolute():  # recorded as given, from where `canonid reduce` ran
-        ran = str(folder.resolve())[: -len(str(Path(found["out"])))]
-        source = Path(ran) / source
+    source = Path(_read(folder / "run.json")["source_run"])  # its absolute path
     fit = {
         "full": _read(source / "metrics.json")["clean"]["fit_percent"],
         "reduced": reduced["clean"]["fit_percent"],

@@ -24,7 +24,7 @@ import numpy as np
 
 from canonid.kernel.catalog import INFO_TRAINING_RANGE, INFO_UNVALIDATED
 from canonid.kernel.dataset import Trajectory
-from canonid.kernel.io import is_json_number
+from canonid.kernel.io import is_outside_record
 
 __all__ = [
     "INFO_KEY",
@@ -102,15 +102,7 @@ class OutsideRange:
     def from_json(cls, data: Any) -> OutsideRange:
         """The record of :meth:`to_json`; ``ValueError`` says what a damaged or hand-edited one
         lacks."""
-        numbers = ("span_low", "span_high", "share", "distance")
-        good = (
-            isinstance(data, Mapping)
-            and isinstance(data.get("name"), str)
-            and data.get("kind") in ("input", "output")
-            and all(is_json_number(data.get(k)) for k in numbers)
-            and (data.get("beyond") is None or is_json_number(data["beyond"]))
-        )
-        if not good:
+        if not is_outside_record(data):
             raise ValueError(
                 "expected an object with name, kind (input or output), span_low, span_high, "
                 f"share, distance and beyond (a number or null), got {data!r}"

@@ -46,6 +46,7 @@ __all__ = [
     "atomic_write_text",
     "figure_name",
     "is_json_number",
+    "is_outside_record",
     "jsonable",
     "npz_bytes",
     "read_json",
@@ -276,6 +277,21 @@ def jsonable(value: Any) -> Any:
 def is_json_number(value: Any) -> bool:
     """Whether a value read from JSON is a number (``true`` and ``false`` are not)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_outside_record(value: Any) -> bool:
+    """Whether a value read from JSON is one record of a signal outside a span, as
+    :meth:`canonid.coverage.OutsideRange.to_json` writes it: a string ``name``, a ``kind``
+    ``input`` or ``output``, numbers ``span_low``, ``span_high``, ``share``, ``distance`` and
+    ``beyond`` a number or null (the model's loader and the metrics' reader both check it)."""
+    numbers = ("span_low", "span_high", "share", "distance")
+    return (
+        isinstance(value, Mapping)
+        and isinstance(value.get("name"), str)
+        and value.get("kind") in ("input", "output")
+        and all(is_json_number(value.get(k)) for k in numbers)
+        and (value.get("beyond") is None or is_json_number(value["beyond"]))
+    )
 
 
 def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:

@@ -29,7 +29,13 @@ import torch
 
 from canonid.kernel.catalog import INFO_TRAINING_RANGE, INFO_UNVALIDATED
 from canonid.kernel.errors import CanonidError, CheckpointError, DataError, ShapeError
-from canonid.kernel.io import atomic_write_bytes, atomic_write_json, is_json_number, read_json
+from canonid.kernel.io import (
+    atomic_write_bytes,
+    atomic_write_json,
+    is_json_number,
+    is_outside_record,
+    read_json,
+)
 from canonid.learning.data import Normalisation
 from canonid.learning.export import NumpyModel, ReducedNumpyModel
 from canonid.learning.nets import ALL_NETS, ReducedNet, SequenceModel, build_net
@@ -228,18 +234,7 @@ def _check_outside(found: Any, *, where: Path) -> None:
     """``info.training_outside_validation``: absent, or a list of the records it names."""
     if found is None:
         return
-
-    def good(o: Any) -> bool:
-        numbers = ("span_low", "span_high", "share", "distance")
-        return (
-            isinstance(o, Mapping)
-            and isinstance(o.get("name"), str)
-            and o.get("kind") in ("input", "output")
-            and all(is_json_number(o.get(k)) for k in numbers)
-            and (o.get("beyond") is None or is_json_number(o["beyond"]))
-        )
-
-    if not isinstance(found, list) or not all(good(o) for o in found):
+    if not isinstance(found, list) or not all(map(is_outside_record, found)):
         raise CheckpointError(
             f"{where}: field 'info.{INFO_UNVALIDATED}' must be a list of objects with "
             "name, kind (input or output), span_low, span_high, share, distance and beyond, "

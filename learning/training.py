@@ -521,11 +521,9 @@ class _Run:
         self.optimiser = torch.optim.Adam(
             net.parameters(), lr=opts.lr, weight_decay=float(opts.weight_decay)
         )
-        # weight decay (or ``flush``) on a CPU: subnormal weights and moments are zeroed after
+        # flushing on a CPU (:func:`fit_net`): subnormal weights and moments are zeroed after
         # every step
-        self.flush = (flush or bool(float(opts.weight_decay))) and all(
-            p.device.type == "cpu" for p in net.parameters()
-        )
+        self.flush = flush and all(p.device.type == "cpu" for p in net.parameters())
         self.rng = np.random.default_rng(opts.seed)
         self.history: list[dict[str, Any]] = []
         self.best: dict[str, torch.Tensor] = {}
@@ -1016,6 +1014,7 @@ def fit_net(
     _check_rollout_lengths(train, val, window, opts.horizon)
     opts = _fit_validation_horizon(opts, window, max(tr.T for tr in val))
     opts = resolve_weight_decay(opts, train)
+    flush = flush or bool(float(opts.weight_decay))  # weight decay makes subnormals: flushed
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:
         raise CheckpointError("resume=True needs the run_dir holding checkpoint.pt")

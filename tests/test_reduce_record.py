@@ -20,6 +20,7 @@ def _write(path: Path, body: dict) -> None:
 def test_one_reduction_against_its_full_model_as_the_reduction_scored_both(tmp_path):
     source, folder = tmp_path / "full", tmp_path / "reduced"
     _write(source / "metrics.json", {"clean": {"fit_percent": 98.184}})
+    _write(folder / "run.json", {"source_run": str(source)})
     _write(
         folder / "metrics.json",
         {"n_rollouts": 1820, "rollout_horizon": 100, "n_init": 50, "clean": {"fit_percent": 98.0}},
@@ -27,7 +28,7 @@ def test_one_reduction_against_its_full_model_as_the_reduction_scored_both(tmp_p
     _write(
         folder / "reduction.json",
         {
-            "source": str(source),
+            "source": "full",  # as given on the command line: run.json has the absolute path
             "window": 10,
             "state_dim": 20,
             "latent_dim": 9,
