@@ -447,25 +447,10 @@ def _levels_unseen(data_seed: int) -> str:
 
 
 def screen_lines(run: Path) -> str:
-    """What canonid's defaults chose on validation: the screen's losses and the full runs."""
-    from canonid.learning.screen import WindowScreen
+    """What canonid's defaults chose on validation: the search's losses and its choice."""
+    from canonid.learning.search import Search
 
-    screen = WindowScreen.read(run)
-    tried = ", ".join(
-        f"{c.window}: {c.best_val_loss:.4g}" for c in screen.candidates if c.best_val_loss
-    )
-    full = "; ".join(
-        f"ℓ = {r.window}: {r.best_val_loss:.4g} at epoch {r.best_epoch}, ended at epoch "
-        f"{r.epochs_run} of {screen.full_epochs}"
-        for r in screen.full_runs
-        if r.best_val_loss is not None
-    )
-    return (
-        f"canonid's defaults, on validation only: the window screen ({screen.epochs} epochs each; "
-        f"ℓ: best validation loss {tried}) kept ℓ = {screen.screened_window}, the shortest within "
-        f"{screen.tolerance:g}× of the lowest; the full runs (best validation loss): {full}; "
-        f"the model is ℓ = {screen.chosen}, the lowest."
-    )
+    return f"canonid's defaults, on validation only: {Search.read(run).line()}."
 
 
 def diagnosis(cpu: dict[str, Any]) -> list[str]:

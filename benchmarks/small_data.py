@@ -235,26 +235,10 @@ def cpu_of(name: str) -> dict[str, Any]:
 
 
 def screen(name: str) -> str:
-    """The window the screen chose, the screen's best validation loss per window, and whether
-    the full run left budget for the screen's near ties (runs older than that rule record no
-    full runs: their history's last epoch says it)."""
-    from canonid.learning.window_screen import FOLLOWUP_SHARE, WindowScreen
+    """What the search chose for run ``name``, with its validation losses."""
+    from canonid.learning.search import Search
 
-    found = WindowScreen.read(RUNS / name)
-    losses = ", ".join(
-        f"{c.window}: {c.best_val_loss:.2e}" for c in found.candidates if c.error is None
-    )
-    v = validation(RUNS / name)
-    epochs = found.full_epochs or round(found.epochs / found.fraction)
-    within = v.last < FOLLOWUP_SHARE * epochs
-    after = (
-        f"{', '.join(str(r.window) for r in found.full_runs[1:])} trained fully too"
-        if len(found.full_runs) > 1
-        else "no near tie trained fully"
-        if not within
-        else "near ties not yet trained fully (a run before that rule)"
-    )
-    return f"{found.chosen} ({losses}; full run ended at epoch {v.last} of {epochs}: {after})"
+    return Search.read(RUNS / name).line()
 
 
 def mv(value: float | None) -> str:
@@ -415,29 +399,15 @@ def record() -> int:
 
 
 def cubic_line() -> str:
-    """What canonid's cubic test decided on each cut (a run from before the test: said so)."""
-    from canonid.learning.extrapolation import CubicTest
+    """The cubic branch is an axis of the search: what it chose on each cut."""
+    from canonid.learning.search import Search
 
-    told = []
-    for n in SIZES:
-        config = RUNS / f"n{n}" / "config.json"
-        if not config.is_file():
-            continue
-        test = json.loads(config.read_text()).get("info", {}).get("cubic_test")
-        told.append(
-            f"{n:,} samples: "
-            + (
-                CubicTest.from_dict(test).summary()
-                if test
-                else "trained before the cubic test existed (the test cannot run on this cut: "
-                "`benchmarks/extrapolation_study.py decide silverbox-1k`)"
-            )
-        )
-    return (
-        'The cubic branch (`cubic="auto"`, section "Extrapolation"): '
-        + "; ".join(told)
-        + ". The CPU time includes the test."
-    )
+    told = [
+        f"{n:,} samples: {Search.read(RUNS / f'n{n}').chosen}"
+        for n in SIZES
+        if (RUNS / f"n{n}" / "search.json").is_file()
+    ]
+    return "; ".join(told)
 
 
 def losses(run: Path) -> list[tuple[str, str, str]]:

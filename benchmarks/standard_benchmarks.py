@@ -30,44 +30,17 @@ def _load() -> str:
 
 
 def _screen_line(run: Path) -> str:
-    """How the run's window was chosen (its window screen), or nothing when it was given."""
-    from canonid.learning.screen import SCREEN_FILE, WindowScreen
+    """How the run's model was chosen (its search), or nothing when it was given."""
+    from canonid.learning.search import SEARCH_FILE, Search
 
-    if not (run / SCREEN_FILE).is_file():
+    if not (run / SEARCH_FILE).is_file():
         return ""
-    screen = WindowScreen.read(run)
-    losses = ", ".join(
-        f"{c.window}: {c.best_val_loss:.3g}" for c in screen.candidates if c.best_val_loss
-    )
-    full = ", ".join(
-        f"ℓ = {r.window} ended at epoch {r.epochs_run} of {screen.full_epochs}"
-        for r in screen.full_runs
-    )
-    return (
-        f"Window: chosen on validation by the default screen ({screen.epochs} epochs each; "
-        f"ℓ: best validation loss {losses}; the shortest within {screen.tolerance:g}× of the "
-        f"lowest), then trained fully ({full}; near ties follow only a run that stops within "
-        f"half the epochs): ℓ = {screen.chosen}, {screen.cpu_seconds:.0f} CPU s of screen.\n\n"
-    )
+    return f"Model: {Search.read(run).line()}.\n\n"
 
 
 def _cubic_line(run: Path) -> str:
-    """What the cubic test decided for the run's model, or nothing when it did not run."""
-    from canonid.learning.extrapolation import CubicTest
-
-    info = json.loads((run / "config.json").read_text()).get("info", {})
-    if "cubic_test" not in info:
-        return ""
-    test = CubicTest.from_dict(info["cubic_test"])
-    split = (
-        ""
-        if not test.split
-        else (
-            f"; {test.split['train_samples']:,} training samples, {test.split['val_samples']:,} "
-            "held out"
-        )
-    )
-    return f'Cubic branch (`cubic="auto"`): {test.summary()}{split}.\n\n'
+    """The cubic branch is an axis of the search (:func:`_screen_line` says what it chose)."""
+    return ""
 
 
 def _body(run: Path, cpu: float, wall: float, load: str, earlier: str | None = None) -> str:

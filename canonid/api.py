@@ -28,99 +28,79 @@ def fit(
     val: Sequence[Trajectory],
     *,
     model: str = "mlp",
-    window: int | Literal["auto"] = "auto",
+    window: int | Sequence[int] | Literal["auto"] = "auto",
+    cubic: int | Literal["auto"] = "auto",
     max_window: int | None = None,
     options: TrainOptions | None = None,
     profile: str = DEFAULT_PROFILE,
     **kwargs: Any,
 ) -> FitResult:
-    """Train ``model`` by output error (:func:`canonid.learning.fit`) with window ``window``.
+    """Train ``model`` by output error, choosing what is not given as ``canonid train`` does.
 
-    ``window="auto"`` (the default, as ``canonid train`` without ``--window``) screens the
-    windows :data:`~canonid.learning.screen.SCREEN_WINDOWS` that the records allow on the
-    validation trajectories (:func:`~canonid.learning.screen.screen_windows`: a short training
-    each; ``max_window``: only those up to it, as ``--max-window``) and trains the chosen one
-    fully; while the full runs together stop early, before
-    :data:`~canonid.learning.window_screen.FOLLOWUP_SHARE` of the epochs, the screen's next
-    near-tied window is trained fully too and the lowest full-run validation loss chooses.
-    The result carries the screen's table as ``result.screen``; with ``run_dir`` the table is
-    written there too (:data:`~canonid.learning.screen.SCREEN_FILE`), the follow-ups in
-    ``run_dir/followups/lL`` (the chosen one's files copied into ``run_dir``), and
-    ``resume=True`` continues from what is recorded there instead of screening again. An
-    integer trains exactly that window.
+    Without ``window`` (``"auto"``) and ``cubic`` (``"auto"``), the model is chosen by the
+    search of :mod:`canonid.learning.search` (successive halving over the windows
+    :data:`~canonid.learning.search.WINDOWS` that the records allow, up to ``max_window``, and
+    Ours (MLP)'s cubic branch :data:`~canonid.learning.search.CUBIC_UNITS`), ranked on the
+    free-run simulation of ``val``; the result carries it as ``result.search``. An integer (or,
+    for ``window``, a list) fixes that axis; both fixed train exactly that model. With
+    ``run_dir`` the candidates train in ``run_dir/search/<name>``, the search is recorded in
+    ``run_dir/search.json`` and the chosen model's files are copied into ``run_dir``; calling
+    again with the same arguments continues an interrupted search.
 
     ``options`` default to the ``train`` stage of ``profile`` (the command line's default,
     ``quick``); ``canonid.train_options(profile, epochs=…)`` changes one value of it. The other
     keyword arguments (``net_options``, ``run_dir``, ``resume``, ``callback``, ``info``) go to
     :func:`canonid.learning.fit` unchanged.
     """
-    import dataclasses
-
     from canonid.kernel.dataset import Trajectory as Record
-    from canonid.learning.screen import (
-        FOLLOWUPS_DIR,
-        SCREEN_WINDOWS,
-        WindowScreen,
-        fit_row,
-        fitting_windows,
-    )
-    from canonid.learning.screen import screen_windows as screen_of
-    from canonid.learning.training import CHECKPOINT_FILE
+    from canonid.learning.search import adopt, candidate_table, fitting_windows, search
     from canonid.learning.training import fit as fit_library  # torch, only when training
-    from canonid.selection import adopt
-    from canonid.training import windows_up_to
+    from canonid.training import search_axes
 
     if options is None:
         options = train_options(profile)
-    if window != "auto":
-        if max_window is not None:
-            raise OptionError("max_window caps the screen's windows: give it with window='auto'")
-        return fit_library(train, val, model=model, window=window, options=options, **kwargs)
+    if max_window is not None and window != "auto":
+        raise OptionError("max_window caps the searched windows: give it with window='auto'")
+    windows, cubics = search_axes(model, window, cubic, max_window, kwargs.get("net_options"))
+    if len(windows) == 1 and len(cubics) == 1:
+        net_options = dict(kwargs.pop("net_options", None) or {})
+        if model == "mlp" or "cubic" in net_options:
+            net_options["cubic"] = cubics[0]
+        return fit_library(
+            train,
+            val,
+            model=model,
+            window=windows[0],
+            options=options,
+            net_options=net_options,
+            **kwargs,
+        )
+    if val is None or not len(val):
+        raise OptionError(
+            "val: validation trajectories are required (the search ranks its candidates on their "
+            "simulation); hold out a few records or the tail of one"
+        )
+    train, val = [Record.of(t) for t in train], [Record.of(t) for t in val]
+    fits = fitting_windows(train, val, windows, options.horizon)
+    if not fits:
+        raise DataError(
+            f"window='auto': none of the windows {list(windows)} fits the records (shortest "
+            f"{min(len(t.y) for t in [*train, *val])} samples, longest validation record "
+            f"{max(len(t.y) for t in val)}; training rollouts {options.horizon}); give window=L"
+        )
+    unknown = set(kwargs) - {"net_options", "run_dir", "resume"}
+    if unknown:
+        raise OptionError(f"canonid.fit: {sorted(unknown)} do not apply to a search")
     run_dir = None if kwargs.get("run_dir") is None else Path(kwargs["run_dir"])
-    if kwargs.get("resume") and run_dir is not None:  # the window the interrupted run chose
-        screen = WindowScreen.read(run_dir)
-    else:
-        train, val = [Record.of(t) for t in train], [Record.of(t) for t in val]
-        windows = fitting_windows(train, val, windows_up_to(max_window, "max_window"), options)
-        if not windows:
-            raise DataError(
-                f"window='auto': none of the windows {list(SCREEN_WINDOWS)} fits the records "
-                f"(shortest {min(len(t.y) for t in [*train, *val])} samples; training rollouts "
-                f"{options.horizon}, validation rollouts {options.rollout_horizon}); give window=L"
-            )
-        screen = screen_of(
-            train,
-            val,
-            windows=windows,
-            model=model,
-            options=options,
-            net_options=kwargs.get("net_options"),
-        )
-        if run_dir is not None:
-            run_dir.mkdir(parents=True, exist_ok=True)
-            screen.write(run_dir)
-    result = fit_library(train, val, model=model, window=screen.chosen, options=options, **kwargs)
-    if not screen.full_runs:
-        screen = screen.with_full_run(fit_row(result), options.epochs)
-        if run_dir is not None:
-            screen.write(run_dir)
-    # the screen's near-tied windows, while the full runs so far stopped early (as canonid train)
-    while (ell := screen.next_followup()) is not None:
-        folder = None if run_dir is None else run_dir / FOLLOWUPS_DIR / f"l{ell}"
-        again = folder is not None and (folder / CHECKPOINT_FILE).is_file()
-        other = fit_library(
-            train,
-            val,
-            model=model,
-            window=ell,
-            options=options,
-            **{**kwargs, "run_dir": folder, "resume": again},
-        )
-        screen = screen.with_full_run(fit_row(other), options.epochs)
-        if screen.chosen == ell:
-            result = other
-            if folder is not None and run_dir is not None:  # its model and checkpoint
-                adopt(folder, run_dir, checkpoint=True)
-        if run_dir is not None:
-            screen.write(run_dir)
-    return dataclasses.replace(result, screen=screen)
+    _, result, folder = search(
+        train,
+        val,
+        model=model,
+        table=candidate_table(fits, cubics),
+        options=options,
+        net_options=kwargs.get("net_options"),
+        run_dir=run_dir,
+    )
+    if folder is not None and run_dir is not None:  # the chosen model, continued by a resume
+        adopt(folder, run_dir)
+    return result

@@ -331,7 +331,7 @@ def _reserved(arg: str) -> bool:
 
 def parse_window(text: str | None) -> int | Literal["auto"] | tuple[int, ...] | None:
     """``--window``: as ``canonid train`` reads it (:func:`canonid.training.parse_window`);
-    ``None``: the benchmark's default, the screen."""
+    ``None``: the benchmark's default, the search."""
     from canonid.training import parse_window as train_window
 
     return train_window(text)
@@ -353,7 +353,7 @@ _FIXED_ON_RESUME = {
 class BenchmarkRequest:
     """A benchmark run: train on benchmark ``name``'s official training part (from ``files``,
     default the package's cache) with ``model`` (default ``mlp``), ``window`` (an integer, a
-    tuple or ``"auto"``; default ``"auto"``, the screen of the candidate windows ≤ n_init) and
+    tuple or ``"auto"``; default ``"auto"``, the search over the candidate windows ≤ n_init) and
     ``profile`` (default
     :data:`~canonid.profiles.DEFAULT_PROFILE`) as ``train`` asks (its data, model, window,
     profile, folder, seed and threads are the benchmark's), with the last ``val_fraction``
@@ -408,8 +408,8 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     from canonid.datagen.benchmarks import benchmark, load_benchmark
     from canonid.datagen.loaders import split_train_val
     from canonid.jobs import check_run_folder, run_folder_lock
+    from canonid.learning.search import SEARCH_FILE
     from canonid.learning.training import CHECKPOINT_FILE
-    from canonid.selection import CANDIDATES_DIR
     from canonid.training import check_request, windows_up_to
 
     if request.resume is not None:
@@ -421,7 +421,7 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     listed = (window,) if isinstance(window, int) else () if window == "auto" else window
     for ell in listed:
         check_window(ell, bench)
-    # the screen tries only the windows the official rule can feed (read by a screen only)
+    # the search tries only the windows the official rule can feed
     candidates = (
         windows_up_to(bench.n_init, f"{bench.name}'s n_init =")
         if window == "auto"
@@ -441,7 +441,8 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
         figure_format=request.figure_format,
     )
     check_run_folder(run_dir)
-    if not (run_dir / CHECKPOINT_FILE).exists():  # a run to continue is checked under the lock
+    started = any((run_dir / name).exists() for name in (CHECKPOINT_FILE, SEARCH_FILE))
+    if not started:  # a run to continue is checked under the lock
         check_request(wanted)  # every training option, before the files are read
     dataset = load_benchmark(bench.name, request.files)
     split = split_train_val(
@@ -464,7 +465,7 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
             return _train_and_score(todo, run_dir, bench)
         except BaseException:
             if wrote and not any(  # no training to continue: no data left either
-                (run_dir / name).exists() for name in (CHECKPOINT_FILE, CANDIDATES_DIR)
+                (run_dir / name).exists() for name in (CHECKPOINT_FILE, SEARCH_FILE)
             ):
                 data.unlink(missing_ok=True)
                 data.with_suffix(".json").unlink(missing_ok=True)
@@ -475,22 +476,18 @@ def _continue_or_start(wanted: TrainRequest, run_dir: Path, checksum: str) -> Tr
     """What to train into ``run_dir``, whose lock the caller holds: ``wanted`` when no training
     has started there (or none got to its first checkpoint), else the resumption of the run
     there when it is the same run (the same recipe, the same data: ``checksum``)."""
+    from canonid.learning.search import SEARCH_FILE
     from canonid.learning.training import CHECKPOINT_FILE
     from canonid.runfolder import RUN_FILE, RunRecipe
-    from canonid.selection import CANDIDATES_FILE
     from canonid.training import same_run
 
-    recorded = (
-        RunRecipe.read(run_dir)
-        if (run_dir / RUN_FILE).is_file() and not (run_dir / CANDIDATES_FILE).is_file()
-        else None
-    )
+    recorded = RunRecipe.read(run_dir) if (run_dir / RUN_FILE).is_file() else None
     if recorded is not None and recorded.data_sha256 not in (None, checksum):
         raise CheckpointError(
             f"{run_dir} holds a benchmark run trained on other data than the benchmark files "
             f"give now ({DATA_FILE}); choose another --out"
         )
-    if not (run_dir / CHECKPOINT_FILE).is_file():
+    if not any((run_dir / name).is_file() for name in (CHECKPOINT_FILE, SEARCH_FILE)):
         return wanted
     same_run(wanted, run_dir)
     return TrainRequest(

@@ -190,7 +190,7 @@ def check_members(members: int, model: str, *, mode: str) -> None:
     if mode == "select":
         raise OptionError(
             "--members does not combine with a list of windows or --hidden auto: give one "
-            "window, or none for the screen"
+            "window, or none for the search"
         )
 
 

@@ -22,6 +22,7 @@ from canonid.analysis.report import analyze
 from canonid.jobs import RESULT_FILE, JobOutcome, StoredJob, finished, run_job, store
 from canonid.kernel.errors import OptionError
 from canonid.kernel.io import figure_name
+from canonid.learning.search import SEARCH_FILE
 from canonid.learning.training import CHECKPOINT_FILE
 from canonid.models.registry import get_system
 from canonid.models.sets import Box
@@ -128,14 +129,16 @@ def _train_and_score(job: TrainJob, folder: Path) -> dict[str, Any]:
         train_options=dict(job.train_options),
         command=("canonid", "reproduce", "(job)", job.name),
     )
-    resume = (folder / CHECKPOINT_FILE).is_file()
-    run = train_run(
+    # a search (the defaults' cubic branch) may have started before the first checkpoint
+    resume = (folder / CHECKPOINT_FILE).is_file() or (folder / SEARCH_FILE).is_file()
+    run = train_run(  # Table 1 reads the test split after training: nothing is chosen on it
         recipe,
         folder,
         resume=resume,
         eval_horizon=int(job.evaluation["horizon"]),
         eval_stride=int(job.evaluation["stride"]),
         figure_format=job.figure_format,
+        split="test",
     )
     scores, fitted = run.evaluation.scores, run.fit
     return {

@@ -33,6 +33,7 @@ import io
 import logging
 import math
 import os
+import shutil
 import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import Executor
@@ -52,7 +53,7 @@ from canonid.data_options import DATA_FLAGS
 from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
 from canonid.jobs import run_folder_lock
 from canonid.kernel.dataset import Dataset, Trajectory
-from canonid.kernel.errors import CheckpointError, DataError, OutputError
+from canonid.kernel.errors import CheckpointError, DataError, OptionError, OutputError
 from canonid.kernel.io import (
     atomic_write_json,
     atomic_write_text,
@@ -64,6 +65,17 @@ from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOpt
 from canonid.learning.evaluate import default_n_init, evaluate
 from canonid.learning.model import CONFIG_FILE
 from canonid.learning.plots import plot_rollouts, plot_training_curve
+from canonid.learning.search import (
+    CUBIC_UNITS,
+    SEARCH_DIR,
+    SEARCH_FILE,
+    Candidate,
+    Search,
+    adopt,
+    candidate_table,
+    fitting_windows,
+)
+from canonid.learning.search import search as run_search
 from canonid.learning.training import CHECKPOINT_FILE
 from canonid.models.registry import signal_units
 
@@ -87,6 +99,7 @@ __all__ = [
     "eval_defaults",
     "evaluate_run",
     "figure_file",
+    "finish_run",
     "load",
     "load_splits",
     "pick_split",
@@ -833,16 +846,17 @@ def rescore_run(
     eval_horizon: int | None = None,
     eval_stride: int = 1,
     figure_format: str = "png",
+    split: str = "val",
 ) -> RunEvaluation:
     """Score ``model``, now the model of the run in ``run_dir``, as :func:`train_run` scored
     the one it trained (the same split, rollout length and figures; ``metrics.json`` and the
     rollout figure rewritten)."""
-    dataset, _, _, split, data_path = load_splits(recipe)
+    dataset, _, _, _, _ = load_splits(recipe)
     return evaluate_run(
         run_dir,
         model,
         dataset,
-        data_path=data_path,
+        data_path=scoring_source(recipe, split),
         split=split,
         horizon=score_horizon(recipe, dataset, split, eval_horizon),
         stride=eval_stride,
@@ -944,11 +958,21 @@ def train_run(
     eval_stride: int = 1,
     callback: Callable[[EpochReport], None] | None = None,
     figure_format: str = "png",
+    split: str = "val",
+    table: Sequence[Candidate] | None = None,
     executor: Executor | None = None,
+    record: Callable[[Search], None] | None = None,
 ) -> RunResult:
     """Train the model of ``recipe`` into ``run_dir`` (or continue it from its checkpoint with
     ``resume``), write ``run.json``, the model, ``history.csv`` and the figures, and score it
-    on the test split (the validation split when there is none).
+    on ``split``: validation, what ``canonid train`` reports (``"test"``: the test split, for a
+    command that reads it after every choice is made, as ``canonid reproduce`` does).
+
+    With more than one candidate to choose from — ``table``, or Ours (MLP)'s ``cubic="auto"``
+    (the branch or not, at the recipe's window) — the model is chosen by the search of
+    :mod:`canonid.learning.search` (its candidates in ``RUN/search``, on ``executor``'s
+    workers; ``record`` sees the search after each rung), and ``run.json`` then names the
+    chosen window and branch; a resumed run continues the search recorded in ``search.json``.
 
     ``eval_horizon`` is the rollout length of the score; ``None``: 100, or the final training
     rollout length when shorter, at most what the scored records hold. Data that cannot be
@@ -956,61 +980,203 @@ def train_run(
     checkpoint leaves no recipe behind. The folder's lock is held throughout
     (:func:`canonid.jobs.run_folder_lock`); a new run records its data by absolute path and
     checksum (:meth:`RunSource.pinned`) and refuses a folder holding another run or the user's
-    own files. ``executor`` runs the cubic test's short trainings side by side
-    (:func:`canonid.jobs.candidate_pool`).
+    own files.
     """
     t0, cpu0 = time.perf_counter(), time.process_time()
-    dataset, train, val, test_name, _ = load_splits(recipe)  # the loader's checks first
+    dataset, train, val, _, _ = load_splits(recipe)  # the loader's checks first
     if not resume:
         recipe = recipe.pinned()
-    data_path = scoring_source(recipe, test_name)
-    opts = recipe.options()
-    horizon = score_horizon(recipe, dataset, test_name, eval_horizon)
+    table = _table(recipe, run_dir, table, resume=resume)
+    if len(table) > 1:
+        table = _fitting(table, train, val, recipe)
+    chosen = recipe if len(table) > 1 else _with_candidate(recipe, table[0])
+    opts = chosen.options()
+    horizon = score_horizon(chosen, dataset, split, eval_horizon)
+    info = {"profile": recipe.profile, **data_info(dataset, recipe.data, train, val)}
     with run_folder_lock(run_dir, new=not resume):
         if not resume and (run_dir / CHECKPOINT_FILE).exists():
             raise OutputError(
                 f"{run_dir} already holds a training run; use --resume --out {run_dir} or "
                 "another --out"
             )
-        recipe.write(run_dir)
+        chosen.write(run_dir)
         try:
-            fitted = fit(
-                train,
-                val,
-                model=recipe.model,
-                window=recipe.window,
-                options=opts,
-                net_options=dict(recipe.net_options),
-                run_dir=run_dir,
-                resume=resume,
-                callback=callback,
-                executor=executor,
-                info={"profile": recipe.profile, **data_info(dataset, recipe.data, train, val)},
-            )
+            if len(table) > 1:
+                chosen, fitted = _searched(
+                    recipe, run_dir, table, train, val, info=info, executor=executor, record=record
+                )
+            else:
+                fitted = fit(
+                    train,
+                    val,
+                    model=chosen.model,
+                    window=chosen.window,
+                    options=opts,
+                    net_options=dict(chosen.net_options),
+                    run_dir=run_dir,
+                    resume=resume,
+                    callback=callback,
+                    info=info,
+                )
         except BaseException:
-            if not resume and not (run_dir / CHECKPOINT_FILE).exists():
+            if not resume and not _trained_any(run_dir):
                 _discard(run_dir)
             raise
-        write_history(
-            run_dir, fitted.history, best_epoch=fitted.best_epoch, figure_format=figure_format
-        )
-        evaluation = evaluate_run(
+        return finish_run(
+            chosen,
             run_dir,
-            fitted.model,
-            dataset,
-            data_path=data_path,
-            split=test_name,
+            fitted,
+            dataset=dataset,
+            split=split,
             horizon=horizon,
-            stride=eval_stride,
-            n_init=None,
+            eval_stride=eval_stride,
             figure_format=figure_format,
+            resumed=resume,
+            started=(t0, cpu0),
         )
+
+
+def _trained_any(run_dir: Path) -> bool:
+    """Whether ``run_dir`` holds a checkpoint to continue, its own or a search candidate's;
+    without one, what a failed new run wrote goes (the search's record and folder too)."""
+    if (run_dir / CHECKPOINT_FILE).exists() or any(
+        (run_dir / SEARCH_DIR).glob(f"*/{CHECKPOINT_FILE}")
+    ):
+        return True
+    (run_dir / SEARCH_FILE).unlink(missing_ok=True)
+    if (run_dir / SEARCH_DIR).is_dir():
+        shutil.rmtree(run_dir / SEARCH_DIR)
+    return False
+
+
+def _table(
+    recipe: RunRecipe, run_dir: Path, table: Sequence[Candidate] | None, *, resume: bool
+) -> list[Candidate]:
+    """The candidates to choose among: those a resumed search recorded, ``table``, or the
+    recipe's own model (both cubic arms where its ``cubic`` is ``"auto"``)."""
+    if resume and (run_dir / SEARCH_FILE).is_file():
+        recorded = Search.read(run_dir)
+        if recorded.chosen is not None and (run_dir / CHECKPOINT_FILE).is_file():
+            return [recorded.chosen]  # the chosen model, adopted: it continues as one run
+        return list(recorded.candidates)
+    if table is not None:
+        if not table:
+            raise OptionError("the candidate table is empty")
+        return list(table)
+    cubic = recipe.net_options.get("cubic")
+    if resume and cubic == "auto":
+        raise CheckpointError(
+            f"{run_dir} was trained by an older canonid, whose cubic test this version no longer "
+            "runs: it cannot be resumed (canonid evaluate, analyze and export still read it); "
+            "train it again"
+        )
+    cubics = CUBIC_UNITS if cubic == "auto" else (cubic if isinstance(cubic, int) else 0,)
+    return list(candidate_table((recipe.window,), cubics))
+
+
+def _fitting(
+    table: Sequence[Candidate],
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
+    recipe: RunRecipe,
+) -> list[Candidate]:
+    """The candidates whose window the data allow
+    (:func:`~canonid.learning.search.fitting_windows`); none is a :class:`DataError` naming the
+    records' lengths."""
+    windows = sorted({c.window for c in table})
+    horizon = recipe.options().horizon
+    fits = set(fitting_windows(train, val, windows, horizon))
+    kept = [c for c in table if c.window in fits]
+    if not kept:
+        raise DataError(
+            f"{recipe.data}: no candidate window of {windows} fits the records (shortest training "
+            f"or validation record {min(t.T for t in [*train, *val])} samples, longest validation "
+            f"record {max(t.T for t in val)}: it must hold twice the window; training rollouts "
+            f"{horizon}); give --window L"
+        )
+    return kept
+
+
+def _with_candidate(recipe: RunRecipe, candidate: Candidate) -> RunRecipe:
+    """``recipe`` with ``candidate``'s window, cubic branch and widths."""
+    from canonid.learning.nets import NETS
+
+    options = candidate.net_options(recipe.net_options, NETS[recipe.model].hidden_option)
+    return dataclasses.replace(recipe, window=candidate.window, net_options=options)
+
+
+def _searched(
+    recipe: RunRecipe,
+    run_dir: Path,
+    table: Sequence[Candidate],
+    train: Sequence[Trajectory],
+    val: Sequence[Trajectory],
+    *,
+    info: Mapping[str, Any],
+    executor: Executor | None,
+    record: Callable[[Search], None] | None,
+) -> tuple[RunRecipe, FitResult]:
+    """The search among ``table`` in ``run_dir`` (continued where one is recorded), its chosen
+    candidate's model and checkpoint copied into ``run_dir`` and its recipe written there."""
+    net_options = {k: v for k, v in recipe.net_options.items() if v != "auto" or k != "cubic"}
+    search, fitted, folder = run_search(
+        train,
+        val,
+        model=recipe.model,
+        table=table,
+        options=recipe.options(),
+        net_options=net_options,
+        run_dir=run_dir,
+        executor=executor,
+        record=record,
+        info=info,
+    )
+    assert folder is not None and search.chosen is not None
+    adopt(folder, run_dir)
+    chosen = _with_candidate(recipe, search.chosen)
+    measure = {"val_measure": "simulation", "val_n_init": search.val_n_init}  # as it trained
+    chosen = dataclasses.replace(chosen, train_options={**chosen.train_options, **measure})
+    chosen.write(run_dir)
+    return chosen, fitted
+
+
+def finish_run(
+    recipe: RunRecipe,
+    run_dir: Path,
+    fitted: FitResult,
+    *,
+    dataset: Dataset,
+    split: str,
+    horizon: int,
+    eval_stride: int,
+    figure_format: str,
+    resumed: bool,
+    started: tuple[float, float],
+) -> RunResult:
+    """The end of a training run whose model is in ``run_dir``: ``history.csv`` and its figure,
+    the score on ``split`` (``metrics.json``, the last file written) and the run's timings
+    since ``started`` (wall and CPU clocks), with the CPU its workers spent."""
+    write_history(
+        run_dir, fitted.history, best_epoch=fitted.best_epoch, figure_format=figure_format
+    )
+    evaluation = evaluate_run(
+        run_dir,
+        fitted.model,
+        dataset,
+        data_path=scoring_source(recipe, split),
+        split=split,
+        horizon=horizon,
+        stride=eval_stride,
+        n_init=None,
+        figure_format=figure_format,
+    )
+    t0, cpu0 = started
     return RunResult(
         run_dir=run_dir,
         recipe=recipe,
         fit=fitted,
         evaluation=evaluation,
-        resumed=resume,
+        resumed=resumed,
         seconds=round(time.perf_counter() - t0, 3),
         cpu_seconds=round(time.process_time() - cpu0 + fitted.cpu_elsewhere, 3),
     )

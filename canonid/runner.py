@@ -264,7 +264,7 @@ def dask_setup(worker: Any) -> None:
 
 
 @contextmanager
-def _executor(
+def cluster_executor(
     workers: int, scheduler: str | None, *, connect_timeout: float, processes: bool
 ) -> Iterator[tuple[cf.Executor, int]]:
     """An executor and how many jobs to keep in flight on it."""
@@ -356,7 +356,7 @@ def run_jobs(
         return []
     bar = None  # shown once the executor runs, so that a failed start prints one line
     try:
-        with _executor(
+        with cluster_executor(
             int(workers), scheduler, connect_timeout=connect_timeout, processes=processes
         ) as (executor, window):
             bar = tqdm(total=total, desc=description, unit="job", disable=not progress, leave=True)

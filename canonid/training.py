@@ -4,12 +4,13 @@ A :class:`TrainRequest` holds the options as the user gave them (``None``: not g
 :func:`train` turns it into the run's recipe (:class:`canonid.runfolder.RunRecipe`: the
 profile's options with the overrides, the network's options over :mod:`canonid.kernel.catalog`'s
 presets), or checks it against the recipe of the run it resumes (the resume rule: of the training
-options only :data:`canonid.learning.training.RESUMABLE_CHANGES` may change, the network's none),
-or chooses the window: ``window="auto"`` (the default of a new run) screens the candidate
-windows briefly on validation and trains the chosen one fully (:mod:`canonid.learning.screen`);
-a list of windows or ``hidden="auto"`` trains every candidate fully and keeps the best on
-validation (:mod:`canonid.selection`). It returns a :class:`TrainOutcome`, whose
-:meth:`~TrainOutcome.summary` the command prints.
+options only :data:`canonid.learning.training.RESUMABLE_CHANGES` may change, the network's none).
+What the user did not fix is chosen by the search of :mod:`canonid.learning.search`: the window
+(``--window`` not given, or a list), Ours (MLP)'s cubic branch (``--cubic`` not given) and the
+widths (``--hidden auto``) are the axes of its candidate table, ranked on the free-run
+simulation of the validation records. It returns a :class:`TrainOutcome`, whose
+:meth:`~TrainOutcome.summary` the command prints: validation scores only; the test split is
+read by ``canonid evaluate`` (or ``canonid benchmark``), after the choice.
 
 The module imports no torch: the command line reads its names for ``--help``; the training
 loads when :func:`train` runs.
@@ -17,10 +18,8 @@ loads when :func:`train` runs.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import Executor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -29,41 +28,24 @@ from canonid.coverage import recorded_unvalidated, unvalidated_line
 from canonid.horizon_check import ALTERNATIVES as HORIZON_ALTERNATIVES
 from canonid.horizon_check import HORIZON_CHECK_FILE
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
-from canonid.learning.extrapolation import (
-    CUBIC_GAIN,
-    CUBIC_SEEDS,
-    CUBIC_UNITS,
-    HOLD_OUT,
-    CubicTest,
-)
-from canonid.learning.screen import (
-    FOLLOWUPS_DIR,
-    SCREEN_FILE,
-    SCREEN_FRACTION,
-    SCREEN_TOLERANCE,
-    SCREEN_WINDOWS,
-    WindowScreen,
-)
-from canonid.learning.window_screen import FOLLOWUP_SHARE
+from canonid.learning.search import CUBIC_UNITS, ETA, SEARCH_FILE, WINDOWS, Search
 from canonid.members import check_members
 
 if TYPE_CHECKING:
     from canonid.horizon_check import HorizonChoice
     from canonid.learning import EpochReport, Model
+    from canonid.learning.search import Candidate
     from canonid.members import MemberChoice, MemberJob
     from canonid.runfolder import RunRecipe, RunResult
-    from canonid.selection import Selection
 
 __all__ = [
     "AUTO",
     "CUBIC_HELP",
-    "FOLLOWUPS_DIR",
-    "FOLLOWUP_SHARE",
     "HORIZON_HELP",
     "MEMBERS_HELP",
     "REQUEST_TEXT_FIELDS",
-    "SCREEN_FRACTION",
-    "SCREEN_TOLERANCE",
+    "SEARCH_CUBIC_UNITS",
+    "SEARCH_ETA",
     "TRAIN_OPTION_FIELDS",
     "WIDTH_CANDIDATES",
     "WINDOW_CANDIDATES",
@@ -77,13 +59,16 @@ __all__ = [
     "parse_window",
     "request_fields",
     "same_run",
+    "search_axes",
     "train",
     "windows_up_to",
 ]
 
 AUTO = "auto"
-#: the windows that ``window="auto"`` screens (those the data allow)
-WINDOW_CANDIDATES = SCREEN_WINDOWS
+#: the search's halving rate and cubic axis, for ``--help``
+SEARCH_ETA, SEARCH_CUBIC_UNITS = ETA, CUBIC_UNITS
+#: the windows that ``window="auto"`` searches (those the data allow)
+WINDOW_CANDIDATES = WINDOWS
 #: the hidden widths that ``hidden="auto"`` tries (three layers, up to the default 256)
 WIDTH_CANDIDATES = ((64, 64, 64), (128, 128, 128), (256, 256, 256))
 #: the request's fields that override the profile's training options (same names)
@@ -112,11 +97,8 @@ HORIZON_HELP = (
 #: ``canonid train --cubic``: what the branch is and how ``auto`` decides it
 CUBIC_HELP = (
     "Ours (MLP)'s cubic branch C (W x + b)³ beside the network, K units (0: none); default "
-    "auto: hold out the training part's largest excursions (above "
-    f"{HOLD_OUT:g}× the largest), train briefly with {CUBIC_UNITS} units and without, from up "
-    f"to {CUBIC_SEEDS} seeds each, and keep the branch when its best loss on them is at most "
-    f"{CUBIC_GAIN:g}× the plain network's best; on records too short to hold them out, train "
-    "both fully (the branch in RUN/cubic-arm) and apply the same rule to their validation losses"
+    f"auto: the search keeps it or not ({' or '.join(map(str, CUBIC_UNITS))} units, "
+    "ranked on the validation records' simulation)"
 )
 
 #: ``canonid train --members``
@@ -138,21 +120,20 @@ class TrainRequest:
         data, data_options, val, val_fraction: the training data, the loader options
             (:data:`canonid.data_options.DATA_FLAGS`), a validation file, the share held out.
         model, window: registry name (default ``mlp``) and window ℓ; ``"auto"`` (a new run's
-            default): screen ``window_candidates`` and train the chosen one; a tuple: train
-            each of them and keep the best on validation.
-        window_candidates: the windows ``window="auto"`` screens (those the data allow).
+            default) or a tuple: the search's window axis (``window_candidates``, or the tuple).
+        window_candidates: the windows ``window="auto"`` searches (those the data allow).
         profile: the training budget (default :data:`canonid.profiles.DEFAULT_PROFILE`).
         epochs … device: overrides of the profile's training options (:data:`TRAIN_OPTION_FIELDS`).
         hidden, activation, residual, feedthrough, linear, cubic, paper_options: the network's
-            options (``hidden="auto"``: select the widths; ``cubic="auto"``: decided on the
-            training part's held-out peaks, :mod:`canonid.learning.extrapolation`).
+            options (``hidden="auto"``, ``cubic="auto"``: axes of the search).
         out, resume: the new run's folder, or the run to continue.
         eval_horizon, threads: the final score's rollout length; torch CPU threads.
         members: train the run's recipe from this many seeds and keep the lowest validation
             loss among them and the means of their best (:mod:`canonid.members`; default 1,
             a resumed run the number it planned).
         figure_format: the figures' file format (one of :data:`canonid.kernel.io.FIGURE_FORMATS`).
-        workers, scheduler, progress: where a selection's candidates run; progress bars.
+        workers, scheduler, progress: where a search's candidates run (local worker
+            processes; a cluster's scheduler address); progress bars.
         command: the command line that asked (recorded in ``run.json``).
     """
 
@@ -166,7 +147,7 @@ class TrainRequest:
     profile: str | None = None
     epochs: int | None = None
     lr: float | None = None
-    weight_decay: float | Literal["auto"] | None = None
+    weight_decay: float | None = None
     batch_size: int | None = None
     horizon: int | None = None
     windows_per_epoch: int | None = None
@@ -193,58 +174,54 @@ class TrainRequest:
 
 @dataclass(frozen=True)
 class TrainOutcome:
-    """What :func:`train` did: one run trained (``result``; ``screen``: its window chosen by
-    the screen) or candidates selected (``selection``), into ``run_dir``, with the chosen
-    model's ``metrics.json`` body."""
+    """What :func:`train` did: the run trained into ``run_dir`` (``result``; ``search``: the
+    search that chose its model), with its ``metrics.json`` body (scored on validation)."""
 
     run_dir: Path
     metrics: Mapping[str, Any]
     result: RunResult | None = None
-    selection: Selection | None = None
-    screen: WindowScreen | None = None
+    search: Search | None = None
     members: MemberChoice | None = None
     horizon: HorizonChoice | None = None
 
     def summary(self) -> str:
-        """What ``canonid train`` prints: how training ended, the scores, where the run is."""
+        """What ``canonid train`` prints: the search, how training ended, the validation
+        scores, where the run is."""
         from canonid.scoring import metrics_table
 
-        if self.selection is not None:
-            best = self.selection.best
-            head = [
-                self.selection.table(markdown=False),
-                f"chosen: {best.name} (best validation loss {best.best_val_loss:.4g}, "
-                f"normalised, at epoch {best.best_epoch}); its run is the model of {self.run_dir}",
+        assert self.result is not None
+        fitted = self.result.fit
+        head = []
+        if self.search is not None:
+            head = [self.search.table(), self.search.summary()]
+        head.append(
+            f"{self.result.recipe.model}: {fitted.stopped} after {fitted.epochs_run} epochs, "
+            f"best validation loss {fitted.best_val_loss:.4g} (normalised) at epoch "
+            f"{fitted.best_epoch}"
+        )
+        test = fitted.model.info.get("feedthrough_test")
+        if test:  # feedthrough "auto": say what the data decided
+            head.append(
+                f"feedthrough {'on' if test['feedthrough'] else 'off'} (decided on validation: "
+                f"with u_t the linear fit's one-step error is "
+                f"{test['with_u'] / test['without_u']:.3g} of that without; "
+                "--feedthrough / --no-feedthrough decide instead)"
+            )
+        unseen = unvalidated_line(recorded_unvalidated(fitted.model.info))
+        if unseen:
+            head.append(unseen)
+        if self.horizon is not None:
+            head.append(self.horizon.summary())
+        if self.members is not None:
+            head.append(f"{self.members.summary()}; the scores below are the kept model's")
+        return "\n".join(
+            [
+                *head,
+                metrics_table(self.metrics),
+                f"run written to {self.run_dir} (scored on validation; canonid evaluate "
+                f"{self.run_dir} scores the test split)",
             ]
-        else:
-            assert self.result is not None
-            fitted = self.result.fit
-            head = [
-                f"{self.result.recipe.model}: {fitted.stopped} after {fitted.epochs_run} epochs, "
-                f"best validation loss {fitted.best_val_loss:.4g} (normalised) at epoch "
-                f"{fitted.best_epoch}"
-            ]
-            if self.screen is not None:
-                head = [self.screen.table(), self.screen.summary(), *head]
-            test = fitted.model.info.get("feedthrough_test")
-            if test:  # feedthrough "auto": say what the data decided
-                head.append(
-                    f"feedthrough {'on' if test['feedthrough'] else 'off'} (decided on validation: "
-                    f"with u_t the linear fit's one-step error is "
-                    f"{test['with_u'] / test['without_u']:.3g} of that without; "
-                    "--feedthrough / --no-feedthrough decide instead)"
-                )
-            cubic = fitted.model.info.get("cubic_test")
-            if cubic:  # cubic "auto": say what the held-out peaks decided
-                head.append(f"{CubicTest.from_dict(cubic).summary()} (--cubic K decides instead)")
-            unseen = unvalidated_line(recorded_unvalidated(fitted.model.info))
-            if unseen:
-                head.append(unseen)
-            if self.horizon is not None:
-                head.append(self.horizon.summary())
-            if self.members is not None:
-                head.append(f"{self.members.summary()}; the scores below are the kept model's")
-        return "\n".join([*head, metrics_table(self.metrics), f"run written to {self.run_dir}"])
+        )
 
 
 def parse_widths(text: str | None) -> tuple[int, ...] | Literal["auto"] | None:
@@ -264,15 +241,15 @@ def parse_widths(text: str | None) -> tuple[int, ...] | Literal["auto"] | None:
     return widths
 
 
-def parse_weight_decay(text: str | None) -> float | Literal["auto"] | None:
-    """``--weight-decay``: a number, ``"auto"`` or ``None`` (not given); else an
-    :class:`OptionError` naming the option (its range is checked with the other options)."""
-    if text is None or text == AUTO:
-        return text  # type: ignore[return-value]
+def parse_weight_decay(text: str | None) -> float | None:
+    """``--weight-decay``: a number or ``None`` (not given); else an :class:`OptionError`
+    naming the option (its range is checked with the other options)."""
+    if text is None:
+        return None
     try:
         return float(text)
     except ValueError:
-        raise OptionError(f"--weight-decay: expected a number >= 0 or auto, got {text!r}") from None
+        raise OptionError(f"--weight-decay: expected a number >= 0, got {text!r}") from None
 
 
 def parse_cubic(text: str | None) -> int | Literal["auto"] | None:
@@ -315,8 +292,8 @@ def request_fields(
     ``window``, ``hidden``, ``weight_decay`` and ``cubic`` parsed (:func:`parse_window`,
     :func:`parse_widths`, :func:`parse_weight_decay`, :func:`parse_cubic`); ``resume`` and
     ``out`` from ``--resume [RUN]`` and ``--out`` (:func:`canonid.jobs.resume_target`);
-    ``window_candidates``, the screen's windows up to ``max_window`` (:func:`windows_up_to`),
-    refused where the run does not screen (a window given, or a run resumed)."""
+    ``window_candidates``, the searched windows up to ``max_window`` (:func:`windows_up_to`),
+    refused where the window is not searched (a window given, or a run resumed)."""
     from canonid.jobs import resume_target
 
     parsed = parse_window(window)
@@ -350,23 +327,19 @@ def _hidden_option(model: str) -> str:
     return option
 
 
-def check_new_run(run_dir: Path, *, selection: bool = False) -> None:
+def check_new_run(run_dir: Path) -> None:
     """Refuse an output folder that holds another kind of run, or files canonid did not write
-    (:func:`canonid.jobs.check_run_folder`); a selection is continued by running it again, so
-    a selection folder is accepted for a selection."""
+    (:func:`canonid.jobs.check_run_folder`), or a run already (resumed with ``--resume``)."""
     from canonid.jobs import check_run_folder
     from canonid.learning.training import CHECKPOINT_FILE
-    from canonid.selection import CANDIDATES_FILE
 
     check_run_folder(run_dir)
-    if (run_dir / CHECKPOINT_FILE).exists():
-        raise OutputError(
-            f"{run_dir} already holds a training run; use --resume --out {run_dir} or another --out"
-        )
-    if not selection and (run_dir / CANDIDATES_FILE).exists():
-        raise OutputError(
-            f"{run_dir} holds a selection of candidates ({CANDIDATES_FILE}); choose another --out"
-        )
+    for name in (CHECKPOINT_FILE, SEARCH_FILE):
+        if (run_dir / name).exists():
+            raise OutputError(
+                f"{run_dir} already holds a training run; use --resume --out {run_dir} or "
+                "another --out"
+            )
 
 
 def _recipe(request: TrainRequest) -> RunRecipe:
@@ -439,7 +412,7 @@ def _resume_recipe(request: TrainRequest, run_dir: Path) -> RunRecipe:
     from canonid.learning.training import CHECKPOINT_FILE, RESUMABLE_CHANGES
     from canonid.runfolder import RunRecipe
 
-    if not (run_dir / CHECKPOINT_FILE).is_file():
+    if not any((run_dir / name).is_file() for name in (CHECKPOINT_FILE, SEARCH_FILE)):
         raise CheckpointError(f"{run_dir} holds no {CHECKPOINT_FILE} to resume from")
     changeable = [key for key in TRAIN_OPTION_FIELDS if key in RESUMABLE_CHANGES]
     fixed = [
@@ -497,41 +470,89 @@ def _resume_recipe(request: TrainRequest, run_dir: Path) -> RunRecipe:
     )
 
 
-def _mode(request: TrainRequest) -> Literal["run", "screen", "select"]:
-    """What ``request`` trains: one run (a window given, or a run resumed), the screen of
-    windows (a new run without one, or ``window="auto"``), or a selection of fully trained
-    candidates (a list of windows, or ``hidden="auto"``)."""
-    if isinstance(request.window, tuple) or request.hidden == AUTO:
-        return "select"
-    if request.window == AUTO or (request.window is None and request.resume is None):
-        return "screen"
-    return "run"
+def _searched(request: TrainRequest) -> bool:
+    """Whether ``request``, a new run, leaves an axis of the search open: the window (not given,
+    ``auto`` or a list), the widths (``hidden="auto"``) or Ours (MLP)'s cubic branch (not
+    given, without ``--paper-options``)."""
+    if isinstance(request.window, tuple) or request.window in (None, AUTO):
+        return True
+    if request.hidden == AUTO:
+        return True
+    model = request.model or "mlp"
+    return model == "mlp" and not request.paper_options and request.cubic in (None, AUTO)
 
 
 def windows_up_to(
     limit: int | None, what: str = "--max-window", *, screened: bool = True
 ) -> tuple[int, ...]:
-    """The windows the screen tries that are no longer than ``limit`` (all for ``None``): a
+    """The windows the search tries that are no longer than ``limit`` (all for ``None``): a
     scoring rule that feeds the model ``n_init`` measured samples caps the window at it.
-    ``screened``: whether the run screens at all (a cap without a screen is refused)."""
+    ``screened``: whether the window is searched at all (a cap without a search is refused)."""
     if limit is None:
         return WINDOW_CANDIDATES
     if not screened:
         raise OptionError(
-            f"{what} caps the screen's windows: give it without --window L and --resume"
+            f"{what} caps the searched windows: give it without --window L and --resume"
         )
     kept = tuple(w for w in WINDOW_CANDIDATES if w <= limit)
     if not kept:
         raise OptionError(
-            f"{what} {limit} is below every window the screen tries "
+            f"{what} {limit} is below every window the search tries "
             f"({', '.join(map(str, WINDOW_CANDIDATES))}); give one window ≤ {limit} instead"
         )
     return kept
 
 
+def search_axes(
+    model: str,
+    window: int | Sequence[int] | str | None,
+    cubic: int | str | None,
+    max_window: int | None = None,
+    net_options: Mapping[str, Any] | None = None,
+    *,
+    paper: bool = False,
+) -> tuple[tuple[int, ...], tuple[int, ...]]:
+    """The search's window and cubic axes: what is given fixes an axis, ``"auto"`` (or not
+    given) opens it (the windows :data:`WINDOW_CANDIDATES` up to ``max_window``; the cubic
+    branch :data:`~canonid.learning.search.CUBIC_UNITS` for Ours (MLP) without the paper's
+    options, where ``net_options`` do not give it)."""
+    if isinstance(window, int):
+        windows: tuple[int, ...] = (window,)
+    elif window is None or window == AUTO:
+        windows = windows_up_to(max_window, "max_window")
+    else:
+        windows = tuple(int(w) for w in window)  # type: ignore[union-attr]
+    given = (net_options or {}).get("cubic", cubic)
+    if isinstance(given, int):
+        cubics: tuple[int, ...] = (given,)
+    elif model == "mlp" and not paper:
+        cubics = CUBIC_UNITS
+    else:
+        cubics = (0,)
+    return windows, cubics
+
+
+def _table(request: TrainRequest, base: RunRecipe) -> tuple[Candidate, ...]:
+    """The candidate table of ``request`` (its data decide later which windows fit)."""
+    from canonid.learning.search import candidate_table
+
+    if isinstance(request.window, tuple):
+        windows: tuple[int, ...] = request.window
+    elif isinstance(request.window, int):
+        windows = (request.window,)
+    else:
+        windows = request.window_candidates
+    cubic = base.net_options.get("cubic")
+    cubics = CUBIC_UNITS if cubic == AUTO else ((cubic,) if isinstance(cubic, int) else (0,))
+    widths: Sequence[tuple[int, ...] | None] = (
+        WIDTH_CANDIDATES if request.hidden == AUTO else (None,)
+    )
+    return candidate_table(windows, cubics, widths)
+
+
 def _candidates_base(request: TrainRequest) -> RunRecipe:
-    """The recipe that the candidates (of a screen or a selection) vary, at their first
-    window: every option checked before any data are read."""
+    """The recipe that the candidates of a search vary, at their first window: every option
+    checked before any data are read."""
     if isinstance(request.window, tuple):
         windows = request.window
     elif isinstance(request.window, int):
@@ -551,186 +572,9 @@ def _candidates_base(request: TrainRequest) -> RunRecipe:
     return base
 
 
-def _candidate_windows(request: TrainRequest, base: RunRecipe) -> list[int]:
-    """The windows to screen or select from that the data allow (:func:`allowed_windows`)."""
-    from canonid.selection import allowed_windows
-
-    if isinstance(request.window, int):
-        return [request.window]
-    if isinstance(request.window, tuple):
-        return allowed_windows(base, request.window)
-    return allowed_windows(base, request.window_candidates, screen=True)
-
-
-def _select(request: TrainRequest) -> TrainOutcome:
-    """A list of windows / ``hidden="auto"``: train the candidates, keep the best on
-    validation (:mod:`canonid.selection`)."""
-    from canonid.jobs import run_folder_lock
-    from canonid.runfolder import METRICS_FILE, read_metrics
-    from canonid.selection import plan_candidates, select
-
-    hidden_auto = request.hidden == AUTO
-    base = _candidates_base(request)
-    windows = _candidate_windows(request, base)
-    run_dir = _candidates_folder(request, base)
-    check_new_run(run_dir, selection=True)
-    local = not request.workers and request.scheduler is None
-    jobs = plan_candidates(
-        base,
-        run_dir,
-        windows=windows,
-        widths=WIDTH_CANDIDATES if hidden_auto else (None,),
-        eval_horizon=request.eval_horizon,
-        figure_format=request.figure_format,
-        threads=request.threads if request.threads is not None or local else 1,
-    )
-    # a failure before any candidate wrote (a bad --workers or scheduler) leaves no folder
-    with run_folder_lock(run_dir, new=True):
-        check_new_run(run_dir, selection=True)  # again, now that no one else writes it
-        selection = select(
-            jobs,
-            run_dir,
-            workers=request.workers or 0,
-            scheduler=request.scheduler,
-            progress=request.progress,
-        )
-        metrics = read_metrics(run_dir / METRICS_FILE)
-    return TrainOutcome(run_dir, metrics, selection=selection)
-
-
-def _screen(request: TrainRequest, callback: Callable[[EpochReport], None] | None) -> TrainOutcome:
-    """``window="auto"``: screen the candidate windows on validation
-    (:func:`canonid.learning.screen.screen_windows`), record the screen in the run folder
-    (:data:`~canonid.learning.screen.SCREEN_FILE`), then train the chosen window as
-    ``--window`` would."""
-    base = _candidates_base(request)
-    run_dir = _candidates_folder(request, base)
-    return _screen_into(request, base, run_dir, None, callback)
-
-
-def _screen_into(
-    request: TrainRequest,
-    base: RunRecipe,
-    run_dir: Path,
-    windows: Sequence[int] | None,
-    callback: Callable[[EpochReport], None] | None,
-) -> TrainOutcome:
-    """The screen of :func:`_screen` for the recipe ``base`` into ``run_dir``: of ``windows``,
-    else of those the request allows on the data."""
-    import sys
-
-    from canonid.jobs import candidate_pool, run_folder_lock, torch_threads
-    from canonid.learning.screen import ScreenCandidate, screen_windows
-    from canonid.runfolder import load_splits
-
-    with run_folder_lock(run_dir, new=True):
-        check_new_run(run_dir)  # again, now that no one else writes it
-        if windows is None:
-            windows = _candidate_windows(request, base)
-        _, train_part, val_part, _, _ = load_splits(base)  # the test split plays no part
-
-        def shown(index: int, row: ScreenCandidate) -> None:
-            if request.progress:
-                loss = "-" if row.best_val_loss is None else f"{row.best_val_loss:.4g}"
-                print(
-                    f"window screen {index + 1}/{len(windows)}: ℓ = {row.window}, best "
-                    f"validation loss {loss} ({row.stopped})",
-                    file=sys.stderr,
-                )
-
-        # the screen's candidates, then the chosen run's cubic test, side by side on the cores
-        steps, most = _short_steps(base), max(len(windows), _CUBIC_BATCH)
-        device = base.options().device
-        with candidate_pool(request.threads, steps=steps, candidates=most, device=device) as pool:
-            with torch_threads(request.threads):
-                screen = screen_windows(
-                    train_part,
-                    val_part,
-                    windows=windows,
-                    model=base.model,
-                    options=base.options(),
-                    net_options=base.net_options,
-                    progress=shown,
-                    executor=pool,
-                )
-            screen.write(run_dir)
-            recipe = dataclasses.replace(base, window=screen.chosen)
-            outcome = _train_one(
-                request, recipe, run_dir, resume=False, callback=callback, executor=pool
-            )
-        return _follow_up(request, recipe, run_dir, screen, outcome)
-
-
-#: the most short trainings the cubic test runs at once (its pairs after the first)
-_CUBIC_BATCH = 2 * (CUBIC_SEEDS - 1)
-
-
-def _short_steps(recipe: RunRecipe) -> int:
-    """The optimiser steps of one of the window screen's or the cubic test's short trainings."""
-    from canonid.learning.screen import screen_options
-
-    short = screen_options(recipe.options(), SCREEN_FRACTION)
-    return short.epochs * -(-short.windows_per_epoch // short.batch_size)
-
-
-def _follow_up(
-    request: TrainRequest,
-    recipe: RunRecipe,
-    run_dir: Path,
-    screen: WindowScreen,
-    outcome: TrainOutcome,
-) -> TrainOutcome:
-    """After the screened window's full run (``outcome``, of ``recipe``): record it in the
-    screen, then, while the full runs together ended before
-    :data:`~canonid.learning.window_screen.FOLLOWUP_SHARE` of the profile's epochs, train the
-    screen's next near-tied window fully in ``RUN/followups/lL`` (resumed from its checkpoint
-    when one is there); a full run of lower validation loss becomes the run folder's model
-    (:func:`canonid.selection.adopt`, checkpoint included, so ``--resume`` continues it). The
-    screen file is written after each step, so an interrupted run continues where it stopped."""
-    import sys
-
-    from canonid.learning.screen import fit_row
-    from canonid.learning.training import CHECKPOINT_FILE
-    from canonid.learning.window_screen import ScreenCandidate
-    from canonid.selection import adopt
-
-    epochs = recipe.options().epochs
-
-    def row(result: RunResult) -> ScreenCandidate:
-        return fit_row(result.fit, result.cpu_seconds)
-
-    if not screen.full_runs:  # the screened window's own run, recorded once
-        assert outcome.result is not None
-        screen = screen.with_full_run(row(outcome.result), epochs)
-        screen.write(run_dir)
-    while (window := screen.next_followup()) is not None:
-        folder = run_dir / FOLLOWUPS_DIR / f"l{window}"
-        if request.progress:
-            used = sum(r.epochs_run for r in screen.full_runs)
-            print(
-                f"window screen: the full runs ended after {used} of {epochs} epochs; training "
-                f"the near-tied ℓ = {window} fully too",
-                file=sys.stderr,
-            )
-        other = _train_one(
-            request,
-            dataclasses.replace(recipe, window=window),
-            folder,
-            resume=(folder / CHECKPOINT_FILE).is_file(),
-            callback=None,
-        )
-        assert other.result is not None
-        screen = screen.with_full_run(row(other.result), epochs)
-        if screen.chosen == window:  # the new best: the run folder's model from now on
-            adopt(folder, run_dir, checkpoint=True)
-            outcome = dataclasses.replace(other, run_dir=run_dir)
-        screen.write(run_dir)
-    return dataclasses.replace(outcome, screen=screen)
-
-
 def _candidates_folder(request: TrainRequest, base: RunRecipe) -> Path:
-    """``--out``, else ``runs/MODEL-lauto`` (the screen), ``runs/MODEL-l5-10-20`` (a list),
-    with ``-hauto`` for ``hidden="auto"``."""
+    """``--out``, else ``runs/MODEL-lauto`` (the window searched), ``runs/MODEL-l5-10-20`` (a
+    list), ``runs/MODEL-l10`` (one window), with ``-hauto`` for ``hidden="auto"``."""
     if isinstance(request.window, tuple):
         window = "-".join(str(w) for w in request.window)
     elif isinstance(request.window, int):
@@ -742,57 +586,54 @@ def _candidates_folder(request: TrainRequest, base: RunRecipe) -> Path:
     )
 
 
-def _plan(request: TrainRequest) -> tuple[Path, RunRecipe | None]:
+def _plan(request: TrainRequest) -> tuple[Path, RunRecipe, tuple[Candidate, ...] | None]:
     """Check ``request`` as far as it can be without its data: the options and their
     combinations, the recipe of a new run (refusing a folder that holds another run), or the
-    resume rule against the recorded recipe. Returns the run folder and the recipe to train,
-    or ``None`` for a screen or a selection (whose candidates are planned from the data)."""
-    from canonid.selection import CANDIDATES_FILE
-
+    resume rule against the recorded recipe. Returns the run folder, the recipe to train and
+    the candidate table of a new search (``None``: one model, or the search a resumed run
+    recorded)."""
     for flag, value in (("--threads", request.threads), ("--eval-horizon", request.eval_horizon)):
         if value is not None and value < 1:
             raise OptionError(f"{flag} must be an integer >= 1, got {value}")
-    mode = _mode(request)
-    if mode != "select" and (request.workers is not None or request.scheduler is not None):
-        flag = "--workers" if request.workers is not None else "--scheduler"
-        raise OptionError(f"{flag} applies to a list of windows or --hidden auto only")
-    if request.resume is not None and mode != "run":
-        given = "--hidden auto" if request.hidden == AUTO else f"--window {_window_text(request)}"
-        raise OptionError(
-            f"{given} does not combine with --resume: the run keeps its recorded window; run the "
-            "same selection again (same DATA, options and --out) to continue one"
-        )
+    if request.workers is not None and request.workers < 0:
+        raise OptionError(f"--workers must be an integer >= 0, got {request.workers}")
+    if request.workers is not None and request.scheduler is not None:
+        raise OptionError("give either --workers (a local cluster) or --scheduler, not both")
+    if request.resume is not None:
+        if isinstance(request.window, tuple) or request.hidden == AUTO:
+            given = (
+                "--hidden auto"
+                if request.hidden == AUTO
+                else "--window "
+                + ",".join(
+                    map(str, request.window)  # type: ignore[arg-type]
+                )
+            )
+            raise OptionError(
+                f"{given} does not combine with --resume: the run continues the search it recorded"
+            )
+        recipe = _resume_recipe(request, request.resume)
+        if request.members is not None:
+            check_members(request.members, recipe.model, mode="run")
+        return request.resume, recipe, None
     if request.hidden == AUTO and not isinstance(request.window, (int, tuple)):
         raise OptionError(
             "--hidden auto needs the window: give --window L or a list (e.g. --window 5,10,20)"
         )
-    if request.resume is not None and (request.resume / CANDIDATES_FILE).is_file():
-        raise CheckpointError(
-            f"{request.resume} holds a selection of candidates ({CANDIDATES_FILE}): run the same "
-            f"selection again to continue it, or resume one candidate's folder"
-        )
-    if mode != "run":
-        base = _candidates_base(request)
-        if request.members is not None:
-            check_members(request.members, base.model, mode=mode)
-        run_dir = _candidates_folder(request, base)
-        check_new_run(run_dir, selection=mode == "select")
-        return run_dir, None
-    if request.resume is not None:
-        recipe = _resume_recipe(request, request.resume)
-        run_dir = request.resume
-    else:
+    if not _searched(request):
         recipe = _recipe(request)
         run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
         check_new_run(run_dir)
-    if request.members is not None:
-        check_members(request.members, recipe.model, mode=mode)
-    return run_dir, recipe
-
-
-def _window_text(request: TrainRequest) -> str:
-    window = request.window
-    return ",".join(map(str, window)) if isinstance(window, tuple) else str(window)
+        if request.members is not None:
+            check_members(request.members, recipe.model, mode="run")
+        return run_dir, recipe, None
+    base = _candidates_base(request)
+    if request.members is not None:  # a list of windows or of widths: members would not fit
+        listed = isinstance(request.window, tuple) or request.hidden == AUTO
+        check_members(request.members, base.model, mode="select" if listed else "search")
+    run_dir = _candidates_folder(request, base)
+    check_new_run(run_dir)
+    return run_dir, base, _table(request, base)
 
 
 def check_request(request: TrainRequest) -> Path:
@@ -809,17 +650,26 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
     from canonid.runfolder import RunRecipe
 
     recorded = RunRecipe.read(run_dir)
-    if _mode(request) == "screen":  # the window the screen chose and recorded
-        if not (run_dir / SCREEN_FILE).is_file():
-            raise CheckpointError(
-                f"{run_dir} holds a run of window ℓ = {recorded.window} that no window screen "
-                f"chose; give --window {recorded.window} to continue it, or choose another --out"
-            )
-        request = dataclasses.replace(request, window=recorded.window)
+    wanted_recipe = _plan_recipe(request)
+    if (run_dir / SEARCH_FILE).is_file():  # what the search chose is the run's
+        chosen = Search.read(run_dir).chosen
+        searched = ("val_measure", "val_n_init")  # how the search validated its candidates
+        wanted_recipe = dataclasses.replace(
+            wanted_recipe,
+            window=recorded.window if chosen is None else chosen.window,
+            net_options={
+                **wanted_recipe.net_options,
+                **{k: v for k, v in recorded.net_options.items() if k in ("cubic", "hidden")},
+            },
+            train_options={
+                **wanted_recipe.train_options,
+                **{k: v for k, v in recorded.train_options.items() if k in searched},
+            },
+        )
     # how the options were asked for is not what runs: --epochs 600 continues a run of the profile's
     ignored = {"command", "given_options", "members", "data", "data_sha256", "val_sha256"}
     there = _flat({k: v for k, v in recorded.to_dict().items() if k not in ignored})
-    wanted = _flat({k: v for k, v in _recipe(request).to_dict().items() if k not in ignored})
+    wanted = _flat({k: v for k, v in wanted_recipe.to_dict().items() if k not in ignored})
     diffs = [
         f"{key}: {there.get(key)!r} there, {wanted.get(key)!r} here"
         for key in sorted({*wanted, *there})
@@ -832,6 +682,11 @@ def same_run(request: TrainRequest, run_dir: Path) -> RunRecipe:
             "another --out"
         )
     return recorded
+
+
+def _plan_recipe(request: TrainRequest) -> RunRecipe:
+    """The recipe a new ``request`` starts from (a search's: at its first window)."""
+    return _candidates_base(request) if _searched(request) else _recipe(request)
 
 
 def _flat(body: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -848,9 +703,9 @@ def _flat(body: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 def train(
     request: TrainRequest, *, callback: Callable[[EpochReport], None] | None = None
 ) -> TrainOutcome:
-    """Train (or resume, screen or select) the run that ``request`` asks for, write its run
-    folder and score it; a single run shows its epochs in a progress bar (``request.progress``)
-    and passes them to ``callback``."""
+    """Train (or resume) the run that ``request`` asks for — the search's choice where an axis
+    is open — write its run folder and score it on validation; a single run shows its epochs in
+    a progress bar (``request.progress``) and passes them to ``callback``."""
     from canonid.horizon_check import finish_adoption
     from canonid.jobs import run_folder_lock
 
@@ -858,17 +713,10 @@ def train(
     if resumed is not None and (resumed / HORIZON_CHECK_FILE).is_file():
         with run_folder_lock(resumed, flag="--resume"):  # an adoption left half done, finished
             finish_adoption(resumed)
-    run_dir, recipe = _plan(request)
-    if recipe is not None:
-        resume = request.resume is not None
-        if resume and (run_dir / SCREEN_FILE).is_file():  # the recorded choice, never redone
-            outcome = _continued(request, recipe, run_dir, callback)
-        else:
-            outcome = _train_one(request, recipe, run_dir, resume=resume, callback=callback)
-    elif _mode(request) == "screen":
-        outcome = _screen(request, callback)
-    else:
-        return _select(request)
+    run_dir, recipe, table = _plan(request)
+    outcome = _train_one(
+        request, recipe, run_dir, resume=resumed is not None, callback=callback, table=table
+    )
     return _members(request, _horizon(request, outcome))
 
 
@@ -902,39 +750,18 @@ def _horizon(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     return dataclasses.replace(outcome, horizon=choice)
 
 
-def _continued(
-    request: TrainRequest,
-    recipe: RunRecipe,
-    run_dir: Path,
-    callback: Callable[[EpochReport], None] | None,
-) -> TrainOutcome:
-    """The run in ``run_dir`` continued from its checkpoint under its lock, then, where it
-    screened windows, the near ties' full runs its recorded screen still owes."""
-    from canonid.jobs import run_folder_lock
-
-    with run_folder_lock(run_dir, flag="--resume"):
-        outcome = _train_one(request, recipe, run_dir, resume=True, callback=callback)
-        if (run_dir / SCREEN_FILE).is_file():
-            outcome = _follow_up(request, recipe, run_dir, WindowScreen.read(run_dir), outcome)
-    return outcome
-
-
 def _train_alternative(
     request: TrainRequest, run_dir: Path, folder: Path, resume: bool, horizon: int
 ) -> TrainOutcome:
     """The run of ``run_dir`` again with rollouts of ``horizon`` samples (one of
-    :data:`~canonid.horizon_check.ALTERNATIVES`), into ``folder``: its recipe with that horizon
-    (the screen again over the same windows where the run screened them), or continued from
-    ``folder``'s checkpoint."""
+    :data:`~canonid.horizon_check.ALTERNATIVES`), into ``folder``: the model the run chose (its
+    window and branch) with that horizon, or continued from ``folder``'s checkpoint."""
     from canonid.runfolder import RunRecipe
 
     if resume:
-        return _continued(request, RunRecipe.read(folder), folder, None)
+        return _train_one(request, RunRecipe.read(folder), folder, resume=True, callback=None)
     own = RunRecipe.read(run_dir)
     base = dataclasses.replace(own, train_options={**own.train_options, "horizon": horizon})
-    if (run_dir / SCREEN_FILE).is_file():
-        windows = [c.window for c in WindowScreen.read(run_dir).candidates]
-        return _screen_into(request, base, folder, windows, None)
     return _train_one(request, base, folder, resume=False, callback=None)
 
 
@@ -1033,7 +860,7 @@ def _train_members(request: TrainRequest, jobs: Sequence[MemberJob]) -> list[Mod
 
 def _member_in_worker(job: MemberJob, eval_horizon: int | None, figure_format: str) -> None:
     """One member in a worker process (one torch thread): trained and scored into its folder
-    (no window screen, no tests: the member's recipe holds the run's decisions)."""
+    (the member's recipe holds the run's decisions: nothing is searched)."""
     from canonid.runfolder import train_run
 
     train_run(
@@ -1045,6 +872,15 @@ def _member_in_worker(job: MemberJob, eval_horizon: int | None, figure_format: s
     )
 
 
+def _search_steps(recipe: RunRecipe, table: Sequence[Candidate]) -> int:
+    """The optimiser steps of one candidate of the first rung (whether workers pay off)."""
+    from canonid.learning.search import rung_budgets
+
+    opts = recipe.options()
+    first = rung_budgets(len(table), opts.epochs, ETA)[0][1]
+    return first * -(-opts.windows_per_epoch // opts.batch_size)
+
+
 def _train_one(
     request: TrainRequest,
     recipe: RunRecipe,
@@ -1052,16 +888,28 @@ def _train_one(
     *,
     resume: bool,
     callback: Callable[[EpochReport], None] | None,
-    executor: Executor | None = None,
+    table: Sequence[Candidate] | None = None,
 ) -> TrainOutcome:
-    """Train (or resume) ``recipe`` into ``run_dir`` and score it (:func:`train_run`); the
-    cubic test's short trainings run on ``executor``, else on a :func:`candidate_pool` of their
-    own."""
+    """Train (or resume) ``recipe`` into ``run_dir`` and score it on validation
+    (:func:`train_run`): a search over ``table`` (or the one a resumed run recorded, or the
+    cubic branch where the recipe leaves it open) with its candidates side by side on a
+    :func:`candidate_pool` of one process per core, else one run with a progress bar."""
+    import contextlib
+    import sys
+
     from canonid.jobs import candidate_pool, torch_threads
+    from canonid.learning.search import candidate_table
     from canonid.runfolder import train_run
     from canonid.runner import EpochBar
 
-    bar = EpochBar(f"train {recipe.model}", enabled=request.progress, dynamic_ncols=True)
+    searched = (
+        table is not None
+        or (resume and (run_dir / SEARCH_FILE).is_file())
+        or (recipe.net_options.get("cubic") == AUTO)
+    )
+    bar = EpochBar(
+        f"train {recipe.model}", enabled=request.progress and not searched, dynamic_ncols=True
+    )
 
     def progress(report: EpochReport) -> None:
         val_text = "-" if report.val_loss is None else f"{report.val_loss:.3g}"
@@ -1074,17 +922,36 @@ def _train_one(
         if callback is not None:
             callback(report)
 
+    def shown(search: Search) -> None:
+        if request.progress:
+            rung = max(r.rung for r in search.rows)
+            print(f"search: rung {rung + 1} of {len(search.budgets)} trained", file=sys.stderr)
+
+    planned = table or candidate_table((recipe.window,), CUBIC_UNITS)
     try:
         with contextlib.ExitStack() as stack:
-            if executor is None:
-                pool = candidate_pool(
-                    request.threads,
-                    steps=_short_steps(recipe),
-                    candidates=_CUBIC_BATCH,
-                    device=recipe.options().device,
+            pool = None
+            if searched and (request.workers or request.scheduler is not None):
+                from canonid.runner import cluster_executor
+
+                pool, _ = stack.enter_context(
+                    cluster_executor(
+                        request.workers or 0,
+                        request.scheduler,
+                        connect_timeout=5.0,
+                        processes=True,
+                    )
                 )
-                executor = stack.enter_context(pool)
-            with torch_threads(request.threads):  # a selection's candidates set their own
+            elif searched:
+                pool = stack.enter_context(
+                    candidate_pool(
+                        request.threads,
+                        steps=_search_steps(recipe, planned),
+                        candidates=len(planned),
+                        device=recipe.options().device,
+                    )
+                )
+            with torch_threads(request.threads):
                 result = train_run(
                     recipe,
                     run_dir,
@@ -1092,8 +959,11 @@ def _train_one(
                     eval_horizon=request.eval_horizon,
                     callback=progress,
                     figure_format=request.figure_format,
-                    executor=executor,
+                    table=table,
+                    executor=pool,
+                    record=shown,
                 )
     finally:
         bar.close()
-    return TrainOutcome(run_dir, result.evaluation.to_json(), result=result)
+    search = Search.read(run_dir) if (run_dir / SEARCH_FILE).is_file() else None
+    return TrainOutcome(run_dir, result.evaluation.to_json(), result=result, search=search)

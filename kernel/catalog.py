@@ -9,7 +9,6 @@ systems (docs, "Identification": the table and the commands behind it); a model 
 its constructor's defaults. ``PAPER_NET_OPTIONS`` are the authors' published code's
 configuration, which produced the paper's numbers (the paper's text writes ``Ĥ(z_t, u_t)``, its
 code predicts the increment of ``y`` from ``z_t`` alone); ``canonid reproduce`` trains it.
-``SMALL_RECORD_*`` say what training's ``weight_decay="auto"`` means, so that ``--help`` can too.
 ``INFO_*`` name the fields of a trained model's ``info`` that the application writes
 (:mod:`canonid.coverage`) and the model's loader checks (:func:`canonid.learning.model.check_info`).
 """
@@ -30,8 +29,6 @@ __all__ = [
     "MODEL_LABELS",
     "MODEL_NAMES",
     "PAPER_NET_OPTIONS",
-    "SMALL_RECORD_SAMPLES",
-    "SMALL_RECORD_WEIGHT_DECAY",
     "model_label",
     "net_options",
     "preset_word",
@@ -66,12 +63,6 @@ LINEAR_PATHS = ("off", "skip", "arx")
 #: the torch devices a training option may name (``cuda:N`` picks one GPU); ``auto``: CUDA when
 #: present and the job is large enough to run faster there
 DEVICE_NAMES = ("auto", "cpu", "cuda")
-
-#: training's ``weight_decay="auto"``: Adam weight decay SMALL_RECORD_WEIGHT_DECAY when the
-#: training part holds fewer samples than SMALL_RECORD_SAMPLES, else none (chosen on validation
-#: over eight systems: benchmarks/RESULTS.md, "Weight decay on small records")
-SMALL_RECORD_SAMPLES = 5_000
-SMALL_RECORD_WEIGHT_DECAY = 1e-5
 
 #: a trained model's ``info``: each signal's span over the training part, and where the training
 #: part leaves the validation part's spans

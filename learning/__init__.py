@@ -19,10 +19,7 @@ from __future__ import annotations
 from canonid.kernel.lazy import lazy_exports
 
 _EXPORTS = {
-    "BatchedResult": "canonid.learning.batched",
-    "Candidate": "canonid.learning.batched",
-    "candidate_grid": "canonid.learning.batched",
-    "fit_batched": "canonid.learning.batched",
+    "Candidate": "canonid.learning.search",
     "Normalisation": "canonid.learning.data",
     "Evaluation": "canonid.learning.evaluate",
     "Scores": "canonid.learning.evaluate",
@@ -35,8 +32,9 @@ _EXPORTS = {
     "build_net": "canonid.learning.nets",
     "model_names": "canonid.learning.nets",
     "ReductionOptions": "canonid.learning.reduction",
-    "WindowScreen": "canonid.learning.screen",
-    "screen_windows": "canonid.learning.screen",
+    "Search": "canonid.learning.search",
+    "candidate_table": "canonid.learning.search",
+    "search": "canonid.learning.search",
     "latent_size": "canonid.learning.reduction",
     "reduce_model": "canonid.learning.reduction",
     "average_members": "canonid.learning.members",

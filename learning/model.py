@@ -53,6 +53,8 @@ __all__ = [
 
 MODEL_FORMAT_VERSION = 1
 CONFIG_FILE, WEIGHTS_FILE, NORM_FILE = "config.json", "weights.pt", "normalisation.json"
+#: the files a saved model consists of
+MODEL_FILES = (CONFIG_FILE, WEIGHTS_FILE, NORM_FILE)
 
 
 def check_same(found: Mapping[str, Any], expected: Mapping[str, Any], *, what: str) -> None:

@@ -55,7 +55,6 @@ from __future__ import annotations
 import contextlib
 import copy
 import dataclasses
-import functools
 import hashlib
 import io
 import logging
@@ -63,32 +62,26 @@ import math
 import pickle
 import time
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
-from concurrent.futures import Executor, Future
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 import torch
 
-from canonid.kernel.catalog import DEVICE_NAMES, SMALL_RECORD_SAMPLES, SMALL_RECORD_WEIGHT_DECAY
+from canonid.kernel.catalog import DEVICE_NAMES
 from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
 from canonid.learning.data import Normalisation, WindowBank
-from canonid.learning.extrapolation import CUBIC_UNITS, CubicTest, arms_verdict, cubic_test
 from canonid.learning.linear import feedthrough_test, initialise_linear
 from canonid.learning.model import Model, check_same, load_state
 from canonid.learning.nets import NETS, CanonicalModel, SequenceModel, UnknownModelError, build_net
 from canonid.learning.nets.base import linear_path
 from canonid.learning.presets import net_options as preset_net_options
 
-if TYPE_CHECKING:
-    from canonid.learning.window_screen import WindowScreen
-
 __all__ = [
     "CHECKPOINT_FILE",
-    "CUBIC_ARM_DIR",
     "EpochReport",
     "FitResult",
     "OptionError",
@@ -100,7 +93,8 @@ __all__ = [
     "flushed_subnormals",
     "network_work",
     "resolve_device",
-    "resolve_weight_decay",
+    "simulation_loss",
+    "stored_fit",
     "validation_loss",
 ]
 
@@ -112,6 +106,8 @@ CHECKPOINT_VERSION = 1
 RESUMABLE_CHANGES = frozenset({"epochs", "patience", "checkpoint_every", "device"})
 #: the smallest positive normal float32: anything nearer zero is subnormal
 _FLOAT32_TINY = float(torch.finfo(torch.float32).tiny)
+#: what validation scores: short open-loop rollouts, or the free-run simulation of each record
+VAL_MEASURES = ("rollout", "simulation")
 #: non-finite batches recovered from (best weights back, learning rate halved) before a run stops
 MAX_RECOVERIES = 5
 
@@ -125,9 +121,7 @@ class TrainOptions:
         batch_size: sub-windows per batch.
         lr: Adam learning rate (paper: 1e-4).
         lr_final: if set, the learning rate follows a cosine from ``lr`` to ``lr_final``.
-        weight_decay: Adam weight decay; ``"auto"``: :data:`SMALL_RECORD_WEIGHT_DECAY` when the
-            training part holds fewer than :data:`SMALL_RECORD_SAMPLES` samples, else 0
-            (:func:`resolve_weight_decay`; the model records the value used).
+        weight_decay: Adam weight decay.
         horizon: final rollout length ``H`` of the training sub-windows.
         curriculum_epochs: epochs over which ``H`` grows from 1 to ``horizon`` (0 or 1: none).
         windows_per_epoch: sub-windows drawn per epoch, over all training trajectories.
@@ -141,6 +135,13 @@ class TrainOptions:
         val_stride: stride of the validation start times.
         val_windows: at most this many validation rollouts (a seeded subset; ``None``: all).
         val_horizon: validation rollout length (default ``horizon``).
+        val_measure: ``"rollout"``: the ``val_horizon``-step rollouts above; ``"simulation"``:
+            the free-run simulation of every validation record to its end, as the field scores
+            (:func:`simulation_loss`; ``val_stride``, ``val_windows`` and ``val_horizon`` then
+            play no part).
+        val_n_init: with ``"simulation"``, the first scored sample of every validation record
+            (the burn-in ends there; default ℓ); a search sets it to its largest window so that
+            every candidate is scored on the same samples.
         checkpoint_every: write ``checkpoint.pt`` every this many epochs (needs ``run_dir``).
         seed: seeds the initial weights and the sub-window draws.
         device: ``"auto"`` (CUDA when present and the job is large enough to be faster there:
@@ -151,7 +152,7 @@ class TrainOptions:
     batch_size: int = 64
     lr: float = 1e-4
     lr_final: float | None = None
-    weight_decay: float | Literal["auto"] = 0.0
+    weight_decay: float = 0.0
     horizon: int = 100
     curriculum_epochs: int = 0
     windows_per_epoch: int = 256
@@ -163,6 +164,8 @@ class TrainOptions:
     val_stride: int = 1
     val_horizon: int | None = None
     val_windows: int | None = None
+    val_measure: Literal["rollout", "simulation"] = "rollout"
+    val_n_init: int | None = None
     checkpoint_every: int = 10
     seed: int = 0
     device: str = "auto"
@@ -185,7 +188,12 @@ class TrainOptions:
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:
                 raise OptionError(f"training option {key} must be an integer >= 0, got {value!r}")
-        for key in ("patience", "val_horizon", "val_windows"):
+        if self.val_measure not in VAL_MEASURES:
+            raise OptionError(
+                f"training option val_measure must be one of {', '.join(VAL_MEASURES)}, "
+                f"got {self.val_measure!r}"
+            )
+        for key in ("patience", "val_horizon", "val_windows", "val_n_init"):
             value = getattr(self, key)
             if value is not None and (
                 isinstance(value, bool) or not isinstance(value, int) or value < 1
@@ -199,14 +207,8 @@ class TrainOptions:
                 raise OptionError(f"training option {key} must be a positive number, got {value}")
         for key in ("weight_decay", "alpha_first"):
             value = getattr(self, key)
-            if key == "weight_decay" and value == "auto":
-                continue
             if not (_real(value) and math.isfinite(value) and value >= 0):
-                raise OptionError(
-                    f"training option {key} must be >= 0"
-                    + (" or 'auto'" if key == "weight_decay" else "")
-                    + f", got {value!r}"
-                )
+                raise OptionError(f"training option {key} must be >= 0, got {value!r}")
         if self.ema_decay is not None and not (_real(self.ema_decay) and 0 < self.ema_decay < 1):
             raise OptionError(
                 f"training option ema_decay must be None or in (0, 1), got {self.ema_decay}"
@@ -286,13 +288,13 @@ class FitResult:
             extra loss terms.
         best_epoch, best_val_loss: where the kept weights come from.
         epochs_run: the last epoch trained.
-        stopped: ``"completed"``, ``"early_stopping"``, ``"diverged"`` or ``"least_squares"``
-            (a model fitted in closed form, with no gradient step).
-        screen: the window screen that chose ``model.window`` (``canonid.fit`` without a
-            window), else ``None``.
-        cpu_elsewhere: CPU seconds this fit spent in worker processes (the cubic branch of a
-            record too short for the cubic test, trained beside), which the calling process's
-            own clock does not count.
+        stopped: ``"completed"``, ``"early_stopping"``, ``"diverged"``, ``"least_squares"``
+            (a model fitted in closed form, with no gradient step) or ``"paused"`` (at
+            ``until``, to be resumed).
+        search: the :class:`canonid.learning.search.Search` that chose the model's window and
+            branch (``canonid.fit`` without them fixed), else ``None``.
+        cpu_elsewhere: CPU seconds this fit spent in worker processes (a search's candidates),
+            which the calling process's own clock does not count.
     """
 
     model: Model
@@ -301,7 +303,7 @@ class FitResult:
     best_val_loss: float
     epochs_run: int
     stopped: str
-    screen: WindowScreen | None = None
+    search: Any = None
     cpu_elsewhere: float = 0.0
 
 
@@ -370,6 +372,34 @@ def validation_loss(
     return total / count
 
 
+def simulation_loss(net: SequenceModel, bank: WindowBank, n_init: int) -> float:
+    """Mean squared error of the free-run simulation of every record in ``bank`` (normalised
+    units, over the outputs and the samples ``n_init … T−1`` of every record, concatenated):
+    burn in on the measured samples ``n_init − ℓ … n_init − 1``, then simulate in open loop to
+    the record's end, as the field scores a model. Records of at most ``n_init`` samples are left
+    out; a simulation that is not finite scores ``inf``."""
+    ell = net.window
+    by_length: dict[int, list[int]] = {}
+    for i, length in enumerate(bank.lengths):
+        if length > n_init:
+            by_length.setdefault(length, []).append(i)
+    total, count = 0.0, 0
+    was_training = net.training
+    net.eval()
+    try:
+        with torch.no_grad():
+            for length, records in by_length.items():
+                starts = np.array([[i, n_init - ell] for i in records], dtype=np.int64)
+                u, y = bank.gather(starts, length - (n_init - ell))
+                pred = net.rollout(u[:, :ell], y[:, :ell], u[:, ell:])
+                total += float((pred - y[:, ell:]).pow(2).sum())
+                count += pred.numel()
+    finally:
+        net.train(was_training)
+    loss = total / count if count else math.inf
+    return loss if math.isfinite(loss) else math.inf
+
+
 def _training_pair(
     train: Sequence[Any], val: Sequence[Any]
 ) -> tuple[tuple[Trajectory, ...], tuple[Trajectory, ...]]:
@@ -405,6 +435,19 @@ def _check_rollout_lengths(
         )
 
 
+def _check_simulated(val: Sequence[Trajectory], window: int, n_init: int | None) -> None:
+    """Refuse validation data whose records all end before the first scored sample."""
+    first = window if n_init is None else n_init
+    if n_init is not None and n_init < window:
+        raise OptionError(f"training option val_n_init ({n_init}) is below the window ℓ = {window}")
+    longest = max(tr.T for tr in val)
+    if longest <= first:
+        raise ShapeError(
+            f"validation data: the longest record has {longest} samples; its simulation is "
+            f"scored from sample {first} on (the burn-in), so it needs at least {first + 1}"
+        )
+
+
 def _check_lengths(trajectories: Sequence[Trajectory], window: int, what: str) -> None:
     for i, tr in enumerate(trajectories):
         if tr.T < window + 1:
@@ -412,17 +455,6 @@ def _check_lengths(trajectories: Sequence[Trajectory], window: int, what: str) -
                 f"{what}, trajectory {i}: has {tr.T} samples; window ℓ = {window} needs at least "
                 f"ℓ + 1 = {window + 1} (ℓ to burn in, one to predict)"
             )
-
-
-def resolve_weight_decay(opts: TrainOptions, train: Sequence[Trajectory]) -> TrainOptions:
-    """``opts`` with ``weight_decay="auto"`` replaced by the value it means for ``train``:
-    :data:`SMALL_RECORD_WEIGHT_DECAY` below :data:`SMALL_RECORD_SAMPLES` training samples, else
-    0 (a number is kept)."""
-    if opts.weight_decay != "auto":
-        return opts
-    samples = sum(tr.T for tr in train)
-    decay = SMALL_RECORD_WEIGHT_DECAY if samples < SMALL_RECORD_SAMPLES else 0.0
-    return dataclasses.replace(opts, weight_decay=decay)
 
 
 @contextlib.contextmanager
@@ -517,7 +549,11 @@ class _Run:
         self.before_epoch = before_epoch
         self.train_bank, self.val_bank = train_bank, val_bank
         self.val_horizon = opts.rollout_horizon
-        self.val_starts = _validation_starts(val_bank, net.window + self.val_horizon, opts)
+        self.val_n_init = opts.val_n_init or net.window
+        if opts.val_measure == "simulation":
+            self.val_starts = np.zeros((0, 2), dtype=np.int64)
+        else:
+            self.val_starts = _validation_starts(val_bank, net.window + self.val_horizon, opts)
         self.optimiser = torch.optim.Adam(
             net.parameters(), lr=opts.lr, weight_decay=float(opts.weight_decay)
         )
@@ -593,17 +629,23 @@ class _Run:
         self.recoveries = int(state.get("recoveries", 0))
 
     # ---------------------------------------------------------------- steps
+    def _measure(self) -> float:
+        """The validation loss of the network's current weights (``opts.val_measure``)."""
+        if self.opts.val_measure == "simulation":
+            return simulation_loss(self.net, self.val_bank, self.val_n_init)
+        return validation_loss(self.net, self.val_bank, self.val_starts, self.val_horizon)
+
     def validate(self) -> float:
         """The validation loss of the weights that would be kept (the average, if any)."""
         if self.ema is None:
-            return validation_loss(self.net, self.val_bank, self.val_starts, self.val_horizon)
+            return self._measure()
         params = dict(self.net.named_parameters())
         current = {k: p.detach().clone() for k, p in params.items()}
         try:
             with torch.no_grad():
                 for k, p in params.items():
                     p.copy_(self.ema[k])
-            return validation_loss(self.net, self.val_bank, self.val_starts, self.val_horizon)
+            return self._measure()
         finally:
             with torch.no_grad():
                 for k, p in params.items():
@@ -752,7 +794,7 @@ def fit(
     resume: bool = False,
     callback: Callable[[EpochReport], None] | None = None,
     info: Mapping[str, Any] | None = None,
-    executor: Executor | None = None,
+    until: int | None = None,
 ) -> FitResult:
     """Train model ``model`` with window ``window`` by output error.
 
@@ -767,12 +809,9 @@ def fit(
         net_options: constructor arguments of the network (sizes, ``feedthrough``,
             ``residual``, ``activation``, ``linear``, ``cubic``) over the model's defaults
             (:data:`canonid.learning.presets.DEFAULT_NET_OPTIONS`); ``feedthrough="auto"``
-            decides on validation (:func:`canonid.learning.linear.feedthrough_test`) and
-            ``cubic="auto"`` on the training part's held-out peaks
-            (:func:`canonid.learning.extrapolation.cubic_test`; a resumed run reads the decision
-            from its checkpoint), both recorded in the model's info. Records too short for the
-            peaks train both networks fully, the branch in ``run_dir/``:data:`CUBIC_ARM_DIR`,
-            and the validation part keeps one (:func:`_with_cubic_arm`).
+            decides on validation (:func:`canonid.learning.linear.feedthrough_test`), recorded
+            in the model's info; ``cubic="auto"`` trains the plain network (whether the branch
+            pays is the search's question: :func:`canonid.fit`, ``canonid train``).
         run_dir: where the model and ``checkpoint.pt`` are written (nothing is written if
             ``None``).
         resume: continue from ``run_dir/checkpoint.pt``; the model, its configuration, the
@@ -780,10 +819,7 @@ def fit(
             ``device``) must match, or :class:`CheckpointError` names what differs.
         callback: called with an :class:`EpochReport` after every epoch.
         info: extra JSON facts saved in the model's ``config.json``.
-        executor: where the cubic test's short trainings run side by side
-            (:func:`~canonid.learning.extrapolation.cubic_test`), and the full run of the
-            branch beside this process's when the records are too short for them; ``None``: in
-            this process.
+        until: pause after this epoch (see :func:`fit_net`).
 
     If training is interrupted (an exception, Ctrl-C), the best model so far is still written
     to ``run_dir`` before the exception propagates.
@@ -792,32 +828,13 @@ def fit(
         raise UnknownModelError(f"unknown model {model!r}; expected one of {list(NETS)}")
     train = as_trajectories(train, what="training data")
     options_all = preset_net_options(model, net_options)
+    if options_all.get("cubic") == "auto":  # the branch is the search's to choose
+        options_all = {**options_all, "cubic": 0}
     if options_all.get("feedthrough") == "auto":  # decided on validation by the linear path
         train, val = _training_pair(train, val)
         test = feedthrough_test(train, val, Normalisation.fit(train), window=window)
         options_all = {**options_all, "feedthrough": test.feedthrough}
         info = {**dict(info or {}), "feedthrough_test": test.to_dict()}
-    identity, fallback = None, None
-    if options_all.get("cubic") == "auto":  # decided on the training part's held-out peaks
-        resumed = _resumed_cubic_test(run_dir) if resume else None
-        if resumed is None:
-            cubic = cubic_test(
-                train,
-                window=window,
-                options=options or TrainOptions(),
-                net_options={**options_all, "cubic": 0},
-                fit=fit,
-                model=model,
-                executor=executor,
-            )
-            recorded: Mapping[str, Any] | None = cubic.to_dict()
-        else:  # the checkpoint's record as written (an older run lacks later fields)
-            cubic, recorded = resumed
-        options_all = {**options_all, "cubic": cubic.units}
-        info = {**dict(info or {}), "cubic_test": cubic.to_dict()}
-        fallback = cubic if cubic.fallback is not None else None
-        if recorded is not None:  # a checkpoint from before the test has none
-            identity = {"cubic_test": recorded}
 
     def build(norm: Normalisation) -> SequenceModel:
         net = build_net(model, window=window, n_u=norm.n_u, n_y=norm.n_y, **options_all)
@@ -826,151 +843,18 @@ def fit(
             initialise_linear(net, train, norm)
         return net
 
-    arm: Callable[[], FitResult] | None = None
-    beside: Future[FitResult] | None = None
-    if fallback is not None:
-        # the peaks could not decide: the branch trains fully too, beside given an executor
-        arm = _cubic_arm(
-            train,
-            val,
-            model=model,
-            window=window,
-            options=options,
-            net_options=options_all,
-            run_dir=run_dir,
-            resume=resume,
-            info={k: v for k, v in (info or {}).items() if k != "cubic_test"},
-        )
-        beside = executor.submit(_timed, arm) if executor is not None else None
-    try:
-        with _threads_beside(beside):
-            plain = fit_net(
-                build,
-                train,
-                val,
-                window=window,
-                options=options,
-                run_dir=run_dir,
-                resume=resume,
-                callback=callback,
-                info=info,
-                identity=identity,
-            )
-    except BaseException:
-        if beside is not None:
-            beside.cancel()
-        raise
-    if fallback is None or arm is None:
-        return plain
-    branch = beside.result() if beside is not None else arm()
-    return _with_cubic_arm(plain, branch, fallback, run_dir, options=options or TrainOptions())
-
-
-#: where a run whose records are too short for the cubic test trains its cubic branch fully
-CUBIC_ARM_DIR = "cubic-arm"
-
-
-def _cubic_arm(
-    train: Sequence[Trajectory],
-    val: Sequence[Trajectory],
-    *,
-    run_dir: str | Path | None,
-    resume: bool,
-    net_options: Mapping[str, Any],
-    **kwargs: Any,
-) -> Callable[[], FitResult]:
-    """The full run of the cubic branch, as :func:`fit` with ``cubic`` given, in
-    ``run_dir/``:data:`CUBIC_ARM_DIR` (a call that pickles, for a worker)."""
-    folder = None if run_dir is None else Path(run_dir) / CUBIC_ARM_DIR
-    longest = max(t.T for t in as_trajectories(val, what="validation data"))
-    # a cut of the validation rollouts is the plain network's too, and said once, by it
-    kwargs["options"] = _fit_validation_horizon(
-        kwargs["options"] or TrainOptions(), kwargs["window"], longest, warn=False
-    )
-    return functools.partial(
-        fit,
+    return fit_net(
+        build,
         train,
         val,
-        net_options={**net_options, "cubic": CUBIC_UNITS},
-        run_dir=folder,
-        resume=resume and folder is not None and (folder / CHECKPOINT_FILE).is_file(),
-        **kwargs,
+        window=window,
+        options=options,
+        run_dir=run_dir,
+        resume=resume,
+        callback=callback,
+        info=info,
+        until=until,
     )
-
-
-def _timed(call: Callable[[], FitResult]) -> FitResult:
-    """``call()`` in a worker, with the worker's CPU seconds for it as ``cpu_elsewhere``
-    (which this process's own clock does not count)."""
-    start = time.process_time()
-    result = call()
-    return dataclasses.replace(result, cpu_elsewhere=time.process_time() - start)
-
-
-@contextlib.contextmanager
-def _threads_beside(beside: Future[FitResult] | None) -> Iterator[None]:
-    """One torch thread fewer here while the branch trains in a worker beside this process."""
-    if beside is None or torch.get_num_threads() < 2:
-        yield
-        return
-    threads = torch.get_num_threads()
-    torch.set_num_threads(threads - 1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(threads)
-
-
-def _with_cubic_arm(
-    plain: FitResult,
-    cubic: FitResult,
-    test: CubicTest,
-    run_dir: str | Path | None,
-    *,
-    options: TrainOptions,
-) -> FitResult:
-    """The run of the two whose best validation loss the rule keeps
-    (:func:`~canonid.learning.extrapolation.arms_verdict`), its model carrying the verdict and
-    saved in ``run_dir`` (the plain network's checkpoint stays there, so that a resumed run
-    continues both)."""
-    verdict = arms_verdict(
-        test,
-        _finite(plain.best_val_loss),
-        _finite(cubic.best_val_loss),
-        seed=options.seed,
-        epochs=options.epochs,
-    )
-    kept = cubic if verdict.units else plain
-    kept.model.info["cubic_test"] = verdict.to_dict()
-    if run_dir is not None:
-        kept.model.save(Path(run_dir))
-    return dataclasses.replace(kept, cpu_elsewhere=cubic.cpu_elsewhere)
-
-
-def _finite(loss: float) -> float | None:
-    return loss if math.isfinite(loss) else None
-
-
-def _resumed_cubic_test(
-    run_dir: str | Path | None,
-) -> tuple[CubicTest, Mapping[str, Any] | None] | None:
-    """The cubic test recorded in the checkpoint of ``run_dir`` and the record itself, so that
-    a resumed run does not test again and matches the checkpoint as written (a run recorded
-    before a field was added lacks it); for a checkpoint written before the test, the units of
-    the network it holds (and ``None``). :class:`CheckpointError` for an unreadable checkpoint,
-    before any training; ``None`` without ``run_dir`` (``fit_net`` then says so)."""
-    if run_dir is None:
-        return None
-    path = Path(run_dir) / CHECKPOINT_FILE
-    identity = _read_checkpoint(path)["identity"]
-    extra, net = identity.get("extra"), identity.get("net")
-    try:
-        if isinstance(extra, Mapping) and "cubic_test" in extra:
-            return CubicTest.from_dict(extra["cubic_test"]), extra["cubic_test"]
-        units = int(net.get("cubic", 0)) if isinstance(net, Mapping) else 0
-    except (TypeError, ValueError) as exc:
-        raise CheckpointError(f"checkpoint {path}: its cubic test is unreadable ({exc})") from None
-    reason = "resumed from a checkpoint written before the test"  # the network it holds
-    return CubicTest(units, None, None, 0, reason, None), None
 
 
 def fit_net(
@@ -988,6 +872,7 @@ def fit_net(
     identity: Mapping[str, Any] | None = None,
     before_epoch: Callable[[SequenceModel, int], None] | None = None,
     flush: bool = False,
+    until: int | None = None,
 ) -> FitResult:
     """The training loop of :func:`fit` for a network built by the caller.
 
@@ -1002,6 +887,9 @@ def fit_net(
             after a resume; it must depend on nothing but its arguments.
         flush: on a CPU, flush float32 subnormals to zero whatever the weight decay
             (:func:`flushed_subnormals`).
+        until: pause after this epoch (``stopped="paused"``, the checkpoint written): the
+            schedule stays that of ``options.epochs``, so that resuming with a later ``until``
+            trains exactly what one uninterrupted run would (a search's rungs).
     """
     opts = options or TrainOptions()
     train, val = _training_pair(train, val)
@@ -1012,8 +900,10 @@ def fit_net(
             f"n_u={n_u}, n_y={n_y}"
         )
     _check_rollout_lengths(train, val, window, opts.horizon)
-    opts = _fit_validation_horizon(opts, window, max(tr.T for tr in val))
-    opts = resolve_weight_decay(opts, train)
+    if opts.val_measure == "simulation":
+        _check_simulated(val, window, opts.val_n_init)
+    else:
+        opts = _fit_validation_horizon(opts, window, max(tr.T for tr in val))
     flush = flush or bool(float(opts.weight_decay))  # weight decay makes subnormals: flushed
     run_path = Path(run_dir) if run_dir is not None else None
     if resume and run_path is None:
@@ -1062,6 +952,9 @@ def fit_net(
         try:
             with flushed_subnormals(device, float(opts.weight_decay), always=flush):
                 last = state.epoch if ended else (opts.epochs if net.iterative else 0)
+                if until is not None and not ended and until < last:
+                    last = max(until, state.epoch)
+                    stopped = "paused"
                 for epoch in range(state.epoch + 1, last + 1):
                     row = state.train_epoch(epoch)
                     if row is None:
@@ -1077,13 +970,10 @@ def fit_net(
                         callback(state.report(row))
                     if state.should_stop_early():
                         stopped = "early_stopping"
-                    if run_path is not None and (
-                        stopped != "completed"
-                        or epoch % opts.checkpoint_every == 0
-                        or epoch == opts.epochs
-                    ):
+                    end = stopped not in ("completed", "paused") or epoch == last
+                    if run_path is not None and (end or epoch % opts.checkpoint_every == 0):
                         state.save(run_path / CHECKPOINT_FILE)
-                    if stopped != "completed":
+                    if stopped not in ("completed", "paused"):
                         break
         finally:
             # interrupted or not, the model kept is the best one seen
@@ -1115,6 +1005,20 @@ def fit_net(
     )
 
 
+def stored_fit(run_dir: str | Path, *, stopped: str) -> FitResult:
+    """The :class:`FitResult` of the run stored in ``run_dir`` (its model and checkpoint), as
+    :func:`fit` returned it when the run ended (``stopped``: how it ended)."""
+    state = _read_checkpoint(Path(run_dir) / CHECKPOINT_FILE)
+    return FitResult(
+        model=Model.load(run_dir),
+        history=list(state["history"]),
+        best_epoch=int(state["best_epoch"]),
+        best_val_loss=float(state["best_val"]),
+        epochs_run=int(state["epoch"]),
+        stopped=stopped,
+    )
+
+
 def _to_cpu(obj: Any) -> Any:
     if isinstance(obj, torch.Tensor):
         return obj.detach().cpu()
@@ -1141,6 +1045,10 @@ def _rng_state(state: Mapping[str, Any], *, encode: bool) -> dict[str, Any]:
     return {k: convert(v) for k, v in state.items()}
 
 
+#: training options newer than some checkpoints, with the value those runs trained with
+_ADDED_OPTIONS = {"val_measure": "rollout", "val_n_init": None}
+
+
 def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
     state = _read_checkpoint(path)
     found = state["identity"]
@@ -1153,9 +1061,9 @@ def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
     if isinstance(net.get("linear"), bool):  # written before the linear skip: True / False
         net["linear"] = linear_path(net["linear"])
     check_same(net, identity["net"], what=f"checkpoint {path} (network)")
-    check_same(
-        found.get("options", {}), identity["options"], what=f"checkpoint {path} (training options)"
-    )
+    # options added since a checkpoint was written hold what that checkpoint's run did
+    options = {**_ADDED_OPTIONS, **found.get("options", {})}
+    check_same(options, identity["options"], what=f"checkpoint {path} (training options)")
     check_same(found.get("extra", {}), identity["extra"], what=f"checkpoint {path}")
     return state
 

@@ -81,12 +81,12 @@ def test_fit_defaults_to_the_options_canonid_train_uses(monkeypatch):
 
     seen = {}
     monkeypatch.setattr(training, "fit", lambda *a, **kw: seen.update(kw))
-    fit([], [], window=3)
+    fit([], [], window=3, cubic=0)  # both axes fixed: one network, no search
     assert seen["options"] == train_options(DEFAULT_PROFILE)
     assert seen["options"] != training.TrainOptions()
     custom = train_options("tiny", epochs=2)
-    fit([], [], window=3, options=custom, net_options={"hidden": [8]})
-    assert seen["options"] is custom and seen["net_options"] == {"hidden": [8]}
+    fit([], [], window=3, cubic=0, options=custom, net_options={"hidden": [8]})
+    assert seen["options"] is custom and seen["net_options"] == {"hidden": [8], "cubic": 0}
 
 
 def test_fit_without_validation_data_names_the_argument():

@@ -329,8 +329,12 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
     ]
     assert all(s["units"] == "mV" and s["n_init"] == 50 for s in report["scores"])
     assert report["window"] == 5 and report["baselines"]
-    # canonid train's own evaluation of the same test parts (all of them, in V) agrees
-    metrics = json.loads((run / "metrics.json").read_text())
+    # training scored validation; canonid evaluate of the same test parts (all of them, in V)
+    # agrees with the benchmark's scores
+    assert json.loads((run / "metrics.json").read_text())["data"]["split"] == "val"
+    assert main(["evaluate", str(run), "--stride", "1000"]) == 0
+    (scored,) = (run / "evaluations").glob("*/metrics.json")
+    metrics = json.loads(scored.read_text())
     n = np.array([s["n_scored"] for s in report["scores"]])
     rmse_v = np.array([s["rmse"] for s in report["scores"]]) / 1000.0
     assert metrics["n_init"] == 50 and metrics["n_scored_samples"] == n.sum()
@@ -384,22 +388,19 @@ def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_pa
     assert not (tmp_path / "r").exists()  # refused before anything was written
 
 
-def test_ced_with_the_default_profile_cuts_its_short_validation_rollouts(tmp_path, caplog):
+def test_ced_with_the_default_profile_validates_on_its_short_tails_simulated(tmp_path, caplog):
     """CED's validation tails (80 samples here, as in the real files) are shorter than ℓ + the
-    quick profile's 100-step validation rollout (default ℓ = min(10, n_init) = 10): training
-    cuts the rollout to what fits, says so in one line and records the cut length with the
-    model."""
+    quick profile's 100-step rollouts: validation simulates each tail whole after the searched
+    windows' burn-in (ℓ ≤ n_init = 10), nothing is cut, and the model records how it was
+    validated."""
     write_benchmark("ced", tmp_path)
     run = tmp_path / "run"
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run), "--no-progress"]
     with caplog.at_level(logging.WARNING, logger="canonid.learning.training"):
         assert main([*argv, "--threads", "1", "--train-args=--epochs 2"]) == 0
-    assert [r.getMessage() for r in caplog.records if "cut" in r.getMessage()] == [
-        "validation rollouts cut from 100 to 70 steps: the longest validation trajectory has "
-        "80 samples, window ℓ = 10"
-    ]
-    model = json.loads((run / "config.json").read_text())
-    assert model["info"]["training"]["options"]["val_horizon"] == 70
+    assert not [r for r in caplog.records if "cut" in r.getMessage()]
+    options = json.loads((run / "config.json").read_text())["info"]["training"]["options"]
+    assert (options["val_measure"], options["val_n_init"]) == ("simulation", 10)
     report = json.loads((run / "benchmark.json").read_text())
     assert [s["test"] for s in report["scores"]] == ["low-amplitude", "high-amplitude"]
 
@@ -436,20 +437,20 @@ def test_train_args_take_no_abbreviation_and_no_data(tmp_path, capsys):
     _folder_after(tmp_path, [*argv, "--train-args=other.npz"], capsys, "'other.npz'")
 
 
-def test_the_default_screens_only_windows_within_n_init(tmp_path, capsys):
-    from canonid.learning.screen import WindowScreen
+def test_the_default_searches_only_windows_within_n_init(tmp_path, capsys):
+    from canonid.learning.search import Search
 
     write_benchmark("ced", tmp_path)  # n_init = 10: the candidates ℓ ≥ 20 cannot be scored
     run = tmp_path / "r"
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run)]
     argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
     assert main(argv) == 0, capsys.readouterr().err
-    screen = WindowScreen.read(run)
-    # ℓ = 10 alone is left: chosen without a screen's training
-    assert [c.window for c in screen.candidates] == [10] and screen.cpu_seconds == 0
-    assert json.loads((run / "benchmark.json").read_text())["window"] == screen.chosen
+    search = Search.read(run)
+    assert {c.window for c in search.candidates} == {10}  # ℓ = 10 alone, with or without cubic
+    assert search.chosen is not None
+    assert json.loads((run / "benchmark.json").read_text())["window"] == search.chosen.window
     assert main(argv) == 0  # run again: the recorded choice, nothing trained again
-    assert WindowScreen.read(run) == screen
+    assert Search.read(run) == search
 
 
 def test_a_window_list_tries_only_windows_within_n_init(tmp_path, capsys):
@@ -460,7 +461,7 @@ def test_a_window_list_tries_only_windows_within_n_init(tmp_path, capsys):
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--window", "2,5", "--out", str(run)]
     argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
     assert main(argv) == 0, capsys.readouterr().err
-    assert sorted(p.name for p in (run / "candidates").iterdir()) == ["l2", "l5"]
+    assert sorted(p.name for p in (run / "search").iterdir()) == ["l2", "l2-c16", "l5", "l5-c16"]
 
 
 def test_a_finished_benchmark_run_again_gives_the_same_report_and_other_options_are_refused(

@@ -58,9 +58,10 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
     for key in KEYS:
         assert np.isfinite(metrics[key]) and len(metrics[f"{key}_per_output"]) == 1
         assert np.isfinite(metrics["clean"][key])
-    assert metrics["rollout_horizon"] == 100 and metrics["data"]["split"] == "test"
-    assert metrics["n_rollouts"] == 2 * (110 - 3 - 100 + 1)
-    assert metrics["n_init"] == 50 and metrics["n_scored_samples"] == 2 * 60
+    # train scores validation; the test split is evaluate's to read
+    assert metrics["rollout_horizon"] == 100 and metrics["data"]["split"] == "val"
+    assert metrics["n_rollouts"] == 1 * (110 - 3 - 100 + 1)  # the one validation record
+    assert metrics["n_init"] == 50 and metrics["n_scored_samples"] == 1 * 60
     assert len(metrics["kstep_nrmse"]) == 100
     history = (run / "history.csv").read_text().splitlines()
     assert history[0].startswith("epoch,horizon,lr,train_loss,val_loss") and len(history) == 4
@@ -141,7 +142,7 @@ def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys
 @pytest.mark.parametrize(
     ("extra", "message"),
     [
-        (["--window", "200"], "window ℓ = 200 needs at least"),
+        (["--window", "200"], "no candidate window of [200] fits the records"),
         (["--window", "3", "--device", "cuda"], "CUDA is not available"),
     ],
 )

@@ -70,20 +70,6 @@ def test_train_with_a_val_csv_scores_the_val_file(trained, csv_files):
     assert config["info"]["data"]["splits"] == {"train": 3, "val": 1}
 
 
-def test_records_too_short_for_the_cubic_test_train_the_branch_beside(trained):
-    from canonid.learning.extrapolation import CUBIC_UNITS, keeps_cubic
-
-    config = json.loads((trained / "config.json").read_text())
-    test = config["info"]["cubic_test"]
-    assert "too short to hold out their largest excursions" in test["fallback"]
-    arm = json.loads((trained / "cubic-arm" / "config.json").read_text())
-    assert arm["net"]["cubic"] == CUBIC_UNITS
-    assert "cubic_test" not in arm["info"]  # the verdict is the run's, not the branch's own
-    assert test["cubic_loss"] == arm["info"]["training"]["best_val_loss"]
-    kept = keeps_cubic(test["plain_loss"], test["cubic_loss"])
-    assert config["net"].get("cubic", 0) == test["units"] == (CUBIC_UNITS if kept else 0)
-
-
 def test_evaluate_rebuilds_the_runs_split_and_keeps_the_held_out_score(trained, csv_files, capsys):
     before = (trained / "metrics.json").read_bytes()
     written = json.loads(before)
@@ -329,7 +315,7 @@ def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, ca
     assert metrics["n_init"] == 39 and metrics["rollout_horizon"] == 40 - 3
     # a split too short for the window is refused before any training
     code = main([*argv, "--window", "120", "--out", str(tmp_path / "x")])
-    one_line_error(capsys, code, "[val]", "window ℓ = 120 needs at least ℓ + 1 = 121")
+    one_line_error(capsys, code, "one.csv", "no candidate window of [120] fits the records")
     assert not (tmp_path / "x").exists()
 
 

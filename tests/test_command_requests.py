@@ -46,14 +46,14 @@ def _fields(**given):
 
 def test_request_fields_parse_the_text_options():
     fields = _fields(
-        window="5,10", hidden="64,64", weight_decay="auto", cubic="16", out=Path("run")
+        window="5,10", hidden="64,64", weight_decay="1e-4", cubic="16", out=Path("run")
     )
     assert fields == {
         "window": (5, 10),
         "resume": None,
         "out": Path("run"),
         "hidden": (64, 64),
-        "weight_decay": "auto",
+        "weight_decay": 1e-4,
         "cubic": 16,
         "window_candidates": WINDOW_CANDIDATES,
     }
@@ -68,9 +68,9 @@ def test_request_fields_parse_the_text_options():
 
 def test_request_fields_read_resume_and_refuse_a_cap_without_a_screen():
     assert _fields(resume=True, out=Path("run")) == {**_fields(), "resume": Path("run")}
-    with pytest.raises(OptionError, match="--max-window caps the screen's windows"):
+    with pytest.raises(OptionError, match="--max-window caps the searched windows"):
         _fields(window="5", max_window=10)
-    with pytest.raises(OptionError, match="--max-window caps the screen's windows"):
+    with pytest.raises(OptionError, match="--max-window caps the searched windows"):
         _fields(resume="run", max_window=10)
     with pytest.raises(OptionError, match="--window: expected an integer >= 1"):
         _fields(window="0", resume=True)  # the window is read first, as the command did

@@ -36,39 +36,6 @@ def test_the_headline_figures_are_checked():
         assert f"<!-- figure: {key} -->" in readme, key
 
 
-def test_the_quoted_screen_line_is_the_overflow_tanks_run():
-    """identification.md quotes the line `canonid train` printed for the overflow tanks (a code
-    block, where no marker can stand): its numbers are those of the record's screen lines."""
-    import re
-
-    record = figures._sections()["Overflow tanks"]
-    screen = re.search(
-        r"window screen \((\d+) epochs each; ℓ: best validation loss ([^)]*)\) kept ℓ = (\d+)",
-        record,
-    )
-    chosen = re.search(r"the model is ℓ = (\d+)", record)
-    assert screen and chosen
-    epochs, losses, kept = screen.groups()
-    windows = ", ".join(w.split(":")[0] for w in losses.split(", "))
-    page = (ROOT / "docs" / "identification.md").read_text("utf-8")
-    # the last quoted line: the one the near-ties paragraph quotes from the overflow tanks
-    line = [x for x in page.splitlines() if x.startswith("window ℓ =")][-1]
-    tolerance = figures.value("code/screen-tolerance")
-    if chosen[1] == kept:  # the screened window's full run is the model: the short line
-        assert line.startswith(
-            f"window ℓ = {kept} chosen on validation from {windows} (screen of {epochs} epochs "
-            f"each, the shortest within {tolerance}× of the lowest loss)"
-        ), line
-        return
-    assert line.startswith(
-        f"window ℓ = {chosen[1]} chosen on validation: the screen of {windows} ({epochs} epochs "
-        f"each) kept ℓ = {kept}, the shortest within {tolerance}× "
-        f"of the lowest loss; its full run ended at epoch "
-        f"{figures.value('overflow/full/l10/ended')} of {figures.value('overflow/full/l10/budget')}"
-        f", so the near-tied ℓ = {chosen[1]} trained fully too"
-    ), line
-
-
 def test_a_figure_that_disagrees_with_its_source_fails():
     tank = figures.value("defaults/tank/0")  # 7.52e-05 in the defaults study
     assert figures.check(f"tank {float(tank):.2e}<!-- figure: defaults/tank/0 -->", "p") == []

@@ -268,22 +268,22 @@ def test_an_interrupted_alternative_continues_to_the_same_bytes(
     assert HorizonChoice.read(run).adopted
 
 
-def test_the_alternative_screens_the_windows_the_run_screened(
+def test_the_alternative_trains_the_model_the_search_chose(
     closed_loop_data, short_alternative, monkeypatch, tmp_path
 ):
+    """The run searched its window; the alternative trains the chosen window and branch with
+    its shorter rollouts (nothing searched again), and once adopted the run's own searched
+    files are kept aside in horizon-10."""
     _counts(monkeypatch, {10: 8, SHORT: 0})
     run = tmp_path / "run"
     assert main(["train", str(closed_loop_data), *FAST, "--out", str(run)]) == 0
-
-    def windows(folder):
-        body = json.loads((folder / "window-screen.json").read_text())
-        return [c["window"] for c in body["candidates"]]
-
-    assert windows(run / "horizon-10") == windows(run / "horizon-5") == windows(run)
-    assert (
-        json.loads((run / "run.json").read_text())["window"]
-        == json.loads((run / "horizon-5" / "run.json").read_text())["window"]
-    )
+    recipe = json.loads((run / "run.json").read_text())
+    for alternative in ("horizon-10", "horizon-5"):
+        theirs = json.loads((run / alternative / "run.json").read_text())
+        assert theirs["window"] == recipe["window"]
+        assert theirs["net_options"]["cubic"] == recipe["net_options"]["cubic"]
+    assert (run / "horizon-10" / "search.json").is_file()
+    assert not (run / "horizon-5" / "search.json").exists()
 
 
 def test_records_too_short_for_the_check_leave_the_run_as_trained(

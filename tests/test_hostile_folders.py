@@ -178,18 +178,21 @@ def test_a_failed_atomic_copy_tree_leaves_the_old_folder(tmp_path):
     assert (tmp_path / "cubic" / "weights.pt").read_bytes() == b"old"
 
 
-def test_window_auto_adopts_the_chosen_model_without_a_fixed_temporary_name(tmp_path):
-    from canonid.selection import ADOPTED, adopt
+def test_the_search_adopts_the_chosen_model_without_a_fixed_temporary_name(tmp_path):
+    from canonid.learning.model import MODEL_FILES
+    from canonid.learning.search import adopt
+    from canonid.learning.training import CHECKPOINT_FILE
 
-    chosen = tmp_path / "candidates" / "w3"
+    names = (CHECKPOINT_FILE, *MODEL_FILES)
+    chosen = tmp_path / "search" / "l3"
     chosen.mkdir(parents=True)
-    for name in ADOPTED:
+    for name in names:
         (chosen / name).write_text(f"chosen {name}\n", encoding="utf-8")
     run = tmp_path / "run"
-    victims = [_plant_symlink(run / f".{name}.tmp", tmp_path / "outside") for name in ADOPTED]
+    victims = [_plant_symlink(run / f".{name}.tmp", tmp_path / "outside") for name in names]
     adopt(chosen, run)
     assert all(v.read_text(encoding="utf-8") == VICTIM_TEXT for v in victims)
-    for name in ADOPTED:
+    for name in names:
         assert not (run / name).is_symlink()
         assert (run / name).read_text(encoding="utf-8") == f"chosen {name}\n"
 

@@ -20,6 +20,7 @@ from canonid.learning.data import Normalisation
 from canonid.learning.linear import feedthrough_test, least_squares, regressors
 from canonid.learning.nets.base import LINEAR_PATHS, linear_path
 from canonid.learning.presets import DEFAULT_NET_OPTIONS, PAPER_NET_OPTIONS, net_options
+from canonid.learning.search import Search
 from canonid.learning.training import _draw_windows
 
 # the damped system's transfer function: y_t = a1 y_{t−1} + a2 y_{t−2} + b1 u_{t−1} + b2 u_{t−2}
@@ -278,9 +279,9 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
     assert "feedthrough off (decided on validation" in capsys.readouterr().out
     config = json.loads((tmp_path / "d" / "config.json").read_text())
     net, decided = config["net"], config["info"]["feedthrough_test"]
-    # feedthrough and cubic "auto" are recorded as what their tests decided, with the tests (a
-    # network without the cubic branch does not name it)
-    cubic = config["info"]["cubic_test"]["units"]
+    # feedthrough "auto" is recorded as what its test decided, cubic "auto" as what the search
+    # chose (a network without the cubic branch does not name it)
+    cubic = Search.read(tmp_path / "d").chosen.cubic
     expected = {**DEFAULT_NET_OPTIONS["mlp"], "feedthrough": decided["feedthrough"], "cubic": cubic}
     assert {k: net.get(k, 0) for k in DEFAULT_NET_OPTIONS["mlp"]} == expected
     assert decided["feedthrough"] is False  # the damped system has no direct term
@@ -290,8 +291,7 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
     )
     net = json.loads((tmp_path / "p" / "config.json").read_text())["net"]
     assert {k: net.get(k, 0) for k in PAPER_NET_OPTIONS["mlp"]} == PAPER_NET_OPTIONS["mlp"]
-    paper_info = json.loads((tmp_path / "p" / "config.json").read_text())["info"]
-    assert "cubic_test" not in paper_info  # the paper's model runs no cubic test
+    assert not (tmp_path / "p" / "search.json").exists()  # the paper's model: nothing searched
     out = tmp_path / "a"
     assert main(["train", *common, "--model", "arx", "--out", str(out)]) == 0
     assert "arx: least_squares after 0 epochs" in capsys.readouterr().out

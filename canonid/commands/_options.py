@@ -42,18 +42,25 @@ __all__ = [
 _Request = TypeVar("_Request")
 
 
-def add_where(parser: Any, *, jobs: str, sees: str, workers: int | None = 0) -> None:
+def add_where(
+    parser: Any,
+    *,
+    jobs: str,
+    sees: str,
+    workers: int | None = 0,
+    alone: str = "one after the other in this process",
+) -> None:
     """``--workers N`` or ``--scheduler ADDRESS`` on ``parser`` (a parser or an argument
     group): where ``jobs`` run; the cluster's workers must see ``sees``. ``workers`` is the
-    default of ``--workers`` (``None`` tells a command that it was not given)."""
+    default of ``--workers`` (``None`` tells a command that it was not given); ``alone``: where
+    they run without either."""
     where = parser.add_mutually_exclusive_group()
     where.add_argument(
         "--workers",
         type=int,
         default=workers,
         metavar="N",
-        help=f"{jobs} on N local Dask worker processes (default: one after the other in this "
-        "process)",
+        help=f"{jobs} on N local Dask worker processes (default: {alone})",
     )
     where.add_argument(
         "--scheduler",

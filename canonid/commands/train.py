@@ -11,18 +11,16 @@ from canonid.kernel.catalog import (
     LINEAR_PATHS,
     MODEL_NAMES,
     PAPER_NET_OPTIONS,
-    SMALL_RECORD_SAMPLES,
-    SMALL_RECORD_WEIGHT_DECAY,
     preset_word,
 )
+from canonid.profiles import PROFILES
 from canonid.training import (
     CUBIC_HELP,
-    FOLLOWUP_SHARE,
     HORIZON_HELP,
     MEMBERS_HELP,
     REQUEST_TEXT_FIELDS,
-    SCREEN_FRACTION,
-    SCREEN_TOLERANCE,
+    SEARCH_CUBIC_UNITS,
+    SEARCH_ETA,
     WIDTH_CANDIDATES,
     WINDOW_CANDIDATES,
     TrainRequest,
@@ -35,7 +33,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.description = (
         "Train a model on DATA (a canonid dataset, a CSV file or folder, or an .npz of "
         "arrays) by output error: ℓ measured samples burn in, the model predicts the next "
-        "H outputs in open loop. Writes a run folder and scores the model on the test split."
+        "H outputs in open loop. What is not given is chosen by a search on validation. Writes "
+        "a run folder and scores it on validation; canonid evaluate RUN scores the test split."
     )
     p.add_argument("data", nargs="?", metavar="DATA", help="training data (not with --resume)")
     p.add_argument(
@@ -46,19 +45,18 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--window",
         metavar="L",
-        help="window ℓ: L trains exactly L; a list, e.g. 5,10,20, trains each fully and keeps "
-        "the best on validation; default auto (a resumed run keeps its own): screen ℓ = "
-        f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) for "
-        f"{SCREEN_FRACTION * 100:g} %% of the epochs each, then train the shortest whose "
-        f"validation loss is within {SCREEN_TOLERANCE:g}× of the lowest (while the full runs "
-        f"together stop early, before {FOLLOWUP_SHARE * 100:g} %% of the epochs, the next near "
-        "tie trains fully too, and the lowest is kept)",
+        help="window ℓ: L fixes it; a list, e.g. 5,10,20, is the search's window axis; default "
+        "auto (a resumed run keeps its own): the search's axis ℓ = "
+        f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) beside the cubic "
+        f"branch ({' or '.join(map(str, SEARCH_CUBIC_UNITS))} units): successive halving, each "
+        f"rung keeping the best 1/{SEARCH_ETA} of its candidates on the validation records' "
+        f"simulation and training them {SEARCH_ETA}× longer, the last to the profile's epochs",
     )
     p.add_argument(
         "--max-window",
         type=int,
         metavar="L",
-        help="the screen tries only windows up to L, e.g. the n_init of the scoring rule you "
+        help="the search tries only windows up to L, e.g. the n_init of the scoring rule you "
         "will use (a model needs ℓ measured samples before it simulates); default: every "
         "window the data allow",
     )
@@ -68,9 +66,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--weight-decay",
         metavar="W",
-        help="Adam weight decay, a number >= 0 or auto (the quick profile's default: "
-        f"{SMALL_RECORD_WEIGHT_DECAY:g} when the training part holds fewer than "
-        f"{SMALL_RECORD_SAMPLES:,} samples, else 0)",
+        help="Adam weight decay >= 0 (default quick "
+        f"{PROFILES['quick']['train']['weight_decay']:g})",
     )
     p.add_argument("--batch-size", type=int, metavar="B", help="override the profile's batch")
     p.add_argument("--train-horizon", dest="horizon", type=int, metavar="H", help=HORIZON_HELP)
@@ -108,8 +105,8 @@ def register(p: argparse.ArgumentParser) -> None:
         help="widths of the hidden layers, e.g. 2048,2048 (the paper's Ours (MLP) on the "
         "quadrotor; default 256,256,256): Ours (MLP)'s regressor, each MLP of Masti et al., "
         "the head of Ours (GRU); not classic-gru, whose sizes follow from ℓ; auto: train "
-        f"{', '.join('×'.join(map(str, w)) for w in WIDTH_CANDIDATES)} and keep the best on "
-        "validation (with --window L or a list)",
+        f"{', '.join('×'.join(map(str, w)) for w in WIDTH_CANDIDATES)} as an axis of the "
+        "search (with --window L or a list)",
     )
     p.add_argument(
         "--activation",
@@ -169,7 +166,8 @@ def register(p: argparse.ArgumentParser) -> None:
     _options.add_threads(p)
     _options.add_where(
         p,
-        jobs="with a list of windows or --hidden auto: train the candidates",
+        jobs="train the search's candidates",
+        alone="side by side, one process of one thread per core (--threads)",
         sees="DATA and RUN",
         workers=None,
     )

@@ -45,20 +45,6 @@ def _jobs() -> Any:
     return jobs
 
 
-def _followup_share() -> str:
-    """The share of the budget within which full runs leave room for a near-tied window."""
-    from canonid.learning.window_screen import FOLLOWUP_SHARE
-
-    return f"{FOLLOWUP_SHARE:.0%}"
-
-
-def _screen_tolerance() -> float:
-    """The factor over the lowest screen loss within which the shortest window is kept."""
-    from canonid.learning.screen import SCREEN_TOLERANCE
-
-    return SCREEN_TOLERANCE
-
-
 class Cell(NamedTuple):
     """The first number (with ``pick``, the number at that place; with ``whole``, the whole text)
     of one cell of a RESULTS.md table: the ``nth`` table of ``section`` that has ``column`` (0:
@@ -727,9 +713,6 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         "Device", _row(widths="256 × 256 × 256", K="512"), "GPU candidate-epochs per s"
     ),
     "code/feedthrough-gain": Code(lambda: _feedthrough_gain()),
-    "code/screen-fraction": Code(lambda: _screen_fraction()),
-    "code/screen-tolerance": Code(lambda: f"{_screen_tolerance():g}"),
-    "code/followup-share": Code(lambda: _followup_share()),
     "code/pool-min-steps": Code(lambda: _jobs().POOL_MIN_STEPS),
     "code/noted-beyond": Code(lambda: f"{100 * _coverage().NOTED_BEYOND:g}"),
     "code/unvalidated-share": Code(lambda: f"{100 * _coverage().UNVALIDATED_SHARE:g}"),
@@ -769,8 +752,6 @@ FIGURES: dict[str, Cell | Prose | Code] = {
         for slug, record, part in _MEMBER_RECORDS
         for what, column in (("defaults", "defaults (seed 0)"), ("k2", "K = 2"), ("k3", "K = 3"))
     },
-    "code/small-record-samples": Code(lambda: f"{_catalog().SMALL_RECORD_SAMPLES:,}"),
-    "code/small-record-weight-decay": Code(lambda: _catalog().SMALL_RECORD_WEIGHT_DECAY),
     # canonid's cubic test per system (extrapolation_study.py decide): held-out loss ratio
     **{
         f"cubic/decision/{system}": Cell("Extrapolation", _row(system=system), "ratio", nth=1)
@@ -793,10 +774,6 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     },
     "cubic-seeds/silverbox/min1": Cell(SEEDS_SECTION, _row(system="silverbox"), "min, k = 1"),
     "cubic-seeds/silverbox/min3": Cell(SEEDS_SECTION, _row(system="silverbox"), "min, k = 3"),
-    "code/cubic-seeds": Code(lambda: _extrapolation().CUBIC_SEEDS),
-    "code/cubic-margin": Code(lambda: f"{_extrapolation().CUBIC_MARGIN:g}"),
-    "code/cubic-hold-out": Code(lambda: _extrapolation().HOLD_OUT),
-    "code/cubic-units": Code(lambda: _extrapolation().CUBIC_UNITS),
     "code/horizon-check-k": Code(lambda: _horizon_check().CHECK_K),
     "code/horizon-alternative/first": Code(lambda: _horizon_check().ALTERNATIVES[0]),
     "code/horizon-alternative/second": Code(lambda: _horizon_check().ALTERNATIVES[1]),
@@ -917,7 +894,6 @@ FIGURES: dict[str, Cell | Prose | Code] = {
     "learned-mpc/candidates/s0-member2/val-loop": Prose(
         LEARNED_MPC_DEFAULTS, r"seed-2 member tracks at \*\*([\d.]+)×"
     ),
-    "code/cubic-gain": Code(lambda: _extrapolation().CUBIC_GAIN),
     # the records too short for the cubic test's peaks (cubic_fallback.py): cubic / plain
     **{
         f"cubic-fallback/{slug}/{which}": Cell(
@@ -932,18 +908,16 @@ FIGURES: dict[str, Cell | Prose | Code] = {
             ("full-ratio", "full: cubic / plain"),
         )
     },
-    "code/cubic-min-share": Code(
-        lambda: f"{_extrapolation().MIN_TRAIN_SHARE:.0%}".replace("%", " %")
-    ),
     **{
         f"window/{system}/chosen": Cell(
             "Window on validation",
             (("system", system), ("fraction (epochs)", "0.1 (60)")),
-            f"the rule (×{_screen_tolerance():g})",
+            "the rule (×1.6)",
         )
         for system in ("tank", "drone2d", "silverbox", "masses")
     },
     "quick/train/epochs": Code(_quick("train", "epochs")),
+    "quick/train/weight_decay": Code(_quick("train", "weight_decay")),
     "quick/train/horizon": Code(_quick("train", "horizon")),
     "quick/train/val_horizon": Code(_quick("train", "val_horizon")),
     "quick/train/batch_size": Code(_quick("train", "batch_size")),
@@ -1064,12 +1038,6 @@ FIGURES: dict[str, Cell | Prose | Code] = {
 }
 
 
-def _extrapolation() -> Any:
-    from canonid.learning import extrapolation
-
-    return extrapolation
-
-
 def _horizon_check() -> Any:
     from canonid import horizon_check
 
@@ -1087,13 +1055,6 @@ def _coverage() -> Any:
     from canonid import coverage
 
     return coverage
-
-
-def _screen_fraction() -> str:
-    """The share of the epochs each window of the screen trains for, in words."""
-    from canonid.learning.screen import SCREEN_FRACTION
-
-    return {0.1: "tenth", 0.05: "twentieth", 0.2: "fifth"}[SCREEN_FRACTION]
 
 
 def _auto_cuda_work() -> int:
