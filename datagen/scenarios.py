@@ -83,6 +83,9 @@ class Scenario:
             (the first ``⌊(1 − val_tail) T⌋`` samples stay training data), as ``canonid
             benchmark`` cuts a single training record; the scenario then generates no
             validation flights.
+        noise: the half-width(s) of the flights' measurement noise (one number, or one per
+            output; inside the system's W), or ``None``: W itself. ``canonid generate --noise``
+            overrides it.
     """
 
     system: str
@@ -107,6 +110,7 @@ class Scenario:
     reference_families: Mapping[str, ReferenceSampler] = field(default_factory=dict)
     measure_window: int = 10
     val_tail: float | None = None
+    noise: float | tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", self.name or self.system)
@@ -158,7 +162,12 @@ class Scenario:
             "notes": self.notes,
             **designed,
             **({} if self.val_tail is None else {"val_tail": self.val_tail}),
+            **({} if self.noise is None else {"noise": _listed(self.noise)}),
         }
+
+
+def _listed(value: float | tuple[float, ...]) -> float | list[float]:
+    return list(value) if isinstance(value, tuple) else value
 
 
 # ---------------------------------------------------------------------------- tank
