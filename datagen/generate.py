@@ -149,7 +149,8 @@ class GenerationConfig:
         seed: the root seed (integer >= 0).
         counts: flights per split; splits left out get the scenario's default size.
         noise: measurement-noise half-width(s), see :func:`canonid.datagen.simulate.noise_box`;
-            ``None`` uses the system's W.
+            ``None`` uses the scenario's (``Scenario.noise``, recorded here in its place), else
+            the system's W.
         controller_options: overrides passed to the scenario's controller factory (only the
             names the scenario lists, e.g. ``{"horizon": 20}``).
         T: samples per flight; ``None`` uses the scenario's.
@@ -209,6 +210,8 @@ class GenerationConfig:
                 f"T = {self.steps} samples per flight is shorter than one {self.system} chunk "
                 f"({chunk} samples)"
             )
+        if self.noise is None and scenario.noise is not None:
+            object.__setattr__(self, "noise", scenario.noise)
         if isinstance(self.noise, (int, float, np.number)):
             object.__setattr__(self, "noise", float(self.noise))
         elif self.noise is not None:

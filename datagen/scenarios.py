@@ -83,6 +83,9 @@ class Scenario:
             (the first ``⌊(1 − val_tail) T⌋`` samples stay training data), as ``canonid
             benchmark`` cuts a single training record; the scenario then generates no
             validation flights.
+        noise: the half-width(s) of the flights' measurement noise (one number, or one per
+            output; inside the system's W), or ``None``: W itself. ``canonid generate --noise``
+            overrides it.
     """
 
     system: str
@@ -107,6 +110,7 @@ class Scenario:
     reference_families: Mapping[str, ReferenceSampler] = field(default_factory=dict)
     measure_window: int = 10
     val_tail: float | None = None
+    noise: float | tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "name", self.name or self.system)
@@ -158,7 +162,12 @@ class Scenario:
             "notes": self.notes,
             **designed,
             **({} if self.val_tail is None else {"val_tail": self.val_tail}),
+            **({} if self.noise is None else {"noise": _listed(self.noise)}),
         }
+
+
+def _listed(value: float | tuple[float, ...]) -> float | list[float]:
+    return list(value) if isinstance(value, tuple) else value
 
 
 # ---------------------------------------------------------------------------- tank
@@ -378,6 +387,151 @@ _TANKS_OVERFLOW = Scenario(
     ),
 )
 
+
+# ---------------------------------------------------------------------------- the suite's systems
+def _feedforward_compiled(system: System, options: Mapping[str, Any]) -> Controller:
+    """Open loop through the compiled loop: the same bytes as step by step, long records fast."""
+    from canonid.datagen.controllers.feedforward import Feedforward
+
+    return Feedforward(system.n_u, system=system)
+
+
+#: a random-phase multisine on every tenth line of the 0.5-Hz grid of a 20,000-sample record (2 s
+#: at 10 kHz) up to 2 kHz, past both filters' corners; RMS 0.5 V swings the first filter's output
+#: over about ±1.7 V, so the curve clamps the deep negative half-waves near −0.4 V and bends the
+#: positive peaks (the output differs from the linear chain's by about 45 % of its RMS)
+WIENER_HAMMERSTEIN_DESIGN = Multisine(band=(0.0, 2000.0), lines=400, amplitude=0.5)
+#: white Gaussian input on top, a tenth of the multisine's RMS (1 % of its power): a band-limited
+#: input alone leaves the lags of the window regressor collinear (its smallest eigenvalue about
+#: 1e-8 at ℓ = 10, "singular to rounding" for the friction drive); with it they sit at the output
+#: noise's floor (5e-5 to 1e-4), and so for the Bouc-Wen and friction records below
+WIENER_HAMMERSTEIN_WHITE = 0.05
+#: measurement noise of its records, V: about 0.7 % of the output's RMS (0.24 V)
+WIENER_HAMMERSTEIN_NOISE = 0.003
+
+_WIENER_HAMMERSTEIN = Scenario(
+    system="wiener-hammerstein",
+    T=20000,
+    split_sizes={"train": 1, "val": 1, "test": 1},
+    reference=_zero_reference,
+    reference_names=("u_nominal",),
+    initial_state=_zero_state,
+    controller=_feedforward_compiled,
+    excitation_std=WIENER_HAMMERSTEIN_WHITE,
+    clip_input=True,
+    design=WIENER_HAMMERSTEIN_DESIGN,
+    noise=WIENER_HAMMERSTEIN_NOISE,
+    notes=(
+        "Open loop from rest: one training, one validation and one test record of 20,000 "
+        "samples (2 s at 10 kHz), each driven by its own random-phase multisine voltage, 400 "
+        "lines on every tenth line of the 0.5-Hz grid up to 2 kHz, RMS 0.5 V, plus white "
+        "Gaussian noise of standard deviation 0.05 V, clipped to U; "
+        "uniform output noise of half-width 0.003 V (about 0.7 % of the output's RMS)."
+    ),
+)
+
+#: every line of the 10-Hz grid of a 1,000-sample record up to 2 kHz, at the main design's RMS
+WIENER_HAMMERSTEIN_SMALL_DESIGN = Multisine(band=(0.0, 2000.0), lines=200, amplitude=0.5)
+
+_WIENER_HAMMERSTEIN_SMALL = Scenario(
+    system="wiener-hammerstein",
+    name="wiener-hammerstein-small",
+    T=1000,
+    split_sizes={"train": 1, "val": 0, "test": 1},
+    reference=_zero_reference,
+    reference_names=("u_nominal",),
+    initial_state=_zero_state,
+    controller=_feedforward_compiled,
+    excitation_std=WIENER_HAMMERSTEIN_WHITE,
+    clip_input=True,
+    design=WIENER_HAMMERSTEIN_SMALL_DESIGN,
+    val_tail=0.2,
+    notes=(
+        "A small, noisy record: one training and one test record of 1,000 samples (0.1 s at "
+        "10 kHz) from rest, each driven by its own random-phase multisine voltage on every line "
+        "of the 10-Hz grid up to 2 kHz, RMS 0.5 V, plus white Gaussian noise of standard "
+        "deviation 0.05 V, clipped to U; uniform output noise of "
+        "half-width 0.015 V, the system's W (about 3.6 % of the output's RMS); validation is "
+        "the last 20 % of the training record (samples 800-999)."
+    ),
+)
+
+#: white Gaussian force of 10 N standard deviation: flat up to Nyquist (100 Hz), past the three
+#: modes (7.1, 19.8, 28.7 Hz); the cubic joint then stiffens by up to about 30 % and changes the
+#: accelerations by 13-17 % of their RMS
+VIBRATION_FORCE_STD = 10.0
+
+_VIBRATION = Scenario(
+    system="vibration",
+    T=100000,
+    split_sizes={"train": 1, "val": 1, "test": 1},
+    reference=_zero_reference,
+    reference_names=("F_nominal",),
+    initial_state=_zero_state,
+    controller=_feedforward_compiled,
+    excitation_std=VIBRATION_FORCE_STD,
+    clip_input=True,
+    notes=(
+        "A ground-vibration test: open loop from rest, one training, one validation and one "
+        "test record of 100,000 samples (500 s at 200 Hz), the shaker's force white Gaussian "
+        "noise of standard deviation 10 N (drawn per record), clipped to U = [-60, 60] N; the "
+        "three accelerations with uniform noise of half-width 0.3 m/s^2 (W)."
+    ),
+)
+
+#: a random-phase multisine of RMS 10 N between 1 and 80 Hz (300 lines on the 0.05-Hz grid of a
+#: 10,000-sample record): the mass moves 0.64 mm RMS, past the 0.5 mm beyond which the
+#: hysteretic force saturates, so most cycles open a loop
+BOUC_WEN_DESIGN = Multisine(band=(1.0, 80.0), lines=300, amplitude=10.0)
+#: white Gaussian force on top, a tenth of the multisine's RMS (see WIENER_HAMMERSTEIN_WHITE)
+BOUC_WEN_WHITE = 1.0
+
+_BOUC_WEN = Scenario(
+    system="bouc-wen",
+    T=10000,
+    split_sizes={"train": 1, "val": 1, "test": 1},
+    reference=_zero_reference,
+    reference_names=("u_nominal",),
+    initial_state=_zero_state,
+    controller=_feedforward_compiled,
+    excitation_std=BOUC_WEN_WHITE,
+    clip_input=True,
+    design=BOUC_WEN_DESIGN,
+    notes=(
+        "Open loop from rest: one training, one validation and one test record of 10,000 "
+        "samples (20 s at 500 Hz), each driven by its own random-phase multisine force, 300 "
+        "lines between 1 and 80 Hz, RMS 10 N, plus white Gaussian noise of standard deviation "
+        "1 N, clipped to U; uniform displacement noise of "
+        "half-width 1e-5 m (W)."
+    ),
+)
+
+#: a random-phase multisine of RMS 2 N·m up to 5 Hz (100 lines on the 0.01-Hz grid of a
+#: 10,000-sample record): slow parts slide the drive at several rad/s, reversals stick it
+FRICTION_DRIVE_DESIGN = Multisine(band=(0.01, 5.0), lines=100, amplitude=2.0)
+#: white Gaussian torque on top, a tenth of the multisine's RMS (see WIENER_HAMMERSTEIN_WHITE)
+FRICTION_DRIVE_WHITE = 0.2
+
+_FRICTION_DRIVE = Scenario(
+    system="friction-drive",
+    T=10000,
+    split_sizes={"train": 1, "val": 1, "test": 1},
+    reference=_zero_reference,
+    reference_names=("tau_nominal",),
+    initial_state=_zero_state,
+    controller=_feedforward_compiled,
+    excitation_std=FRICTION_DRIVE_WHITE,
+    clip_input=True,
+    design=FRICTION_DRIVE_DESIGN,
+    notes=(
+        "Open loop from rest: one training, one validation and one test record of 10,000 "
+        "samples (100 s at 100 Hz), each driven by its own random-phase multisine torque, 100 "
+        "lines between 0.01 and 5 Hz, RMS 2 N*m, plus white Gaussian noise of standard "
+        "deviation 0.2 N*m, clipped to U; uniform speed noise of "
+        "half-width 0.02 rad/s (W)."
+    ),
+)
+
 _SCENARIOS: dict[str, Scenario] = {
     "tank": Scenario(
         system="tank",
@@ -398,6 +552,11 @@ _SCENARIOS: dict[str, Scenario] = {
     "quadrotor": _QUADROTOR,
     "masses-id": _MASSES_ID,
     "tanks-overflow": _TANKS_OVERFLOW,
+    "wiener-hammerstein": _WIENER_HAMMERSTEIN,
+    "wiener-hammerstein-small": _WIENER_HAMMERSTEIN_SMALL,
+    "vibration": _VIBRATION,
+    "bouc-wen": _BOUC_WEN,
+    "friction-drive": _FRICTION_DRIVE,
 }
 
 

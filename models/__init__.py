@@ -12,7 +12,9 @@ from canonid.kernel.lazy import lazy_exports
 _EXPORTS = {
     "SimResult": "canonid.models.base",
     "System": "canonid.models.base",
+    "BoucWen": "canonid.models.bouc_wen",
     "Drone2D": "canonid.models.drone2d",
+    "FrictionDrive": "canonid.models.friction_drive",
     "LearnedSystem": "canonid.models.learned",
     "LinearSystem": "canonid.models.linear",
     "linear_example": "canonid.models.linear",
@@ -24,6 +26,8 @@ _EXPORTS = {
     "Box": "canonid.models.sets",
     "Tank": "canonid.models.tank",
     "Quadrotor": "canonid.models.quadrotor",
+    "Vibration": "canonid.models.vibration",
+    "WienerHammerstein": "canonid.models.wiener_hammerstein",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -11,12 +11,16 @@ from typing import Any, Literal
 
 from canonid.kernel.errors import UnknownSystemError
 from canonid.models.base import System
+from canonid.models.bouc_wen import BoucWen
 from canonid.models.drone2d import Drone2D
+from canonid.models.friction_drive import FrictionDrive
 from canonid.models.linear import LINEAR_EXAMPLES
 from canonid.models.masses import MassChain
 from canonid.models.overflow_tanks import OverflowTanks
 from canonid.models.quadrotor import Quadrotor
 from canonid.models.tank import Tank
+from canonid.models.vibration import Vibration
+from canonid.models.wiener_hammerstein import WienerHammerstein
 
 __all__ = ["get_system", "register_system", "signal_units", "system_names"]
 
@@ -26,6 +30,10 @@ _FACTORIES: dict[str, Callable[..., System]] = {
     "quadrotor": Quadrotor,
     "masses": MassChain,
     "tanks-overflow": OverflowTanks,
+    "wiener-hammerstein": WienerHammerstein,
+    "vibration": Vibration,
+    "bouc-wen": BoucWen,
+    "friction-drive": FrictionDrive,
     **LINEAR_EXAMPLES,
 }
 
