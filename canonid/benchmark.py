@@ -562,15 +562,27 @@ def _train_and_score(
     todo: TrainRequest, run_dir: Path, bench: Benchmark
 ) -> tuple[BenchmarkReport, Path]:
     """Train (or resume) ``todo`` into ``run_dir``, then score the model on the official test
-    parts of the run's data and write ``benchmark.json`` and the figures."""
+    parts of the run's data (a line in the run's ledger of test reads first,
+    :func:`canonid.runfolder.record_test_read`) and write ``benchmark.json`` and the figures."""
     from canonid.learning import Model
-    from canonid.runfolder import RunRecipe, run_data
+    from canonid.runfolder import (
+        TEST_SPLIT,
+        RunRecipe,
+        check_test_ledger,
+        record_test_read,
+        run_data,
+    )
     from canonid.training import train
 
+    check_test_ledger(run_dir)  # a ledger that would be refused, before the training
     train(todo)
     model = Model.load(run_dir)
     recipe = RunRecipe.read(run_dir)
     split, _ = run_data(recipe)  # the run's data, checked by checksum
+    checksum = recipe.data_sha256 or data_checksum(recipe.data)
+    record_test_read(
+        run_dir, command="benchmark", split=TEST_SPLIT, data=recipe.data, sha256=checksum
+    )
     scores, sims = score_parts(model, split, bench)
     report = BenchmarkReport(
         benchmark=bench.name,
