@@ -190,7 +190,8 @@ def plot_part(
     model_label: str,
 ) -> Path:
     """Measured and simulated output of one test part (whole, then its first samples) and the
-    error, in the scoring units, with the ``n_init`` samples the model was given shaded."""
+    error, in the scoring units, with the ``n_init`` samples the model was given shaded; of
+    several outputs (the F-16's accelerometers) the first is drawn, the title's RMSE is all's."""
     from matplotlib.figure import Figure
 
     scale, units, n_init = bench.score_scale, bench.score_units, bench.n_init
@@ -210,8 +211,9 @@ def plot_part(
     bottom.axvspan(0, t[n_init], color="0.85", lw=0)
     bottom.set_ylabel(f"error [{units}]")
     bottom.set_xlabel("time [s]")
+    outputs = f" of the {len(bench.output_names)} outputs" if len(bench.output_names) > 1 else ""
     top.set_title(
-        f"{bench.title}, test '{score.test}': RMSE {score.rmse:.4g} {units} over "
+        f"{bench.title}, test '{score.test}': RMSE{outputs} {score.rmse:.4g} {units} over "
         f"{score.n_scored} samples after n_init = {n_init} (shaded)",
         fontsize=9,
     )
@@ -234,7 +236,7 @@ def report_table(report: BenchmarkReport) -> str:
     units = report.scores[0].units if report.scores else ""
     n_init = report.scores[0].n_init if report.scores else 0
     rows, sources = baseline_rows(report.baselines, tests)
-    ours = [f"{s.rmse:.3f}" if math.isfinite(s.rmse) else "not finite" for s in report.scores]
+    ours = [_shown(s.rmse) for s in report.scores]
     cells = [
         ("method", *tests, "source"),
         (f"canonid ({report.model}, ℓ = {report.window})", *ours, "this run"),
@@ -267,6 +269,14 @@ def report_table(report: BenchmarkReport) -> str:
         f"how the published figures were made and how canonid's differ: {PROTOCOL_DOCS}",
     ]
     return "\n".join([head, *lines, *tail])
+
+
+def _shown(rmse: float) -> str:
+    """A score as the table prints it: three decimals, or three significant digits below 0.1
+    (an F-16 score in m/s² keeps its digits)."""
+    if not math.isfinite(rmse):
+        return "not finite"
+    return f"{rmse:.3f}" if rmse >= 0.1 else f"{rmse:.3g}"
 
 
 def benchmark_summary(report: BenchmarkReport, run_dir: Path) -> str:
@@ -549,15 +559,27 @@ def _train_and_score(
     todo: TrainRequest, run_dir: Path, bench: Benchmark
 ) -> tuple[BenchmarkReport, Path]:
     """Train (or resume) ``todo`` into ``run_dir``, then score the model on the official test
-    parts of the run's data and write ``benchmark.json`` and the figures."""
+    parts of the run's data (a line in the run's ledger of test reads first,
+    :func:`canonid.runfolder.record_test_read`) and write ``benchmark.json`` and the figures."""
     from canonid.learning import Model
-    from canonid.runfolder import RunRecipe, run_data
+    from canonid.runfolder import (
+        TEST_SPLIT,
+        RunRecipe,
+        check_test_ledger,
+        record_test_read,
+        run_data,
+    )
     from canonid.training import train
 
+    check_test_ledger(run_dir)  # a ledger that would be refused, before the training
     train(todo)
     model = Model.load(run_dir)
     recipe = RunRecipe.read(run_dir)
     split, _ = run_data(recipe)  # the run's data, checked by checksum
+    checksum = recipe.data_sha256 or data_checksum(recipe.data)
+    record_test_read(
+        run_dir, command="benchmark", split=TEST_SPLIT, data=recipe.data, sha256=checksum
+    )
     scores, sims = score_parts(model, split, bench)
     report = BenchmarkReport(
         benchmark=bench.name,
@@ -599,6 +621,6 @@ def benchmark_list(files: Path | None) -> str:
         )
         for file, path in find_files(bench, files).items():
             alt = f" (or {', '.join(bench.csv)})" if bench.csv else ""
-            where = f"found: {path}" if path else f"missing; download from {bench.page}"
+            where = f"found: {path}" if path else f"missing; {bench.where_from(file)}"
             lines.append(f"  {bench.folder}/{file}{alt}: {where}")
     return "\n".join(lines)

@@ -15,7 +15,11 @@ study and the Table-1 jobs of ``canonid reproduce`` all write the same folder:
   scores training wrote, which nothing else rewrites;
 * ``evaluations/NAME/`` (:data:`EVALUATIONS_DIR`): one folder per ``canonid evaluate`` (its own
   ``metrics.json`` and ``rollouts.png``), named by the data it scored and its options
-  (:func:`canonid.scoring.evaluation_name`).
+  (:func:`canonid.scoring.evaluation_name`);
+* ``test-ledger.jsonl`` (:data:`TEST_LEDGER_FILE`): one JSON line per read of a split named
+  ``test`` by ``canonid evaluate`` or ``canonid benchmark`` (:func:`record_test_read`): when,
+  which command, the split, the data file and its checksum, so that "the test split was read
+  once, after the model was chosen" can be checked from the folder.
 
 Figures are PNG unless another of :data:`canonid.kernel.io.FIGURE_FORMATS` is asked for
 (``training_curve.pdf``, ``rollouts.svg``, …; :func:`figure_file`); ``metrics.json`` names its
@@ -30,6 +34,7 @@ from __future__ import annotations
 import csv
 import dataclasses
 import io
+import json
 import logging
 import math
 import os
@@ -55,8 +60,10 @@ from canonid.jobs import run_folder_lock
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, DataError, OptionError, OutputError
 from canonid.kernel.io import (
+    append_line,
     atomic_write_json,
     atomic_write_text,
+    check_appendable,
     figure_name,
     is_json_number,
     read_json,
@@ -86,6 +93,8 @@ __all__ = [
     "METRICS_FILE",
     "RECIPE_VERSION",
     "RUN_FILE",
+    "TEST_LEDGER_FILE",
+    "TEST_SPLIT",
     "Recipe",
     "ReductionRecipe",
     "RunEvaluation",
@@ -95,6 +104,7 @@ __all__ = [
     "check_compatible",
     "check_metrics",
     "check_recorded",
+    "check_test_ledger",
     "data_info",
     "eval_defaults",
     "evaluate_run",
@@ -106,6 +116,7 @@ __all__ = [
     "read_metrics",
     "read_recipe",
     "recipe_of",
+    "record_test_read",
     "rescore_run",
     "run_data",
     "score_horizon",
@@ -121,6 +132,11 @@ METRICS_FILE = "metrics.json"
 #: the folder of a run's evaluations, one subfolder each (``canonid evaluate``)
 EVALUATIONS_DIR = "evaluations"
 HISTORY_FILE = "history.csv"
+#: the ledger of the run's test reads, one JSON line each (:func:`record_test_read`)
+TEST_LEDGER_FILE = "test-ledger.jsonl"
+#: the split whose every read is recorded in the ledger
+TEST_SPLIT = "test"
+LEDGER_WHAT = "ledger of test reads"
 RECIPE_FORMAT = "canonid-run"
 #: the version of :class:`RunRecipe`'s JSON (a recipe without one is of version 1)
 RECIPE_VERSION = 1
@@ -536,6 +552,36 @@ class RunEvaluation:
 
 #: the scores :func:`canonid.scoring.metrics_table` prints, each with its per-output list
 _PRINTED_SCORES = ("rollout_mse", "rmse", "nrmse", "fit_percent")
+
+
+def record_test_read(
+    run_dir: Path, *, command: str, split: str, data: str | Path, sha256: str
+) -> Path:
+    """Append one line to ``run_dir``'s ledger of test reads (:data:`TEST_LEDGER_FILE`): a JSON
+    object with ``time`` (UTC, ISO 8601), ``command`` (``evaluate``, ``benchmark``), ``split``,
+    ``data`` (the data file read) and ``sha256`` (its checksum, as ``run.json`` and
+    ``metrics.json`` record it: :func:`canonid.datagen.loaders.data_checksum`). Called before
+    the split is scored, so a read that fails half-way is recorded too; a ledger that is a
+    symbolic link, or not a regular file, is refused in one line
+    (:func:`canonid.kernel.io.append_line`) and nothing is scored."""
+    from datetime import datetime, timezone
+
+    when = datetime.now(timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    entry = {
+        "time": when,
+        "command": command,
+        "split": split,
+        "data": str(data),
+        "sha256": sha256,
+    }
+    line = json.dumps(entry, ensure_ascii=False)
+    return append_line(Path(run_dir) / TEST_LEDGER_FILE, line, what=LEDGER_WHAT)
+
+
+def check_test_ledger(run_dir: Path) -> None:
+    """Refuse ``run_dir``'s ledger of test reads now if :func:`record_test_read` would refuse it
+    (a symbolic link, not a regular file): before a benchmark's training, not after it."""
+    check_appendable(Path(run_dir) / TEST_LEDGER_FILE, what=LEDGER_WHAT)
 
 
 def read_metrics(path: Path) -> dict[str, Any]:

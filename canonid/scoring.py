@@ -8,7 +8,9 @@ overridden by those given (a CSV or ``.npz`` file's records form the split
 (:func:`evaluation_name`): the data's name and checksum and the options, so that training's
 ``metrics.json`` and every other evaluation stay. The same evaluation asked again of the same
 weights is not redone (its folder is read back); of other weights (a run trained further) it is
-refused. ``n_init`` defaults to :func:`canonid.learning.evaluate.default_n_init`, the rule of
+refused. Scoring a split named ``test`` first appends a line to the run's ledger of test reads
+(:func:`canonid.runfolder.record_test_read`); an evaluation read back scores nothing and adds
+none. ``n_init`` defaults to :func:`canonid.learning.evaluate.default_n_init`, the rule of
 ``canonid.evaluate`` too.
 :func:`metrics_table` is the short table that ``train``, ``evaluate`` and ``reduce`` print.
 
@@ -103,11 +105,13 @@ def score_run(request: EvaluateRequest) -> Scored:
     from canonid.runfolder import (
         EVALUATIONS_DIR,
         METRICS_FILE,
+        TEST_SPLIT,
         eval_defaults,
         evaluate_run,
         pick_split,
         read_metrics,
         read_recipe,
+        record_test_read,
         scoring_source,
     )
 
@@ -165,6 +169,10 @@ def score_run(request: EvaluateRequest) -> Scored:
             raise OutputError(
                 f"{done}: field 'evaluation' does not record this evaluation (edited by hand?); "
                 "remove that folder to score again"
+            )
+        if name == TEST_SPLIT:  # the test split is read: the ledger says so, first
+            record_test_read(
+                request.run, command="evaluate", split=name, data=data_path, sha256=checksum
             )
         folder.mkdir(parents=True, exist_ok=True)
         try:

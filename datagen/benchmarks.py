@@ -23,6 +23,24 @@ Index conventions (0-based Python slices ``[start, stop)`` of the record as stor
 * **CED** (``DATAUNIF.MAT``: ``u11``, ``z11`` low and ``u12``, ``z12`` high input amplitude;
   dt = 0.02 s): training = ``0:400`` of each experiment, test = ``400:`` of each. ``n_init`` = 10.
 
+* **F-16 ground-vibration test** (``F16GVT_Files/BenchmarkData``; each record a ``.mat`` file with
+  ``Force`` (1 × N, input, N), ``Acceleration`` (3 × N, outputs ``Acceleration1…3``, m/s²) and
+  ``Fs`` (400 Hz); dt = 1/``Fs``, the same in every file): the full-multisine records only.
+  Training = the whole records of levels 1, 3, 5, 7 (``F16Data_FullMSine_Level{1,3,5,7}.mat``);
+  test parts ``level-2``, ``level-4``, ``level-6`` = the whole
+  ``F16Data_FullMSine_Level{2,4,6}_Validation.mat`` records (the package's test files are those
+  named ``Validation``). ``n_init`` = 50. The package's loader also holds the sine-sweep records
+  and gives one accelerometer (``output_index``, default 0); here all three are outputs and a
+  part's score is the RMSE over the three together.
+* **Bouc–Wen** (``BoucWenFiles``; ``Test signals/Validation signals/uval_multisine.mat`` …: each
+  file one 1 × N variable of its own name, input force in N, output displacement in m;
+  dt = 1/750 s, the rate of the benchmark's simulator): test parts ``multisine``
+  (``uval_multisine``, ``yval_multisine``) and ``sinesweep`` (``uval_sinesweep``,
+  ``yval_sinesweep``), whole. The benchmark ships no training record (its users simulate one
+  with its MATLAB integrator) and the package defines no split: training = the record
+  ``BoucWen_train.mat`` (``u``, ``y`` as ``BoucWen_ExampleIntegration.m`` leaves them), whole.
+  ``n_init`` = 50, canonid's choice (:data:`BOUC_WEN_N_INIT`).
+
 Version 1.0.1 raised ``n_init`` from 5 to 50 (Cascaded Tanks) and from 4 to 10 (CED); the other
 three are unchanged.
 
@@ -33,12 +51,14 @@ the outputs' units times :attr:`Benchmark.score_scale`).
 
 Published results (:attr:`Benchmark.baselines`): every row of the baseline study of Champneys et
 al. (2024) and of the same paper's table of the best published results, as printed there (figure,
-units, source), the lowest figure on each test part marked :attr:`Baseline.best`.
+units, source), the lowest figure on each test part marked :attr:`Baseline.best`. That paper does
+not cover Bouc–Wen and the F-16; no figure on their test parts under this protocol is entered.
 
 Files are looked for in ``DIR/<the package's cache folder>/FILE`` (e.g.
-``DIR/Silverbox/SilverboxFiles/SNLS80mV.mat``) and in ``DIR/FILE``; Silverbox is also read from
-its CSV export ``SNLS80mV.csv`` (columns ``V1``, ``V2``). ``DIR`` defaults to the package's cache,
-``~/.nonlinear_benchmarks``. MATLAB files are read with ``scipy.io.loadmat`` (no pickle).
+``DIR/Silverbox/SilverboxFiles/SNLS80mV.mat``) and by their bare name in ``DIR``; Silverbox is
+also read from its CSV export ``SNLS80mV.csv`` (columns ``V1``, ``V2``). ``DIR`` defaults to the
+package's cache, ``~/.nonlinear_benchmarks``. MATLAB files are read with ``scipy.io.loadmat``
+(no pickle).
 """
 
 from __future__ import annotations
@@ -136,6 +156,7 @@ class Benchmark:
         score_units, score_scale: the scoring unit and its factor from the output's unit.
         baselines: published scores (:class:`Baseline`) shown beside canonid's.
         reader: ``(found files by name) → (dt, training parts, test parts)``.
+        made: files the benchmark's download does not hold, each with how its user makes it.
     """
 
     name: str
@@ -153,10 +174,17 @@ class Benchmark:
     score_scale: float
     baselines: tuple[Baseline, ...]
     reader: Callable[[Mapping[str, Path]], tuple[float, list[_Part], list[_Part]]]
+    made: Mapping[str, str] = field(default_factory=dict)
+
+    def where_from(self, file: str) -> str:
+        """How to get ``file``: how its user makes it, or where to download it."""
+        return self.made.get(file) or f"download the {self.title} files from {self.page}"
 
     def candidates(self, file: str, directory: Path) -> list[Path]:
-        """Where ``file`` is looked for under ``directory``, in order."""
-        return [directory / self.folder / file, directory / file]
+        """Where ``file`` is looked for under ``directory``, in order: in the package's layout
+        (``file`` may name a sub-folder of :attr:`folder`, as Bouc–Wen's test files do), then
+        by its bare name directly in ``directory``."""
+        return [directory / self.folder / file, directory / Path(file).name]
 
 
 # ------------------------------------------------------------------------------- file access
@@ -339,6 +367,101 @@ def _ced(found: Mapping[str, Path]) -> tuple[float, list[_Part], list[_Part]]:
     return 0.02, train, test
 
 
+#: Bouc–Wen: the working sampling rate of the benchmark's simulator, 750 Hz (its test files hold
+#: no clock; ``BoucWen_ExampleIntegration.m``, ``fs = 750``)
+BOUC_WEN_DT = 1 / 750
+#: measured outputs of each Bouc–Wen test part a model may use: neither the benchmark nor
+#: ``nonlinear_benchmarks`` 1.0.1 sets one (the package lists Bouc–Wen among its benchmarks
+#: without an official split); canonid takes the package's value for every other long record, 50
+BOUC_WEN_N_INIT = 50
+#: the training record: the benchmark ships none, its users simulate one with the benchmark's
+#: MATLAB integrator; canonid reads the ``u`` and ``y`` that ``BoucWen_ExampleIntegration.m``
+#: leaves, saved under this name (``save('BoucWen_train.mat', 'u', 'y')``)
+BOUC_WEN_TRAIN = "BoucWen_train.mat"
+#: where the benchmark's zip keeps its two official test records (input and output files)
+BOUC_WEN_TESTS = "Test signals/Validation signals"
+#: the official test parts, in the package's order, each an input and an output file
+BOUC_WEN_PARTS = ("multisine", "sinesweep")
+
+
+def _bouc_wen_files() -> tuple[str, ...]:
+    tests = (f"{BOUC_WEN_TESTS}/{s}val_{part}.mat" for part in BOUC_WEN_PARTS for s in "uy")
+    return (BOUC_WEN_TRAIN, *tests)
+
+
+def _bouc_wen(found: Mapping[str, Path]) -> tuple[float, list[_Part], list[_Part]]:
+    path = found[BOUC_WEN_TRAIN]
+    u, y = _pair(path, _read_mat(path, ["u", "y"]), "u", "y")
+    train = [_cut("train", u, y, path, 0, len(u))]
+    test = []
+    for part in BOUC_WEN_PARTS:
+        u_path = found[f"{BOUC_WEN_TESTS}/uval_{part}.mat"]
+        y_path = found[f"{BOUC_WEN_TESTS}/yval_{part}.mat"]
+        u_name, y_name = f"uval_{part}", f"yval_{part}"
+        uv = _vector(_read_mat(u_path, [u_name])[u_name], u_path, u_name)
+        yv = _vector(_read_mat(y_path, [y_name])[y_name], y_path, y_name)
+        if len(uv) != len(yv):
+            raise DataError(
+                f"{y_path}: {y_name!r} has {len(yv)} samples but {u_name!r} "
+                f"({u_path.name}) has {len(uv)}"
+            )
+        test.append(_Part(part, uv, yv, f"{u_path.name}, {y_path.name}", 0, len(uv)))
+    return BOUC_WEN_DT, train, test
+
+
+#: F-16 ground-vibration test, full-multisine records: the levels that train (the package's
+#: training files: not ``Validation``, not ``SpecialOddMSine``) and the levels that test (the
+#: ``_Validation`` files); the package also trains and tests on the sine-sweep records
+#: (``F16Data_SineSw_*``), which this benchmark leaves out
+F16_TRAIN_LEVELS = (1, 3, 5, 7)
+F16_TEST_LEVELS = (2, 4, 6)
+F16_N_INIT = 50
+#: the three accelerometers of each record (``Acceleration``, 3 × N in the files)
+F16_OUTPUTS = ("Acceleration1", "Acceleration2", "Acceleration3")
+
+
+def _f16_file(level: int) -> str:
+    tail = "_Validation" if level in F16_TEST_LEVELS else ""
+    return f"F16Data_FullMSine_Level{level}{tail}.mat"
+
+
+def _f16_record(path: Path, name: str) -> tuple[_Part, float]:
+    """One F-16 record: ``Force`` (1 × N) in, ``Acceleration`` (3 × N) out, and ``1 / Fs``."""
+    arrays = _read_mat(path, ["Force", "Acceleration", "Fs"])
+    u = _vector(arrays["Force"], path, "Force")
+    acc = arrays["Acceleration"]
+    if acc.ndim != 2 or acc.shape[0] != len(F16_OUTPUTS):
+        raise DataError(
+            f"{path}: variable 'Acceleration' must be {len(F16_OUTPUTS)} × N (one row per "
+            f"accelerometer), got {acc.shape}"
+        )
+    if not np.all(np.isfinite(acc)):
+        raise DataError(f"{path}: variable 'Acceleration' holds non-finite values")
+    if acc.shape[1] != len(u):
+        raise DataError(
+            f"{path}: 'Force' has {len(u)} samples but 'Acceleration' has {acc.shape[1]}"
+        )
+    fs = _scalar(arrays["Fs"], path, "Fs")
+    return _cut(name, u, acc.T, path, 0, len(u)), 1.0 / fs
+
+
+def _f16(found: Mapping[str, Path]) -> tuple[float, list[_Part], list[_Part]]:
+    read = {
+        level: _f16_record(found[_f16_file(level)], f"level-{level}")
+        for level in (*F16_TRAIN_LEVELS, *F16_TEST_LEVELS)
+    }
+    dt = read[F16_TRAIN_LEVELS[0]][1]
+    for part, step in read.values():
+        if not math.isclose(step, dt, rel_tol=1e-9):
+            raise DataError(
+                f"{found[part.file]}: variable 'Fs' = {1 / step:g} Hz, but "
+                f"{_f16_file(F16_TRAIN_LEVELS[0])} has {1 / dt:g} Hz; the records of one "
+                "benchmark share one sampling rate"
+            )
+    train = [read[level][0] for level in F16_TRAIN_LEVELS]
+    return dt, train, [read[level][0] for level in F16_TEST_LEVELS]
+
+
 # ------------------------------------------------------------------------------- published results
 #: the test parts of the published tables' columns, in their order: (benchmark, test part)
 _COLUMNS = (
@@ -394,6 +517,10 @@ _NOTES = {
         "the figure of Champneys et al.'s table; the dynoNet paper itself reports 1.2 mV"
     ),
 }
+
+
+#: what :func:`baselines_markdown` says of a benchmark without published figures
+NO_BASELINES = "No published figure entered for this benchmark."
 
 
 def _published(name: str, units: str) -> tuple[Baseline, ...]:
@@ -501,6 +628,47 @@ _REGISTRY = (
         baselines=(),  # entered below
         reader=_ced,
     ),
+    Benchmark(
+        name="bouc-wen",
+        title="Bouc-Wen",
+        folder="BoucWen/BoucWenFiles",
+        files=_bouc_wen_files(),
+        csv=(),
+        page="https://www.nonlinearbenchmark.org/benchmarks/bouc-wen",
+        input_names=("u",),
+        output_names=("y",),
+        units={"u": "N", "y": "m"},
+        n_init=BOUC_WEN_N_INIT,
+        test_parts=BOUC_WEN_PARTS,
+        score_units="mm",
+        score_scale=1000.0,
+        baselines=(),  # none entered: see the docs, "Published results"
+        reader=_bouc_wen,
+        made={
+            BOUC_WEN_TRAIN: (
+                "the benchmark ships no training record: simulate one with its "
+                "BoucWen_ExampleIntegration.m (MATLAB) and save its u and y as "
+                f"{BOUC_WEN_TRAIN}"
+            )
+        },
+    ),
+    Benchmark(
+        name="f16-gvt",
+        title="F-16 Ground Vibration Test",
+        folder="F16/F16GVT_Files/BenchmarkData",
+        files=tuple(_f16_file(level) for level in (*F16_TRAIN_LEVELS, *F16_TEST_LEVELS)),
+        csv=(),
+        page="https://www.nonlinearbenchmark.org/benchmarks/f-16-gvt",
+        input_names=("Force",),
+        output_names=F16_OUTPUTS,
+        units={"Force": "N", **dict.fromkeys(F16_OUTPUTS, "m/s²")},
+        n_init=F16_N_INIT,
+        test_parts=tuple(f"level-{level}" for level in F16_TEST_LEVELS),
+        score_units="m/s²",
+        score_scale=1.0,
+        baselines=(),  # none entered: see the docs, "Published results"
+        reader=_f16,
+    ),
 )
 
 #: the benchmarks by command-line name, each with its published results
@@ -544,8 +712,11 @@ def baseline_rows(
 def baselines_markdown(name: str) -> str:
     """Benchmark ``name``'s published results as Markdown: a table with one row per method and
     one column per test part (the figures as published, the lowest per part in bold, – where a
-    method has none), then the numbered list of the sources the last column refers to."""
+    method has none), then the numbered list of the sources the last column refers to; of a
+    benchmark without published figures, :data:`NO_BASELINES`."""
     bench = benchmark(name)
+    if not bench.baselines:
+        return NO_BASELINES
     rows, sources = baseline_rows(bench.baselines, bench.test_parts)
     head = ["method", *(f"{test} [{bench.score_units}]" for test in bench.test_parts), "source"]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -584,8 +755,8 @@ def load_benchmark(name: str, directory: str | Path | None = None) -> Dataset:
                 str(p) for n in (file, *bench.csv[i : i + 1]) for p in bench.candidates(n, root)
             ]
             raise DataError(
-                f"{bench.name}: {file} not found (looked for {', '.join(looked)}); download the "
-                f"{bench.title} files from {bench.page} and unpack them into {root / bench.folder}"
+                f"{bench.name}: {file} not found (looked for {', '.join(looked)}); "
+                f"{bench.where_from(file)}, as {root / bench.folder / file}"
             )
     paths = {file: path for file, path in found.items() if path is not None}
     dt, train, test = bench.reader(paths)

@@ -17,6 +17,8 @@ They live in the kernel, under every layer; they need only numpy.
 * No pickle: arrays are written and read with ``allow_pickle=False``.
 * A write that fails (a file where a folder should be, a full disk, a read-only file system)
   raises :class:`~canonid.kernel.errors.OutputError` naming the file, and leaves no temporary file.
+* Appended, not replaced: :func:`append_line` adds one line to a log (the run folder's ledger of
+  test reads) in one ``write`` to a file opened ``O_APPEND``, never through a symlink.
 """
 
 from __future__ import annotations
@@ -38,12 +40,14 @@ from canonid.kernel.errors import DataError, OptionError, OutputError
 
 __all__ = [
     "FIGURE_FORMATS",
+    "append_line",
     "atomic_copy",
     "atomic_copy_tree",
     "atomic_write_bytes",
     "atomic_write_figure",
     "atomic_write_json",
     "atomic_write_text",
+    "check_appendable",
     "figure_name",
     "is_json_number",
     "is_outside_record",
@@ -353,6 +357,65 @@ def read_npz(path: str | os.PathLike[str], *, what: str = "array file") -> dict[
                 f"{what} {p}: array {key!r} has dtype {arr.dtype}; expected real numbers"
             )
     return arrays
+
+
+def append_line(path: str | os.PathLike[str], line: str, *, what: str = "log") -> Path:
+    """Append ``line`` (a newline is added) to the file at ``path``, created if missing.
+
+    The file is opened ``O_APPEND`` and the line written with one ``write`` and fsynced, so
+    lines appended by several processes never interleave and a line, once this returns, is
+    on disk. ``O_NOFOLLOW``: a symbolic link at ``path`` is refused, never written through;
+    so is anything but a regular file (a FIFO would block). Each refusal is one
+    :class:`~canonid.kernel.errors.OutputError` naming the file and ``what`` it is.
+    """
+    import errno
+
+    target = Path(path)
+    data = (line.rstrip("\n") + "\n").encode("utf-8")
+    flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
+    try:
+        fd = os.open(target, flags, 0o666)  # the umask applies
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise _not_appendable(target, what, symlink=True) from None
+        check_appendable(target, what=what)  # a folder or a FIFO there: named as such
+        raise OutputError(f"{target}: cannot append to the {what}: {exc.strerror}") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise _not_appendable(target, what, symlink=False)
+        written = os.write(fd, data)
+        if written != len(data):
+            raise OutputError(f"{target}: the {what} took {written} of {len(data)} bytes")
+        os.fsync(fd)
+    except OSError as exc:
+        if isinstance(exc, OutputError):
+            raise
+        raise OutputError(f"{target}: cannot append to the {what}: {exc.strerror}") from None
+    finally:
+        os.close(fd)
+    return target
+
+
+def check_appendable(path: str | os.PathLike[str], *, what: str = "log") -> None:
+    """Refuse, as :func:`append_line` would, a ``path`` that is a symbolic link or something
+    other than a regular file (a missing file passes: it will be created); for a command that
+    appends only after minutes of work, so that it is refused before them."""
+    target = Path(path)
+    try:
+        mode = os.lstat(target).st_mode
+    except FileNotFoundError:
+        return
+    if not stat.S_ISREG(mode):
+        raise _not_appendable(target, what, symlink=stat.S_ISLNK(mode))
+
+
+def _not_appendable(target: Path, what: str, *, symlink: bool) -> OutputError:
+    if symlink:
+        return OutputError(
+            f"{target}: the {what} is a symbolic link; canonid appends only to a regular file "
+            "of its own there (remove the link)"
+        )
+    return OutputError(f"{target}: the {what} is not a regular file; remove it")
 
 
 def sha256_bytes(data: bytes) -> str:
