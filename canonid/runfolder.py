@@ -1205,6 +1205,14 @@ def finish_run(
     write_history(
         run_dir, fitted.history, best_epoch=fitted.best_epoch, figure_format=figure_format
     )
+    if split == "test":  # a command that reads the test split after training (reproduce)
+        record_test_read(
+            run_dir,
+            command=" ".join(recipe.command[:2]) or "train_run",
+            split=split,
+            data=scoring_source(recipe, split),
+            sha256=recipe.data_sha256 or data_checksum(scoring_source(recipe, split)),
+        )
     evaluation = evaluate_run(
         run_dir,
         fitted.model,
