@@ -1,8 +1,8 @@
 """One command-line grammar, checked on the parsers themselves (in the manner of python-control's
 ``kwargs_test.py`` / ``docstrings_test.py``): every option says its default, the names shared by
 several commands mean one thing, lists are comma-separated, former names still work (with a
-warning, hidden from ``--help``), and the docs' command-line page lists every command with a
-summary."""
+warning, hidden from ``--help``), no option is taken abbreviated, a bad choice or value is one
+line (exit 2, no usage), and the docs' command-line page lists every command with a summary."""
 
 from __future__ import annotations
 
@@ -34,9 +34,29 @@ MEANINGS = {
 FORMER = ("--horizon", "--quiet")
 
 
+#: the shortest command line each command parses (its required arguments), to which a test adds
+#: one mistake
+MINIMAL = {
+    "systems": [],
+    "generate": ["tank"],
+    "train": ["d.csv"],
+    "reduce": ["r", "--sweep"],
+    "evaluate": ["r"],
+    "export": ["r", "--casadi", "m.casadi"],
+    "analyze": ["tank", "--window", "2"],
+    "benchmark": [],
+    "reproduce": [],
+}
+
+
+@functools.cache
+def _program() -> argparse.ArgumentParser:
+    return build_parser(every=True)
+
+
 @functools.cache
 def _subcommands() -> dict[str, argparse.ArgumentParser]:
-    parser = build_parser(every=True)
+    parser = _program()
     action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return dict(action.choices)
 
@@ -70,6 +90,123 @@ def test_every_option_has_help_that_states_its_default(case):
     if any(_states(o.help) for g in groups for o in g._group_actions):  # --workers | --scheduler
         return
     assert _states(text), f"canonid {_label(case)}: the help does not state the default: {text!r}"
+
+
+def _usage_error(capsys, argv: list[str], *needles: str) -> str:
+    """``canonid ARGV`` stops with exit status 2 and one line on stderr, no usage, holding every
+    needle; returns that line."""
+    with pytest.raises(SystemExit) as stop:
+        _program().parse_args(argv)
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert stop.value.code == 2 and len(lines) == 1, err
+    assert "usage:" not in err and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in lines[0], err
+    return lines[0]
+
+
+def test_every_command_has_a_minimal_command_line():
+    assert list(MINIMAL) == [c.name for c in COMMANDS]
+    for name, argv in MINIMAL.items():
+        assert _program().parse_args([name, *argv]).command == name
+
+
+def test_no_parser_takes_an_option_abbreviated():
+    parsers = [_program(), *_subcommands().values()]
+    assert all(parser.allow_abbrev is False for parser in parsers)
+
+
+def _prefixes() -> list[tuple[str, str, argparse.Action]]:
+    """(command, an option's name less its last letter, the option) for every long option of
+    every command and of the program whose shortened name is no option itself."""
+    cases = []
+    for name, parser in [("", _program()), *_subcommands().items()]:
+        for action in parser._actions:
+            for option in action.option_strings:
+                if option.startswith("--") and option[:-1] not in parser._option_string_actions:
+                    cases.append((name, option[:-1], action))
+    return cases
+
+
+@pytest.mark.parametrize("case", _prefixes(), ids=lambda c: f"{c[0] or 'canonid'} {c[1]}")
+def test_an_abbreviated_option_is_refused_in_one_line(case, capsys):
+    name, short, action = case
+    value = [] if action.nargs == 0 else ["1"]
+    if name:
+        argv = [name, *MINIMAL[name], short, *value]
+    else:  # a program option, before the command
+        argv = [short, *value, "systems"]
+    err = _usage_error(capsys, argv, "error: unrecognized argument", short)
+    assert err.startswith(f"canonid {name or 'systems'}: error:"), err
+
+
+def test_an_unknown_option_names_the_nearest(capsys):
+    err = _usage_error(capsys, ["train", "d.csv", "--epoch", "2"], "--epoch 2")
+    assert err.endswith("(did you mean --epochs?)"), err
+
+
+def _choices() -> list[tuple[str, argparse.Action]]:
+    return [(name, a) for name, sub in _subcommands().items() for a in sub._actions if a.choices]
+
+
+@pytest.mark.parametrize("case", _choices(), ids=_label)
+def test_a_bad_choice_is_one_line(case, capsys):
+    name, action = case
+    option = action.option_strings[0]
+    _usage_error(
+        capsys,
+        [name, *MINIMAL[name], option, "nope"],
+        f"canonid {name}: error: argument",
+        option,
+        "invalid choice: 'nope'",
+        repr(action.choices[0]),
+    )
+
+
+def test_a_bad_command_is_one_line(capsys):
+    _usage_error(capsys, ["frobnicate"], "invalid choice: 'frobnicate'", "'train'")
+
+
+def _refuses(action: argparse.Action, text: str) -> bool:
+    try:
+        action.type(text)  # type: ignore[misc]
+    except (ValueError, TypeError, argparse.ArgumentTypeError):
+        return True
+    return False
+
+
+def _typed() -> list[tuple[str, argparse.Action]]:
+    """Every option whose type refuses a word that is no number."""
+    return [
+        (name, a)
+        for name, sub in _subcommands().items()
+        for a in sub._actions
+        if a.option_strings and a.type is not None and _refuses(a, "x@")
+    ]
+
+
+@pytest.mark.parametrize("case", _typed(), ids=_label)
+def test_a_bad_value_is_one_line(case, capsys):
+    name, action = case
+    option = action.option_strings[0]
+    _usage_error(capsys, [name, *MINIMAL[name], option, "x@"], f"canonid {name}: error:", option)
+
+
+def _valued() -> list[tuple[str, argparse.Action]]:
+    return [
+        (name, a)
+        for name, sub in _subcommands().items()
+        for a in sub._actions
+        if a.option_strings and a.nargs in (None, "+") and a.help is not argparse.SUPPRESS
+    ]
+
+
+@pytest.mark.parametrize("case", _valued(), ids=_label)
+def test_a_missing_value_is_one_line(case, capsys):
+    name, action = case
+    option = action.option_strings[0]
+    _usage_error(capsys, [name, *MINIMAL[name], option], f"canonid {name}: error:", option)
 
 
 def test_shared_option_names_mean_one_thing():

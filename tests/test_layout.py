@@ -261,6 +261,7 @@ def test_only_the_command_line_imports_the_commands():
 COMMAND_IMPORTS = {
     "__future__",
     "argparse",
+    "difflib",
     "importlib",
     "logging",
     "os",
