@@ -10,7 +10,8 @@ traceback instead. A reader that closes the pipe (``canonid systems | head -1``)
 quietly. Any other exception is a bug and keeps its traceback.
 
 Every parser, the program's and each command's, is a :class:`Parser`: an option is taken only as
-spelt out in full, and a mistake on the command line is one line on stderr with exit status 2.
+spelt out in full, a mistake on the command line is one line on stderr with exit status 2, and
+an option's help that does not say its default gets it from the parser (:class:`HelpFormatter`).
 """
 
 from __future__ import annotations
@@ -25,9 +26,10 @@ from typing import Any, NoReturn
 
 from canonid import __version__
 from canonid.commands import COMMANDS
+from canonid.kernel.catalog import help_value
 from canonid.kernel.errors import CanonidError
 
-__all__ = ["Parser", "build_parser", "main"]
+__all__ = ["HelpFormatter", "Parser", "build_parser", "main"]
 
 EXIT_ERROR = 1
 #: a mistake on the command line (argparse's status)
@@ -37,14 +39,29 @@ EXIT_INTERRUPTED = 130
 EXIT_BROKEN_PIPE = 141
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """argparse's help, with `` (default X)`` after the help of an option that has a value when
+    not given and does not say it (X as :func:`canonid.kernel.catalog.help_value` writes it): the
+    default shown is the one the parser holds, never a copy typed beside it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        value = action.default
+        if action.option_strings and action.nargs != 0 and "default" not in text:
+            if value not in (None, "", argparse.SUPPRESS) and not isinstance(value, bool):
+                text += f" (default {help_value(value)})".replace("%", "%%")
+        return text
+
+
 class Parser(argparse.ArgumentParser):
     """canonid's argument parser, of the program and of each command (``add_subparsers`` makes
     its parsers of the same class): an option is taken only as spelt out in full (``--epoch`` is
     not ``--epochs``), and a bad choice, a bad value, a missing or an unknown argument is one
     line on stderr, ``PROG: error: MESSAGE``, with exit status 2 and no usage (``--help`` shows
-    it); an unknown option names the nearest one."""
+    it); an unknown option names the nearest one. Its help is a :class:`HelpFormatter`'s."""
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **{**kwargs, "allow_abbrev": False})
 
     def error(self, message: str) -> NoReturn:

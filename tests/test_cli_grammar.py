@@ -16,6 +16,15 @@ import pytest
 
 from canonid.cli import build_parser
 from canonid.commands import COMMANDS, _options
+from canonid.kernel.catalog import (
+    COMPRESSION_RATES,
+    DEFAULT_MODEL,
+    DEFAULT_VAL_FRACTION,
+    EVAL_HORIZON,
+    help_value,
+)
+from canonid.kernel.io import FIGURE_FORMATS
+from canonid.profiles import DEFAULT_PROFILE, PROFILES, profile_values
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -24,7 +33,7 @@ MEANINGS = {
     "--no-progress": "no progress bar",
     "--resume": "continue the interrupted ",
     "--eval-horizon": "rollout length of the evaluation",
-    "--train-horizon": "override the profile's final training rollout length",
+    "--train-horizon": "final training rollout length (default from --profile: ",
     "--mpc-horizon": "prediction horizon of the NMPC",
     "--threads": "torch CPU threads",
     "--seed": "",
@@ -82,7 +91,7 @@ def _label(case: tuple[str, argparse.Action]) -> str:
 def test_every_option_has_help_that_states_its_default(case):
     name, action = case
     assert action.help and action.help.strip(), f"canonid {name} {_label(case)}: no help"
-    text = action.help % vars(action) if "%" in action.help else action.help
+    text = _help(name, action)  # as --help prints it: the parser adds a default it holds
     flag = action.nargs == 0 or action.const is True  # on or off: off unless given
     groups = [g for g in parser_groups(name) if action in g._group_actions]
     if flag or action.required or any(g.required for g in groups) or not action.option_strings:
@@ -209,6 +218,96 @@ def test_a_missing_value_is_one_line(case, capsys):
     _usage_error(capsys, [name, *MINIMAL[name], option], f"canonid {name}: error:", option)
 
 
+def _help(name: str, action: argparse.Action) -> str:
+    """The option's help as ``--help`` prints it (``%(default)s`` filled in), on one line."""
+    return " ".join(_subcommands()[name]._get_formatter()._expand_help(action).split())
+
+
+def _defaulted() -> list[tuple[str, argparse.Action]]:
+    """Every option that takes a value and has one when not given."""
+    return [
+        (name, a)
+        for name, a in _cases()
+        if a.option_strings
+        and a.nargs != 0
+        and a.default not in (None, "", argparse.SUPPRESS)
+        and not isinstance(a.default, bool)
+    ]
+
+
+@pytest.mark.parametrize("case", _defaulted(), ids=_label)
+def test_an_options_default_value_is_in_its_help(case):
+    name, action = case
+    text = _help(name, action)
+    assert f"default {help_value(action.default)}" in text, f"canonid {_label(case)}: {text!r}"
+
+
+#: options that another change replaces (the search of windows, widths, cubic branch and members)
+SEARCH_OPTIONS = {"window", "max_window", "weight_decay", "cubic", "members"}
+
+
+@pytest.mark.parametrize("stage", ["train", "reduce", "reproduce"])
+def test_an_option_the_profiles_set_shows_every_profiles_value(stage):
+    """The command of the same name as a profile stage: every option named like a key of that
+    stage shows the value of each profile (generated from canonid.profiles.PROFILES)."""
+    keys = {key for stages in PROFILES.values() for key in stages[stage]}
+    shown = set()
+    for action in _subcommands()[stage]._actions:
+        if action.dest in keys - SEARCH_OPTIONS and action.help is not argparse.SUPPRESS:
+            text = _help(stage, action)
+            assert profile_values(stage, action.dest) in text, text
+            for profile, stages in PROFILES.items():
+                value = help_value(stages[stage][action.dest])
+                assert f"{profile} {value}" in text, f"{profile}'s {action.dest}: {text!r}"
+            shown.add(action.dest)
+    assert (
+        shown
+        >= {
+            "train": {"epochs", "lr", "batch_size", "horizon", "windows_per_epoch"},
+            "reduce": {"epochs", "linear_skip"},
+            "reproduce": {"systems", "windows", "models", "seeds"},
+        }[stage]
+    )
+
+
+def _applied() -> list[tuple[str, str, object]]:
+    """(command, option, the default that the application applies when it is not given)."""
+    cases: list[tuple[str, str, object]] = [
+        ("train", "--model", DEFAULT_MODEL),
+        ("benchmark", "--model", DEFAULT_MODEL),
+        ("train", "--val-fraction", DEFAULT_VAL_FRACTION),
+        ("benchmark", "--val-fraction", DEFAULT_VAL_FRACTION),
+        ("train", "--eval-horizon", EVAL_HORIZON),
+        ("evaluate", "--eval-horizon", EVAL_HORIZON),
+        ("reduce", "--rates", COMPRESSION_RATES),
+    ]
+    for name, sub in _subcommands().items():
+        for option, value in (
+            ("--profile", DEFAULT_PROFILE),
+            ("--figure-format", FIGURE_FORMATS[0]),
+        ):
+            if option in sub._option_string_actions:
+                cases.append((name, option, value))
+    return cases
+
+
+@pytest.mark.parametrize(
+    ("name", "option", "value"), [pytest.param(*c, id=f"{c[0]} {c[1]}") for c in _applied()]
+)
+def test_a_default_the_application_applies_is_in_the_help(name, option, value):
+    text = _help(name, _subcommands()[name]._option_string_actions[option])
+    assert f"default {help_value(value)}" in text, f"canonid {name} {option}: {text!r}"
+
+
+def test_train_help_shows_the_quick_profiles_budget(capsys):
+    with pytest.raises(SystemExit):
+        build_parser("train").parse_args(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for option, value in (("--epochs N", "600"), ("--lr LR", "3e-3"), ("--batch-size B", "32")):
+        start = text.index(option, text.index("options:"))
+        assert f"quick {value}" in text[start : start + 200], text[start : start + 200]
+
+
 def test_shared_option_names_mean_one_thing():
     seen: dict[str, list[tuple[str, str, str]]] = {}
     for name, action in _cases():
@@ -226,7 +325,7 @@ def test_shared_option_names_mean_one_thing():
 
 def _states(text: str | None) -> bool:
     """The help says the default, or when the option is required."""
-    return bool(text and re.search(r"\bdefaults?\b|\boverride the profile's\b|\brequired\b", text))
+    return bool(text and re.search(r"\bdefaults?\b|\brequired\b", text))
 
 
 def parser_groups(name: str) -> list[argparse._MutuallyExclusiveGroup]:

@@ -18,7 +18,7 @@ from canonid.jobs import resume_target
 from canonid.kernel.catalog import DEVICE_NAMES
 from canonid.kernel.errors import OptionError
 from canonid.kernel.io import FIGURE_FORMATS
-from canonid.profiles import DEFAULT_PROFILE, profile_names
+from canonid.profiles import DEFAULT_PROFILE, profile_names, profile_values
 
 __all__ = [
     "Items",
@@ -26,6 +26,7 @@ __all__ = [
     "add_device",
     "add_figure_format",
     "add_former",
+    "add_from_profile",
     "add_no_progress",
     "add_out",
     "add_profile",
@@ -52,8 +53,8 @@ def add_where(parser: Any, *, jobs: str, sees: str, workers: int | None = 0) -> 
         type=int,
         default=workers,
         metavar="N",
-        help=f"{jobs} on N local Dask worker processes (default: one after the other in this "
-        "process)",
+        help=f"{jobs} on N local Dask worker processes (default"
+        f"{'' if workers is None else f' {workers}'}: one after the other in this process)",
     )
     where.add_argument(
         "--scheduler",
@@ -75,6 +76,14 @@ def add_profile(parser: Any, *, what: str, keep_none: bool = False) -> None:
     )
 
 
+def add_from_profile(parser: Any, flag: str, what: str, stage: str = "train", **kw: Any) -> None:
+    """``flag``, which overrides the key of the same name (its ``dest``) of the profile's
+    ``stage``: its help, ``what``, ends with every profile's value
+    (:func:`canonid.profiles.profile_values`)."""
+    key = kw.get("dest", flag[2:].replace("-", "_"))
+    parser.add_argument(flag, help=f"{what} ({profile_values(stage, key)})", **kw)
+
+
 def add_device(parser: Any, *, what: str, default: str | None = "auto") -> None:
     """``--device {auto,cpu,cuda}``: the torch device of ``what``."""
     if default == "auto":
@@ -93,13 +102,11 @@ def add_figure_format(parser: Any) -> None:
     )
 
 
-def add_threads(parser: Any, *, per: str = "") -> None:
-    """``--threads N``: torch's CPU threads (``per``: e.g. `` per job``)."""
+def add_threads(parser: Any, *, per: str = "", default: str = "torch's, one per core") -> None:
+    """``--threads N``: torch's CPU threads (``per``: e.g. `` per job``; ``default``: what the
+    command uses when it is not given)."""
     parser.add_argument(
-        "--threads",
-        type=int,
-        metavar="N",
-        help=f"torch CPU threads{per} (default: torch's, one per core)",
+        "--threads", type=int, metavar="N", help=f"torch CPU threads{per} (default: {default})"
     )
 
 

@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from canonid.commands import _options
+from canonid.profiles import profile_values
 
 
 def register(p: argparse.ArgumentParser) -> None:
@@ -28,13 +29,13 @@ def register(p: argparse.ArgumentParser) -> None:
             f"--{name}",
             type=_options.comma_list(item, what),
             metavar=f"{what},...",
-            help=f"{example} (default: the profile's)",
+            help=f"{example} ({profile_values('reproduce', name)})",
         )
     p.add_argument(
         "--seeds",
         type=int,
         metavar="N",
-        help="training seeds per cell, 0 … N−1 (default: the profile's)",
+        help=f"training seeds per cell, 0 … N−1 ({profile_values('reproduce', 'seeds')})",
     )
     _options.add_out(p, "runs/reproduce", value=Path("runs/reproduce"))
     _options.add_where(p, jobs="run the jobs", sees="OUT")

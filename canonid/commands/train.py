@@ -8,11 +8,16 @@ import argparse
 from canonid.commands import _options
 from canonid.kernel.catalog import (
     ACTIVATION_NAMES,
+    DEFAULT_MODEL,
+    DEFAULT_VAL_FRACTION,
+    EVAL_HORIZON,
     LINEAR_PATHS,
     MODEL_NAMES,
     PAPER_NET_OPTIONS,
     SMALL_RECORD_SAMPLES,
     SMALL_RECORD_WEIGHT_DECAY,
+    help_value,
+    model_label,
     preset_word,
 )
 from canonid.training import (
@@ -41,7 +46,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--model",
         choices=MODEL_NAMES,
-        help="model (default mlp, Ours (MLP); arx: the linear baseline, least squares only)",
+        help=f"model (default {DEFAULT_MODEL}, {model_label(DEFAULT_MODEL)}; arx: the linear "
+        "baseline, least squares only)",
     )
     p.add_argument(
         "--window",
@@ -63,8 +69,8 @@ def register(p: argparse.ArgumentParser) -> None:
         "window the data allow",
     )
     _options.add_profile(p, what="training budget", keep_none=True)
-    p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
-    p.add_argument("--lr", type=float, help="override the profile's learning rate")
+    _options.add_from_profile(p, "--epochs", "training epochs", type=int, metavar="N")
+    _options.add_from_profile(p, "--lr", "Adam learning rate at the schedule's start", type=float)
     p.add_argument(
         "--weight-decay",
         metavar="W",
@@ -72,16 +78,12 @@ def register(p: argparse.ArgumentParser) -> None:
         f"{SMALL_RECORD_WEIGHT_DECAY:g} when the training part holds fewer than "
         f"{SMALL_RECORD_SAMPLES:,} samples, else 0)",
     )
-    p.add_argument("--batch-size", type=int, metavar="B", help="override the profile's batch")
+    _options.add_from_profile(p, "--batch-size", "sub-windows per batch", type=int, metavar="B")
     p.add_argument("--train-horizon", dest="horizon", type=int, metavar="H", help=HORIZON_HELP)
     _options.add_former(p, "--horizon", "--train-horizon")
-    p.add_argument(
-        "--windows-per-epoch",
-        type=int,
-        metavar="N",
-        help="override the profile's random sub-windows per epoch (drawn over all trajectories; "
-        "an epoch is ⌈N / batch⌉ optimiser steps however the data are cut)",
-    )
+    per_epoch = "random sub-windows per epoch, over all trajectories: ⌈N / batch⌉ optimiser"
+    per_epoch += " steps however the data are cut"
+    _options.add_from_profile(p, "--windows-per-epoch", per_epoch, type=int, metavar="N")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     _options.add_device(
         p,
@@ -100,7 +102,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--val-fraction",
         type=float,
-        help="share of DATA held out for validation when it has no val split (default 0.2)",
+        help="share of DATA held out for validation when it has no val split (default "
+        f"{help_value(DEFAULT_VAL_FRACTION)})",
     )
     p.add_argument(
         "--hidden",
@@ -161,8 +164,8 @@ def register(p: argparse.ArgumentParser) -> None:
         "--eval-horizon",
         type=int,
         metavar="H",
-        help="rollout length of the evaluation after training (default 100, or the final training "
-        "rollout length when that is shorter, or what the scored records hold)",
+        help=f"rollout length of the evaluation after training (default {EVAL_HORIZON}, or the "
+        "final training rollout length when that is shorter, or what the scored records hold)",
     )
     p.add_argument("--members", type=int, metavar="K", help=MEMBERS_HELP)
     _options.add_figure_format(p)
