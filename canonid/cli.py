@@ -44,6 +44,11 @@ class HelpFormatter(argparse.HelpFormatter):
     not given and does not say it (X as :func:`canonid.kernel.catalog.help_value` writes it): the
     default shown is the one the parser holds, never a copy typed beside it."""
 
+    def _format_args(self, action: argparse.Action, default_metavar: str) -> str:
+        if hasattr(action, "former_bare"):  # a value, which a former release did not need
+            return str(self._metavar_formatter(action, default_metavar)(1)[0])
+        return super()._format_args(action, default_metavar)
+
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
         value = action.default

@@ -308,6 +308,41 @@ def test_train_help_shows_the_quick_profiles_budget(capsys):
         assert f"quick {value}" in text[start : start + 200], text[start : start + 200]
 
 
+def test_every_command_that_works_takes_no_progress():
+    for name, sub in _subcommands().items():
+        assert name == "systems" or "--no-progress" in sub._option_string_actions, name
+
+
+#: the options whose value may be left out, and what that means
+OPTIONAL_VALUES = {
+    ("train", "--resume"): "the former spelling --resume RUN",
+    ("benchmark", "--resume"): "the former spelling --resume RUN",
+    ("evaluate", "--residuals"): "K = 10 lags",
+}
+
+
+def test_an_option_with_an_optional_value_is_one_of_few():
+    optional = {
+        (name, a.option_strings[0])
+        for name, a in _cases()
+        if a.nargs == "?" and a.option_strings and not isinstance(a, _options.Bare)
+    }
+    assert optional == set(OPTIONAL_VALUES)
+
+
+def test_linear_takes_a_value_and_alone_is_deprecated(capsys):
+    assert _parse("train", "d.csv", "--linear", "skip").linear == "skip"
+    assert capsys.readouterr().err == ""
+    assert _parse("train", "d.csv", "--linear", "--model", "gru").linear == "arx"
+    warning = "canonid train: warning: --linear alone is deprecated, use --linear arx"
+    assert capsys.readouterr().err.strip() == warning
+    _usage_error(capsys, ["train", "d.csv", "--linear", "on"], "--linear", "invalid choice")
+    with pytest.raises(SystemExit):
+        build_parser("train").parse_args(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "[--linear {off,skip,arx}]" in text and "[{off" not in text
+
+
 def test_shared_option_names_mean_one_thing():
     seen: dict[str, list[tuple[str, str, str]]] = {}
     for name, action in _cases():

@@ -21,6 +21,7 @@ from canonid.kernel.io import FIGURE_FORMATS
 from canonid.profiles import DEFAULT_PROFILE, profile_names, profile_values
 
 __all__ = [
+    "Bare",
     "Items",
     "add_data_options",
     "add_device",
@@ -178,6 +179,21 @@ class _Former(argparse.Action):
     def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
         print(f"{parser.prog}: warning: {option} is deprecated, use {self.new}", file=sys.stderr)
         setattr(namespace, self.dest, True if self.nargs == 0 else values)
+
+
+class Bare(argparse.Action):
+    """An option that takes a value and that a former release also took alone (meaning
+    ``bare``): still read so for one release, with a warning; ``--help`` shows it with a value."""
+
+    def __init__(self, *args: Any, bare: str, **kwargs: Any) -> None:
+        self.former_bare = bare  # canonid.cli.HelpFormatter shows no [ ] around the value
+        super().__init__(*args, nargs="?", **kwargs)
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        if values is None:
+            use = f"use {option} {self.former_bare}"
+            print(f"{parser.prog}: warning: {option} alone is deprecated, {use}", file=sys.stderr)
+        setattr(namespace, self.dest, self.former_bare if values is None else values)
 
 
 def add_former(parser: Any, old: str, new: str) -> None:

@@ -50,6 +50,7 @@ def register(p: argparse.ArgumentParser) -> None:
     _options.add_figure_format(p)
     p.add_argument("--residuals", nargs="?", const=10, type=int, metavar="K", help=RESIDUALS_HELP)
     p.add_argument("--json", type=Path, metavar="FILE", help=JSON_HELP)
+    _options.add_no_progress(p, bars="bar (there is none here; every command takes the option)")
     _options.add_data_options(p, recorded=True)
 
 

@@ -137,21 +137,17 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--linear",
-        nargs="?",
-        const="arx",
+        action=_options.Bare,
+        bare="arx",
         choices=LINEAR_PATHS,
         help="canonical models' affine path L·[z; u] + c beside the network: skip, a linear "
-        "skip started at zero and trained with the network; arx (also a bare --linear), started "
+        "skip started at zero and trained with the network; arx, started "
         "at the least-squares ARX fit with the network's output layer at zero; off (default: "
         f"{preset_word('mlp', 'linear')} for Ours (MLP), off for the others; "
         "ARX is the affine path alone)",
     )
     p.add_argument(
-        "--no-linear",
-        dest="linear",
-        action="store_const",
-        const="off",
-        help="no affine path (--linear off)",
+        "--no-linear", dest="linear", action="store_const", const="off", help="no affine path"
     )
     p.add_argument("--cubic", metavar="K|auto", help=CUBIC_HELP)
     p.add_argument(
