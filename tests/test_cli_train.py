@@ -116,7 +116,7 @@ def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys
     folder.mkdir()
     for k, tr in enumerate(data):
         rows = ["time,pump,level"] + [
-            f"{t},{float(tr.u[t, 0])!r},{float(tr.y[t, 0])!r}" for t in range(110)
+            f"{t * 0.5},{float(tr.u[t, 0])!r},{float(tr.y[t, 0])!r}" for t in range(110)
         ]
         (folder / f"exp{k}.csv").write_text("\n".join(rows) + "\n")
     run = tmp_path / "run"
@@ -131,7 +131,7 @@ def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys
     # without --dt, the time column gives it (named 'time', so found); switched off, none does
     timed = tmp_path / "timed"
     assert main(["train", *csv_args, "--model", "mlp", *common, "--out", str(timed)]) == 0
-    assert json.loads((timed / "config.json").read_text())["info"]["dt"] == 1.0
+    assert json.loads((timed / "config.json").read_text())["info"]["dt"] == 0.5
     capsys.readouterr()
     off = ["--time-column", "none", "--out", str(tmp_path / "x")]
     assert main(["train", *csv_args, "--model", "mlp", *common, *off]) == 1

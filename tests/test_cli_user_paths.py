@@ -120,6 +120,9 @@ def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
     assert metrics["evaluation"]["data_options"]["dt"] == DT
     assert metrics["n_rollouts"] == 2 * (RECORD - 3 - 100 + 1)
     code = main(["evaluate", str(trained), "--data", str(test_csv), "--dt", "1.0"])
+    one_line_error(capsys, code, "dt = 1 s was given, but time column 'time' steps by 2 s")
+    off = ["--time-column", "none"]  # the rows as samples every 1 s: not the run's sampling time
+    code = main(["evaluate", str(trained), "--data", str(test_csv), "--dt", "1.0", *off])
     one_line_error(capsys, code, str(test_csv), "dt = 1 s, the run's is 2 s")
     code = main(["evaluate", str(trained), "--dt", "1.0"])
     one_line_error(capsys, code, "--dt apply to --data FILE")
@@ -270,6 +273,7 @@ def test_analyze_run_checks_a_csv_trained_tank_model(trained, csv_files, tmp_pat
     run = tmp_path / "tank-dt1"
     train_csv, val_csv, _ = csv_files
     fit = ["train", str(train_csv), "--val", str(val_csv), *CSV_OPTIONS, "--dt", "1.0"]
+    fit += ["--time-column", "none"]  # the rows as samples every 1 s, not the column's 2 s
     assert main([*fit, "--model", "mlp", "--window", "3", *QUICK, "--out", str(run)]) == 0
     argv = ["analyze", "tank", "--run", str(run), "--window", "3", "--trials", "5"]
     # CSV records carry no noise-free outputs: refused before the analysis runs
