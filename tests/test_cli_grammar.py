@@ -308,6 +308,12 @@ def test_train_help_shows_the_quick_profiles_budget(capsys):
         assert f"quick {value}" in text[start : start + 200], text[start : start + 200]
 
 
+def test_every_output_folder_is_out_dir():
+    outs = {name: sub._option_string_actions.get("--out") for name, sub in _subcommands().items()}
+    assert {name for name, out in outs.items() if out} >= {"generate", "train", "reduce"}
+    assert {out.metavar for out in outs.values() if out} == {"DIR"}
+
+
 def test_every_command_that_works_takes_no_progress():
     for name, sub in _subcommands().items():
         assert name == "systems" or "--no-progress" in sub._option_string_actions, name
@@ -422,8 +428,11 @@ def test_former_names_still_work_with_a_warning(argv, old, new, dest, value, cap
         (["train", "d.csv", "--out", "runs/a"], None, Path("runs/a")),
     ],
 )
-def test_resume_continues_the_run_in_out(argv, resume, out):
+def test_resume_continues_the_run_in_out(argv, resume, out, capsys):
     assert _options.resumed(_parse(*argv)) == {"resume": resume, "out": out}
+    former = len(argv) == 3 and argv[1] == "--resume"
+    warning = f"canonid {argv[0]}: warning: --resume RUN is deprecated, use --resume --out {resume}"
+    assert capsys.readouterr().err.strip() == (warning if former else "")
 
 
 def test_resume_without_a_folder_is_one_line(capsys):

@@ -94,9 +94,9 @@ def test_hidden_auto_tries_the_width_grid(dataset_path, tmp_path):
 
 def test_combinations_that_make_no_sense_are_refused(selection, dataset_path, tmp_path, capsys):
     data = str(dataset_path)
-    code = main(["train", "--resume", str(selection), "--window", "2,5", *FAST])
+    code = main(["train", "--resume", "--out", str(selection), "--window", "2,5", *FAST])
     one_line_error(capsys, code, "--window 2,5 does not combine with --resume")
-    code = main(["train", "--resume", str(selection), *FAST])
+    code = main(["train", "--resume", "--out", str(selection), *FAST])
     one_line_error(capsys, code, "holds a selection of candidates")
     code = main(["train", data, "--window", "3", "--out", str(selection), *FAST])
     one_line_error(capsys, code, "holds a selection of candidates", "another --out")

@@ -346,22 +346,45 @@ def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, ca
         (["--val", "other.csv"], "val: "),
         (["--val-fraction", "0.5"], "val_fraction: 0.2 there, 0.5 here"),
         (["--dt", "1.0"], "dt: 2.0 there, 1.0 here"),
-        (["--out", "elsewhere"], "--out does not apply with --resume"),
     ],
 )
 def test_resume_refuses_what_it_would_ignore(trained, tmp_path, capsys, extra, needle):
     run = tmp_path / "run"
     shutil.copytree(trained, run)
     before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
-    code = main(["train", "--resume", str(run), "--epochs", "3", "--no-progress", *extra])
+    code = main(["train", "--resume", "--out", str(run), "--epochs", "3", "--no-progress", *extra])
     one_line_error(capsys, code, needle)
+    assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
+
+
+def test_the_former_resume_run_is_read_with_a_warning(trained, tmp_path, capsys):
+    """``--resume RUN`` (before ``--resume --out RUN``): read for one release, with a warning; an
+    ``--out`` beside it is refused as before."""
+    run = tmp_path / "run"
+    shutil.copytree(trained, run)
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    code = main(["train", "--resume", str(run), "--out", "elsewhere", "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    warning = f"canonid train: warning: --resume RUN is deprecated, use --resume --out {run}"
+    assert code == 1 and err[0] == warning and len(err) == 2, err
+    assert "--out does not apply with --resume" in err[1]
     assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
 
 
 def test_resume_with_the_same_options_and_an_eval_horizon_runs(trained, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(trained, run)
-    resume = ["train", "--resume", str(run), "--epochs", "3", "--no-progress", "--device", "cpu"]
+    resume = [
+        "train",
+        "--resume",
+        "--out",
+        str(run),
+        "--epochs",
+        "3",
+        "--no-progress",
+        "--device",
+        "cpu",
+    ]
     assert main([*resume, "--dt", str(DT), "--eval-horizon", "20"]) == 0
     assert json.loads((run / "metrics.json").read_text())["rollout_horizon"] == 20
 

@@ -307,7 +307,7 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
         argv = ["train", *common, "--model", "mlp", *flags, "--out", str(out)]
         assert main(argv) == 0
         assert json.loads((out / "config.json").read_text())["net"]["linear"] == path
-    resume = ["train", "--resume", str(tmp_path / "d"), "--no-progress", "--device", "cpu"]
+    resume = ["train", "--resume", "--out", str(tmp_path / "d"), "--no-progress", "--device", "cpu"]
     assert main([*resume, "--no-linear"]) == 1
     assert "--linear cannot change when resuming" in capsys.readouterr().err
 

@@ -93,7 +93,7 @@ def test_combinations_the_screen_does_not_make_are_refused(screened, data, tmp_p
     one_line_error(capsys, code, "--hidden auto needs the window")
     code = main(["train", str(data), "--workers", "2", "--out", str(tmp_path / "r"), *FAST])
     one_line_error(capsys, code, "--workers applies to a list of windows or --hidden auto only")
-    code = main(["train", "--resume", str(screened), "--window", "auto", *FAST[:-2]])
+    code = main(["train", "--resume", "--out", str(screened), "--window", "auto", *FAST[:-2]])
     one_line_error(capsys, code, "--window auto does not combine with --resume")
     assert not (tmp_path / "r").exists()
 
@@ -197,7 +197,17 @@ def test_resume_keeps_the_recorded_choice(screened, tmp_path, capsys):
     shutil.copytree(screened, run)
     recorded = (run / SCREEN_FILE).read_bytes()
     capsys.readouterr()
-    argv = ["train", "--resume", str(run), "--epochs", "4", "--no-progress", "--threads", "1"]
+    argv = [
+        "train",
+        "--resume",
+        "--out",
+        str(run),
+        "--epochs",
+        "4",
+        "--no-progress",
+        "--threads",
+        "1",
+    ]
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert (run / SCREEN_FILE).read_bytes() == recorded  # not screened again
@@ -249,7 +259,7 @@ def test_max_window_caps_the_screen_as_a_scoring_rule_would(data, tmp_path, caps
     ):
         code = main(["train", str(data), *extra, "--out", str(tmp_path / "r"), *FAST])
         one_line_error(capsys, code, message)
-    code = main(["train", "--resume", str(run), "--max-window", "20", *FAST[:-2]])
+    code = main(["train", "--resume", "--out", str(run), "--max-window", "20", *FAST[:-2]])
     one_line_error(capsys, code, "--max-window caps the screen's windows")
     assert not (tmp_path / "r").exists()
 

@@ -118,18 +118,30 @@ def add_no_progress(parser: Any, *, bars: str = "bar") -> None:
 
 def add_resume(parser: Any, *, what: str, path: bool = False) -> None:
     """``--resume``: continue the interrupted ``what`` in the folder of ``--out``; ``path``: the
-    former spelling ``--resume RUN`` (= ``--resume --out RUN``) is still read."""
+    former spelling ``--resume RUN`` (= ``--resume --out RUN``) is still read, with a warning."""
     text = f"continue the interrupted {what} in --out"
     if path:
         parser.add_argument(
             "--resume",
+            action=_FormerResume,
             nargs="?",
             const=True,
             metavar="RUN",
-            help=f"{text} (--resume RUN, the former spelling of --resume --out RUN, still works)",
+            help=f"{text} (the former --resume RUN, = --resume --out RUN, is read with a warning)",
         )
     else:
         parser.add_argument("--resume", action="store_true", help=text)
+
+
+class _FormerResume(argparse.Action):
+    """``--resume``, and its former spelling ``--resume RUN``: read for one release, with a
+    warning naming ``--resume --out RUN``."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        if values is not True:  # --resume RUN
+            use = f"use {option} --out {values}"
+            print(f"{parser.prog}: warning: {option} RUN is deprecated, {use}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
 
 
 def resumed(args: argparse.Namespace) -> dict[str, Path | None]:
@@ -158,13 +170,13 @@ def add_out(
     default: str,
     *,
     what: str = "output folder",
-    metavar: str | None = None,
     value: Path | None = None,
 ) -> None:
-    """``--out``: ``what`` (a folder) with the ``default`` the help states; ``value`` is the
-    default where the command has a fixed one, else ``None`` lets the application choose."""
+    """``--out DIR``, in every command: ``what`` (a folder) with the ``default`` the help states;
+    ``value`` is the default where the command has a fixed one, else ``None`` lets the
+    application choose."""
     parser.add_argument(
-        "--out", type=folder, metavar=metavar, default=value, help=f"{what} (default {default})"
+        "--out", type=folder, metavar="DIR", default=value, help=f"{what} (default {default})"
     )
 
 

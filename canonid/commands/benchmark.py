@@ -51,7 +51,7 @@ def register(p: argparse.ArgumentParser) -> None:
         "canonid train",
     )
     _options.add_profile(p, what="training budget", keep_none=True)
-    _options.add_out(p, "runs/NAME-MODEL", what="run folder", metavar="RUN")
+    _options.add_out(p, "runs/NAME-MODEL", what="run folder")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     _options.add_threads(p)
     _options.add_figure_format(p)

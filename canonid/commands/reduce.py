@@ -35,7 +35,7 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     mode.add_argument("--sweep", action="store_true", help="the compression study")
     _options.add_profile(p, what="budget")
-    _options.add_out(p, "RUN-r<rate> beside RUN; runs/compression-sweep", metavar="DIR")
+    _options.add_out(p, "RUN-r<rate> beside RUN; runs/compression-sweep")
     _options.add_from_profile(p, "--epochs", "auto-encoder epochs", "reduce", type=int, metavar="N")
     skip = "E and D with an affine path started from the principal components of the training "
     skip += "windows; off: the paper's plain MLPs"

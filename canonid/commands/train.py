@@ -90,9 +90,7 @@ def register(p: argparse.ArgumentParser) -> None:
         what="training device (default auto; a resumed run keeps its recorded device)",
         default=None,
     )
-    _options.add_out(
-        p, "runs/MODEL-lL, runs/MODEL-lauto without --window", what="run folder", metavar="RUN"
-    )
+    _options.add_out(p, "runs/MODEL-lL, runs/MODEL-lauto without --window", what="run folder")
     _options.add_resume(p, what="training run", path=True)
     p.add_argument(
         "--val",
@@ -169,7 +167,7 @@ def register(p: argparse.ArgumentParser) -> None:
     _options.add_where(
         p,
         jobs="with a list of windows or --hidden auto: train the candidates",
-        sees="DATA and RUN",
+        sees="DATA and --out",
         workers=None,
     )
     _options.add_no_progress(p)
