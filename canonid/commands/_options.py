@@ -199,7 +199,7 @@ class Bare(argparse.Action):
 
     def __init__(self, *args: Any, bare: str, **kwargs: Any) -> None:
         self.former_bare = bare  # canonid.cli.HelpFormatter shows no [ ] around the value
-        super().__init__(*args, nargs="?", **kwargs)
+        super().__init__(*args, **{**kwargs, "nargs": "?"})
 
     def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
         if values is None:
