@@ -45,7 +45,7 @@ from canonid.coverage import (
 )
 from canonid.datagen.benchmarks import BENCHMARKS, Baseline, Benchmark
 from canonid.datagen.loaders import data_checksum
-from canonid.kernel.catalog import model_label
+from canonid.kernel.catalog import DEFAULT_MODEL, DEFAULT_VAL_FRACTION, model_label
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, OptionError
 from canonid.kernel.io import (
@@ -426,7 +426,7 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
         return _resume(request)
     assert request.name is not None  # checked when the request was built
     bench = benchmark(request.name)
-    model = request.model or "mlp"
+    model = request.model or DEFAULT_MODEL
     window = request.window if request.window is not None else "auto"
     listed = (window,) if isinstance(window, int) else () if window == "auto" else window
     for ell in listed:
@@ -457,7 +457,9 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     dataset = load_benchmark(bench.name, request.files)
     split = split_train_val(
         dataset,
-        val_fraction=0.2 if request.val_fraction is None else request.val_fraction,
+        val_fraction=(
+            DEFAULT_VAL_FRACTION if request.val_fraction is None else request.val_fraction
+        ),
         record_tails=True,
     )
     checksum = _checksum(split)

@@ -8,33 +8,115 @@ and ``canonid systems`` load neither torch nor CasADi. Errors raised on purpose
 disk, a read-only folder) print as one line on stderr with a non-zero exit; ``--debug`` shows the
 traceback instead. A reader that closes the pipe (``canonid systems | head -1``) ends the command
 quietly. Any other exception is a bug and keeps its traceback.
+
+Every parser, the program's and each command's, is a :class:`Parser`: an option is taken only as
+spelt out in full, a mistake on the command line is one line on stderr with exit status 2, and
+an option's help that does not say its default gets it from the parser (:class:`HelpFormatter`).
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import logging
 import os
 import sys
 from collections.abc import Sequence
+from typing import Any, NoReturn
 
 from canonid import __version__
 from canonid.commands import COMMANDS
+from canonid.kernel.catalog import help_value
 from canonid.kernel.errors import CanonidError
 
-__all__ = ["build_parser", "main"]
+__all__ = ["HelpFormatter", "Parser", "build_parser", "main"]
 
 EXIT_ERROR = 1
+#: a mistake on the command line (argparse's status)
+EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 #: the shell's status of a program ended by SIGPIPE
 EXIT_BROKEN_PIPE = 141
 
 
+class HelpFormatter(argparse.HelpFormatter):
+    """argparse's help, with `` (default X)`` after the help of an option that has a value when
+    not given and does not say it (X as :func:`canonid.kernel.catalog.help_value` writes it): the
+    default shown is the one the parser holds, never a copy typed beside it."""
+
+    def _format_args(self, action: argparse.Action, default_metavar: str) -> str:
+        if hasattr(action, "former_bare"):  # a value, which a former release did not need
+            return str(self._metavar_formatter(action, default_metavar)(1)[0])
+        return super()._format_args(action, default_metavar)
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        value = action.default
+        if action.option_strings and action.nargs != 0 and "default" not in text:
+            if value not in (None, "", argparse.SUPPRESS) and not isinstance(value, bool):
+                text += f" (default {help_value(value)})".replace("%", "%%")
+        return text
+
+
+class Parser(argparse.ArgumentParser):
+    """canonid's argument parser, of the program and of each command (``add_subparsers`` makes
+    its parsers of the same class): an option is taken only as spelt out in full (``--epoch`` is
+    not ``--epochs``), and a bad choice, a bad value, a missing or an unknown argument is one
+    line on stderr, ``PROG: error: MESSAGE``, with exit status 2 and no usage (``--help`` shows
+    it); an unknown option names the nearest one. Its help is a :class:`HelpFormatter`'s."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **{**kwargs, "allow_abbrev": False})
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+    def parse_args(  # type: ignore[override]
+        self, args: Sequence[str] | None = None, namespace: argparse.Namespace | None = None
+    ) -> argparse.Namespace:
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:  # named by the command's parser, which argparse leaves to the program's
+            where = self._command_parser(parsed)
+            plural = "s" if len(extras) > 1 else ""
+            near = _nearest(extras, [*where._actions, *self._actions])
+            where.error(f"unrecognized argument{plural}: {' '.join(extras)}{near}")
+        return parsed
+
+    def _command_parser(self, parsed: argparse.Namespace) -> Parser:
+        """The parser of the command that ``parsed`` ran, else this one."""
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                chosen = action.choices.get(getattr(parsed, action.dest, None) or "")
+                if isinstance(chosen, Parser):
+                    return chosen
+        return self
+
+
+def _nearest(extras: list[str], actions: list[argparse.Action]) -> str:
+    """`` (did you mean --epochs?)`` for the first unknown option of ``extras`` close to one
+    that ``actions`` show in ``--help``, else nothing."""
+    shown = [
+        option
+        for action in actions
+        if action.help is not argparse.SUPPRESS
+        for option in action.option_strings
+        if option.startswith("--")
+    ]
+    for word in extras:
+        if word.startswith("--"):
+            near = difflib.get_close_matches(word.split("=", 1)[0], shown, n=1, cutoff=0.75)
+            if near:
+                return f" (did you mean {near[0]}?)"
+    return ""
+
+
 def build_parser(command: str | None = None, *, every: bool = False) -> argparse.ArgumentParser:
     """The parser listing every subcommand; only ``command``'s module is imported and its
     arguments registered (the others parse nothing but are listed by ``--help``), or every
-    command's with ``every`` (the documentation's command-line page)."""
-    parser = argparse.ArgumentParser(
+    command's with ``every`` (the documentation's command-line page). Every parser is a
+    :class:`canonid.commands.Parser`: no abbreviated option, a mistake in one line (exit 2)."""
+    parser = Parser(
         prog="canonid",
         description=(
             "Learn reduced nonlinear state-space models from input/output data with the "

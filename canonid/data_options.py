@@ -47,8 +47,9 @@ DATA_OPTIONS: tuple[tuple[str, Callable[[str], Any], str, str, str | None], ...]
         "--time-column",
         parse_column,
         "COL|none",
-        "column of sample times in seconds: gives dt, its steps checked uniform, and warns where "
-        "it goes back (records joined)",
+        "column of sample times in seconds: gives dt, its steps must be uniform (a --dt beside it "
+        "must agree; none: read the rows as samples every --dt); warns where it goes back "
+        "(records joined)",
         "a column named t or time, if any",
     ),
     (

@@ -32,6 +32,9 @@ and the profile's ``train`` stage without the overrides above (what ``canonid tr
 P`` runs), beside the paper's columns; ``compression``: which trained runs the compression study
 reduces, at which rates and seeds (``epochs`` overrides the ``reduce`` stage's); ``rollouts``:
 the window of the per-system rollout figure.
+
+:func:`profile_values` writes an option's value in every profile for ``--help``, so that the
+command line shows the defaults that this table holds.
 """
 
 from __future__ import annotations
@@ -43,6 +46,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
+from canonid.kernel.catalog import help_value
 from canonid.kernel.errors import OptionError
 
 if TYPE_CHECKING:  # torch: the option types load when a profile is typed, not for --help
@@ -58,6 +62,7 @@ __all__ = [
     "load_profile",
     "profile",
     "profile_names",
+    "profile_values",
     "reduce_options",
     "stage_train_options",
     "train_options",
@@ -325,6 +330,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
             "reconstruction_weight": 1.0,
             "consistency_weight": 1.0,
             "output_weight": 1.0,
+            "linear_skip": False,
         },
     },
 }
@@ -446,6 +452,16 @@ class Profile:
 
 def profile_names() -> list[str]:
     return list(PROFILES)
+
+
+def profile_values(stage: str, key: str) -> str:
+    """``default from --profile: quick 600, paper 10000, tiny 3``: the value of ``key`` in the
+    ``stage`` of every profile, as ``--help`` shows it (:func:`canonid.kernel.catalog.help_value`;
+    profiles separated by ``;`` where a value is a list). Every profile must set ``key``: the
+    default of a key left to the option classes would need torch to be read."""
+    values = [(name, stages[stage][key]) for name, stages in PROFILES.items()]
+    between = "; " if any(isinstance(v, (list, tuple)) for _, v in values) else ", "
+    return "default from --profile: " + between.join(f"{n} {help_value(v)}" for n, v in values)
 
 
 def load_profile(name: str) -> Profile:

@@ -43,6 +43,7 @@ from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
 from canonid.jobs import Job, check_folder, run_folder_lock
+from canonid.kernel.catalog import COMPRESSION_RATES, EVAL_HORIZON
 from canonid.kernel.dataset import as_trajectories
 from canonid.kernel.errors import CheckpointError, DataError, OptionError
 from canonid.kernel.io import atomic_write_figure, atomic_write_json, read_json
@@ -92,12 +93,11 @@ __all__ = [
 ]
 
 #: the paper's rates: 15 %, 30 %, …, 90 %
-DEFAULT_RATES = (0.15, 0.30, 0.45, 0.60, 0.75, 0.90)
+DEFAULT_RATES = COMPRESSION_RATES
 REDUCTION_FILE = "reduction.json"
 SWEEP_FILE = "sweep.json"
 #: the compression study's figures (:func:`plot_heatmap`, :func:`plot_reduced_mse`)
 FIGURES = ("heatmap", "reduced_mse")
-EVAL_HORIZON = 100
 
 
 def rate_label(rate: float) -> str:

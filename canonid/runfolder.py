@@ -57,6 +57,7 @@ from canonid.coverage import (
 from canonid.data_options import DATA_FLAGS
 from canonid.datagen.loaders import data_checksum, is_dataset, load_data, split_train_val
 from canonid.jobs import run_folder_lock
+from canonid.kernel.catalog import DEFAULT_VAL_FRACTION, EVAL_HORIZON
 from canonid.kernel.dataset import Dataset, Trajectory
 from canonid.kernel.errors import CheckpointError, DataError, OptionError, OutputError
 from canonid.kernel.io import (
@@ -140,7 +141,6 @@ LEDGER_WHAT = "ledger of test reads"
 RECIPE_FORMAT = "canonid-run"
 #: the version of :class:`RunRecipe`'s JSON (a recipe without one is of version 1)
 RECIPE_VERSION = 1
-DEFAULT_VAL_FRACTION = 0.2
 _S = TypeVar("_S", bound="RunSource")
 
 
@@ -878,7 +878,7 @@ def score_horizon(recipe: RunRecipe, dataset: Dataset, split: str, eval_horizon:
     return eval_defaults(
         dataset.split(split),
         recipe.window,
-        eval_horizon or min(100, recipe.options().rollout_horizon),
+        eval_horizon or min(EVAL_HORIZON, recipe.options().rollout_horizon),
         where=f"{scoring_source(recipe, split)} [{split}]",
         fit=eval_horizon is None,
     )

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from canonid.data_options import DATA_FLAGS
+from canonid.kernel.catalog import EVAL_HORIZON
 from canonid.kernel.errors import DataError, OptionError, OutputError
 
 if TYPE_CHECKING:
@@ -128,7 +129,7 @@ def score_run(request: EvaluateRequest) -> Scored:
     horizon = eval_defaults(
         trajs,
         model.window,
-        request.horizon or 100,
+        request.horizon or EVAL_HORIZON,
         where=f"{data_path} [{name}]",
         fit=request.horizon is None,
     )

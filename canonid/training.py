@@ -30,6 +30,7 @@ from canonid.horizon_check import HORIZON_CHECK_FILE
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
 from canonid.learning.search import CUBIC_UNITS, ETA, SEARCH_FILE, WINDOWS, Search
 from canonid.members import check_members
+from canonid.profiles import profile_values
 
 if TYPE_CHECKING:
     from canonid.horizon_check import HorizonChoice
@@ -88,7 +89,7 @@ _NET_FLAGS = ("residual", "feedthrough", "linear", "cubic")
 REQUEST_TEXT_FIELDS = ("window", "hidden", "weight_decay", "cubic", "max_window", "resume", "out")
 #: ``canonid train --train-horizon``'s help
 HORIZON_HELP = (
-    "override the profile's final training rollout length (default: the profile's; on a canonid "
+    f"final training rollout length ({profile_values('train', 'horizon')}; on a canonid "
     "generate dataset flown in closed loop with an excitation, where that model's residuals "
     "correlate with the excitation on validation more than chance allows, also "
     f"{' then '.join(map(str, HORIZON_ALTERNATIVES))} until one passes, the fewest kept: "
@@ -345,17 +346,17 @@ def check_new_run(run_dir: Path) -> None:
 def _recipe(request: TrainRequest) -> RunRecipe:
     """The recipe of a new run: the profile's training options with the overrides, the
     network's presets with the options given."""
-    from canonid.kernel.catalog import net_options
+    from canonid.kernel.catalog import DEFAULT_MODEL, DEFAULT_VAL_FRACTION, net_options
     from canonid.learning import NETS
     from canonid.learning.nets.base import CanonicalModel
     from canonid.profiles import DEFAULT_PROFILE, train_options
-    from canonid.runfolder import DEFAULT_VAL_FRACTION, RunRecipe
+    from canonid.runfolder import RunRecipe
 
     if request.data is None:
         raise OptionError("give the training DATA (or --resume --out RUN)")
     if not isinstance(request.window, int):  # the callers resolve "auto" and lists
         raise OptionError(f"--window: a new run's recipe needs one window, got {request.window!r}")
-    model = request.model or "mlp"
+    model = request.model or DEFAULT_MODEL
     if request.val_fraction is not None and not 0 < request.val_fraction < 1:
         raise OptionError(f"--val-fraction must be in (0, 1), got {request.val_fraction}")
     profile = request.profile or DEFAULT_PROFILE

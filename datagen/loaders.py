@@ -10,9 +10,11 @@ split, ``"train"``; :func:`split_train_val` then cuts a validation set off it.
   identifies the experiment of each row (experiments in order of first appearance, rows in file
   order; the rows of one experiment must be contiguous). A time column in seconds
   (``time_column``, else one named ``t`` or ``time``: :data:`TIME_COLUMNS`) gives the sampling
-  time ``dt`` when it is not given, its spacing checked uniform; a time that goes back within a
-  record warns that records were joined (name the ``experiment_column``). Without a time column
-  ``dt`` (seconds) is required. Files are UTF-8 text, read as a stream; each column read is
+  time ``dt``: its steps must be uniform, and a ``dt`` given beside it must agree with them
+  (``time_column=""`` switches the column off, to read the rows as samples every ``dt``); a time
+  that goes back within a record warns that records were joined (name the
+  ``experiment_column``). Without a time column ``dt`` (seconds) is required. A file separated
+  by ``;`` or tabs is named so. Files are UTF-8 text, read as a stream; each column read is
   named once in the header and every cell of it is a finite number in plain notation (ASCII
   digits, optional sign, decimal point and exponent: not ``1_000`` or ``１２``, which ``float``
   reads).
@@ -282,6 +284,7 @@ def _parse_csv(
     wanted = [*columns, *([experiment_column] if experiment_column else [])]
     missing = [c for c in wanted if c not in header]
     if missing:
+        _refuse_separator(path, header, missing)
         raise DataError(f"{path}: no column(s) {missing}; the header has {header}")
     for name in dict.fromkeys(wanted):
         places = [str(i + 1) for i, h in enumerate(header) if h == name]
@@ -321,6 +324,18 @@ def _parse_csv(
         raise DataError(f"{path}: no data rows under the header")
     stops = [start for _, start in starts[1:]] + [table.rows]
     return [(key, start, stop) for (key, start), stop in zip(starts, stops)], table.array()
+
+
+def _refuse_separator(path: Path, header: list[str], missing: list[str]) -> None:
+    """A header that holds some of the columns ``missing`` once split at ``;`` or tabs instead
+    of commas is named so (such files often write decimal commas too)."""
+    for separator, name in ((";", "';'"), ("\t", "tabs")):
+        fields = {f.strip() for h in header for f in h.split(separator)}
+        if any(separator in h for h in header) and fields & set(missing):
+            raise DataError(
+                f"{path}: the header {','.join(header)!r} is separated by {name}, not commas; "
+                "save the file as comma-separated values, with '.' as the decimal point"
+            )
 
 
 def load_csv(
@@ -367,11 +382,11 @@ def load_csv(
             # the record's name in figures: the file, or the experiment column's value
             shown = name if experiment_column is None else f"{experiment_column} = {key}"
             u, y = sub[:, :n_u], sub[:, n_u : n_u + n_y]
-            where = f"{path}, experiment {name!r}"
-            trajs.append(_trajectory(u, y, where, info={"experiment": shown}))
+            at = f"{path}, experiment {name!r}"
+            trajs.append(_trajectory(u, y, at, info={"experiment": shown}))
             labels.append(label)
             if clock:
-                clocks.append(_Clock(path, clock, start, sub[:, -1], bool(time_column)))
+                clocks.append(_Clock(path, clock, start, sub[:, -1]))
     if not clocks and given_dt is None:
         raise DataError(
             f"{where}: CSV data need the sampling time: give dt in seconds (CLI: --dt SECONDS), "
@@ -414,14 +429,12 @@ def _header(path: Path) -> list[str]:
 @dataclass(frozen=True)
 class _Clock:
     """The time column of one experiment: ``times`` of its rows, the first at data row
-    ``first_row`` (0-based, blank lines not counted) of ``path``; ``named``: the caller named
-    the column (else it was found by its name)."""
+    ``first_row`` (0-based, blank lines not counted) of ``path``."""
 
     path: Path
     column: str
     first_row: int
     times: np.ndarray
-    named: bool
 
     def steps(self) -> np.ndarray:
         """The steps between rows, where the time goes forward; a step back (a restart: two
@@ -454,9 +467,11 @@ class _Clock:
 
 
 def _sampling_time(clocks: Sequence[_Clock], given: float | None, where: str) -> float:
-    """``given``, else the step of the time columns (uniform within :data:`TIME_STEP_RTOL`,
-    rounded to 12 significant digits); a given ``dt`` that the uniform step of a named time
-    column contradicts is refused, a non-uniform time column read with a given ``dt`` warns."""
+    """The step of the time columns (uniform within :data:`TIME_STEP_RTOL`, rounded to 12
+    significant digits), or ``given`` where none has two rows; steps that are not uniform, and a
+    ``given`` dt that disagrees with the step beyond :data:`TIME_STEP_RTOL`, are refused, naming
+    ``time_column=""`` (CLI: ``--time-column none``), which reads the rows as samples every
+    ``dt``."""
     steps = [(c, c.steps()) for c in clocks]
     forward = [s for _, s in steps if s.size]
     if not forward:
@@ -470,26 +485,20 @@ def _sampling_time(clocks: Sequence[_Clock], given: float | None, where: str) ->
     if float(np.abs(every - step).max()) > spread_tol:
         clock = next(c for c, s in steps if s.size and np.abs(s - step).max() > spread_tol)
         summary = f"steps from {every.min():g} s to {every.max():g} s"
-        if given is None:
-            raise DataError(
-                f"{clock.path}: time column {name} is not uniformly spaced ({summary}); give "
-                "the sampling time with --dt SECONDS to read the rows as samples every dt"
-            )
-        log.warning(
-            "%s: time column %s is not uniformly spaced (%s); the rows are read as samples "
-            "every dt = %g s as given",
-            clock.path,
-            name,
-            summary,
-            given,
+        how = (
+            "every dt, switch the column off and give dt (CLI: --time-column none --dt SECONDS)"
+            if given is None
+            else f"every dt = {given:g} s as given, switch the column off (CLI: --time-column none)"
         )
-        return given
-    # a column found by its name may count samples, or time in other units than a given dt's
-    named = any(c.named for c in clocks)
-    if given is not None and named and not math.isclose(step, given, rel_tol=TIME_STEP_RTOL):
+        raise DataError(
+            f"{clock.path}: time column {name} is not uniformly spaced ({summary}); to read the "
+            f"rows as samples {how}"
+        )
+    if given is not None and not math.isclose(step, given, rel_tol=TIME_STEP_RTOL):
         raise DataError(
             f"{where}: dt = {given:g} s was given, but time column {name} steps by {step:g} s; "
-            "leave dt out to use the time column, or give the right one"
+            "leave dt out to use the time column, or switch the column off to read the rows as "
+            f"samples every {given:g} s (CLI: --time-column none)"
         )
     return given if given is not None else step
 

@@ -9,6 +9,9 @@ systems (docs, "Identification": the table and the commands behind it); a model 
 its constructor's defaults. ``PAPER_NET_OPTIONS`` are the authors' published code's
 configuration, which produced the paper's numbers (the paper's text writes ``Ĥ(z_t, u_t)``, its
 code predicts the increment of ``y`` from ``z_t`` alone); ``canonid reproduce`` trains it.
+``DEFAULT_MODEL``, ``DEFAULT_VAL_FRACTION``, ``EVAL_HORIZON`` and ``COMPRESSION_RATES`` are the
+defaults that the application applies where an option is not given, and that ``--help`` shows
+(:func:`help_value`).
 ``INFO_*`` name the fields of a trained model's ``info`` that the application writes
 (:mod:`canonid.coverage`) and the model's loader checks (:func:`canonid.learning.model.check_info`).
 """
@@ -21,14 +24,19 @@ from typing import Any
 
 __all__ = [
     "ACTIVATION_NAMES",
+    "COMPRESSION_RATES",
+    "DEFAULT_MODEL",
     "DEFAULT_NET_OPTIONS",
+    "DEFAULT_VAL_FRACTION",
     "DEVICE_NAMES",
+    "EVAL_HORIZON",
     "INFO_TRAINING_RANGE",
     "INFO_UNVALIDATED",
     "LINEAR_PATHS",
     "MODEL_LABELS",
     "MODEL_NAMES",
     "PAPER_NET_OPTIONS",
+    "help_value",
     "model_label",
     "net_options",
     "preset_word",
@@ -36,6 +44,18 @@ __all__ = [
 
 #: the registered identification models, in table order (:func:`canonid.learning.model_names`)
 MODEL_NAMES = ("mlp", "gru", "classic-gru", "masti", "arx")
+
+#: the model a run trains when none is named
+DEFAULT_MODEL = "mlp"
+
+#: the share of the training data held out for validation when the data have no val split
+DEFAULT_VAL_FRACTION = 0.2
+
+#: the evaluation's rollout length: the paper metric's 100-step open-loop rollouts
+EVAL_HORIZON = 100
+
+#: the compression study's rates, the paper's: 15 %, 30 %, …, 90 %
+COMPRESSION_RATES = (0.15, 0.30, 0.45, 0.60, 0.75, 0.90)
 
 #: each model's name in tables and figures (the paper's column names; ARX is ours)
 MODEL_LABELS = {
@@ -101,8 +121,25 @@ def net_options(
     return {**copy.deepcopy(base), **dict(overrides or {})}
 
 
+def help_value(value: Any) -> str:
+    """A default as ``--help`` shows it: ``on`` / ``off`` for a boolean, ``none`` for ``None``,
+    a number as one would type it (``600``, ``0.2``, ``3e-3``), a list comma-separated."""
+    if isinstance(value, bool):
+        return "on" if value else "off"
+    if value is None:
+        return "none"
+    if isinstance(value, (list, tuple)):
+        return ",".join(help_value(v) for v in value)
+    if isinstance(value, float) and value != 0 and abs(value) < 1e-2:
+        mantissa, exponent = f"{value:e}".split("e")
+        return f"{mantissa.rstrip('0').rstrip('.')}e{int(exponent)}"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
 def preset_word(model: str, option: str) -> str:
-    """The default of ``model``'s option ``option`` as ``--help`` says it: ``on`` / ``off`` for
-    a boolean, else the value (``auto``, ``silu``), read from :data:`DEFAULT_NET_OPTIONS`."""
-    value = DEFAULT_NET_OPTIONS[model][option]
-    return ("on" if value else "off") if isinstance(value, bool) else str(value)
+    """The default of ``model``'s option ``option`` as ``--help`` says it (:func:`help_value`:
+    ``on`` / ``off`` for a boolean, else the value, ``auto``, ``silu``), read from
+    :data:`DEFAULT_NET_OPTIONS`."""
+    return help_value(DEFAULT_NET_OPTIONS[model][option])

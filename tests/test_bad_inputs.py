@@ -226,6 +226,41 @@ def test_scattered_experiment_rows_and_overflowing_values_are_refused(tmp_path, 
     assert not run.exists()  # nothing left that would block a re-run
 
 
+def _timed_csv(path: Path, times: list[float], separator: str = ",") -> Path:
+    """Two experiments, a column ``run`` naming them and a time column ``t`` at ``times``."""
+    header = separator.join(["run", "t", "pump", "level"])
+    rows = [
+        separator.join([run, f"{t!r}", f"{1 + k % 3}", f"{0.1 * k}"])
+        for run in ("a", "b")
+        for k, t in enumerate(times)
+    ]
+    path.write_text("\n".join([header, *rows]) + "\n", encoding="utf-8")
+    return path
+
+
+def test_data_that_disagree_with_the_options_are_refused_not_guessed(tmp_path, capsys):
+    """The sampling time is never guessed: a --dt beside a time column that steps otherwise,
+    and steps that are not uniform, are refused in one line naming --time-column none, which
+    reads the rows as samples every --dt; a file separated by ';' is named so."""
+    columns = ["--inputs", "pump", "--outputs", "level", "--experiment-column", "run"]
+    data = _timed_csv(tmp_path / "train.csv", [float(k) for k in range(40)])
+    run = tmp_path / "run"
+    argv = ["train", str(data), *columns, *TRAIN, "--out", str(run)]
+    err = one_line_error(capsys, main([*argv, "--dt", "0.5"]), "--time-column none")
+    assert "dt = 0.5 s was given, but time column 't' steps by 1 s" in err
+    assert "samples every 0.5 s" in err and not run.exists()
+    uneven = _timed_csv(tmp_path / "uneven.csv", [k + 0.3 * (k % 2) for k in range(40)])
+    argv = ["train", str(uneven), *columns, *TRAIN, "--out", str(run)]
+    err = one_line_error(capsys, main([*argv, "--dt", "1"]), "'t' is not uniformly spaced")
+    assert "(steps from 0.7 s to 1.3 s)" in err and "(CLI: --time-column none)" in err
+    err = one_line_error(capsys, main(argv), "(CLI: --time-column none --dt SECONDS)")
+    assert not run.exists()
+    semi = _timed_csv(tmp_path / "semi.csv", [float(k) for k in range(40)], separator=";")
+    argv = ["train", str(semi), *columns, *TRAIN, "--out", str(run)]
+    one_line_error(capsys, main(argv), "semi.csv: the header", "is separated by ';', not commas")
+    assert not run.exists()
+
+
 def test_a_fifo_as_data_is_named_and_never_opened(good, tmp_path, capsys):
     with unread_fifo(tmp_path / "pipe.csv") as fifo:
         out = tmp_path / "run"

@@ -633,7 +633,7 @@ def test_a_finished_benchmark_run_again_gives_the_same_report_and_other_options_
     )
     assert json.loads((run / "run.json").read_text())["train_options"]["epochs"] == 3
     assert json.loads((run / "benchmark.json").read_text())["scores"]
-    assert main(["benchmark", "--resume", str(run), "--model", "gru"]) == 1
+    assert main(["benchmark", "--resume", "--out", str(run), "--model", "gru"]) == 1
     assert "--model cannot be given with --resume" in capsys.readouterr().err
 
 

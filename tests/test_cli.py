@@ -82,6 +82,6 @@ def test_train_help_states_the_default_a_run_gets(option, capsys):
     help_text = " ".join(capsys.readouterr().out.split())
     value = DEFAULT_NET_OPTIONS["mlp"][option]
     word = value if isinstance(value, str) else "on" if value else "off"
-    flag = "--linear [{off,skip,arx}]" if option == "linear" else f"--{option}, --no-{option}"
+    flag = "--linear {off,skip,arx}" if option == "linear" else f"--{option}, --no-{option}"
     start = help_text.index(flag, help_text.index("options:"))
     assert f"default: {word} for Ours (MLP)" in help_text[start : start + 400]

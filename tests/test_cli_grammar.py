@@ -1,8 +1,8 @@
 """One command-line grammar, checked on the parsers themselves (in the manner of python-control's
 ``kwargs_test.py`` / ``docstrings_test.py``): every option says its default, the names shared by
 several commands mean one thing, lists are comma-separated, former names still work (with a
-warning, hidden from ``--help``), and the docs' command-line page lists every command with a
-summary."""
+warning, hidden from ``--help``), no option is taken abbreviated, a bad choice or value is one
+line (exit 2, no usage), and the docs' command-line page lists every command with a summary."""
 
 from __future__ import annotations
 
@@ -16,6 +16,15 @@ import pytest
 
 from canonid.cli import build_parser
 from canonid.commands import COMMANDS, _options
+from canonid.kernel.catalog import (
+    COMPRESSION_RATES,
+    DEFAULT_MODEL,
+    DEFAULT_VAL_FRACTION,
+    EVAL_HORIZON,
+    help_value,
+)
+from canonid.kernel.io import FIGURE_FORMATS
+from canonid.profiles import DEFAULT_PROFILE, PROFILES, profile_values
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -24,7 +33,7 @@ MEANINGS = {
     "--no-progress": "no progress bar",
     "--resume": "continue the interrupted ",
     "--eval-horizon": "rollout length of the evaluation",
-    "--train-horizon": "override the profile's final training rollout length",
+    "--train-horizon": "final training rollout length (default from --profile: ",
     "--mpc-horizon": "prediction horizon of the NMPC",
     "--threads": "torch CPU threads",
     "--seed": "",
@@ -34,9 +43,29 @@ MEANINGS = {
 FORMER = ("--horizon", "--quiet")
 
 
+#: the shortest command line each command parses (its required arguments), to which a test adds
+#: one mistake
+MINIMAL = {
+    "systems": [],
+    "generate": ["tank"],
+    "train": ["d.csv"],
+    "reduce": ["r", "--sweep"],
+    "evaluate": ["r"],
+    "export": ["r", "--casadi", "m.casadi"],
+    "analyze": ["tank", "--window", "2"],
+    "benchmark": [],
+    "reproduce": [],
+}
+
+
+@functools.cache
+def _program() -> argparse.ArgumentParser:
+    return build_parser(every=True)
+
+
 @functools.cache
 def _subcommands() -> dict[str, argparse.ArgumentParser]:
-    parser = build_parser(every=True)
+    parser = _program()
     action = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return dict(action.choices)
 
@@ -62,7 +91,7 @@ def _label(case: tuple[str, argparse.Action]) -> str:
 def test_every_option_has_help_that_states_its_default(case):
     name, action = case
     assert action.help and action.help.strip(), f"canonid {name} {_label(case)}: no help"
-    text = action.help % vars(action) if "%" in action.help else action.help
+    text = _help(name, action)  # as --help prints it: the parser adds a default it holds
     flag = action.nargs == 0 or action.const is True  # on or off: off unless given
     groups = [g for g in parser_groups(name) if action in g._group_actions]
     if flag or action.required or any(g.required for g in groups) or not action.option_strings:
@@ -70,6 +99,254 @@ def test_every_option_has_help_that_states_its_default(case):
     if any(_states(o.help) for g in groups for o in g._group_actions):  # --workers | --scheduler
         return
     assert _states(text), f"canonid {_label(case)}: the help does not state the default: {text!r}"
+
+
+def _usage_error(capsys, argv: list[str], *needles: str) -> str:
+    """``canonid ARGV`` stops with exit status 2 and one line on stderr, no usage, holding every
+    needle; returns that line."""
+    with pytest.raises(SystemExit) as stop:
+        _program().parse_args(argv)
+    err = capsys.readouterr().err
+    lines = err.strip().splitlines()
+    assert stop.value.code == 2 and len(lines) == 1, err
+    assert "usage:" not in err and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in lines[0], err
+    return lines[0]
+
+
+def test_every_command_has_a_minimal_command_line():
+    assert list(MINIMAL) == [c.name for c in COMMANDS]
+    for name, argv in MINIMAL.items():
+        assert _program().parse_args([name, *argv]).command == name
+
+
+def test_no_parser_takes_an_option_abbreviated():
+    parsers = [_program(), *_subcommands().values()]
+    assert all(parser.allow_abbrev is False for parser in parsers)
+
+
+def _prefixes() -> list[tuple[str, str, argparse.Action]]:
+    """(command, an option's name less its last letter, the option) for every long option of
+    every command and of the program whose shortened name is no option itself."""
+    cases = []
+    for name, parser in [("", _program()), *_subcommands().items()]:
+        for action in parser._actions:
+            for option in action.option_strings:
+                if option.startswith("--") and option[:-1] not in parser._option_string_actions:
+                    cases.append((name, option[:-1], action))
+    return cases
+
+
+@pytest.mark.parametrize("case", _prefixes(), ids=lambda c: f"{c[0] or 'canonid'} {c[1]}")
+def test_an_abbreviated_option_is_refused_in_one_line(case, capsys):
+    name, short, action = case
+    value = [] if action.nargs == 0 else ["1"]
+    if name:
+        argv = [name, *MINIMAL[name], short, *value]
+    else:  # a program option, before the command
+        argv = [short, *value, "systems"]
+    err = _usage_error(capsys, argv, "error: unrecognized argument", short)
+    assert err.startswith(f"canonid {name or 'systems'}: error:"), err
+
+
+def test_an_unknown_option_names_the_nearest(capsys):
+    err = _usage_error(capsys, ["train", "d.csv", "--epoch", "2"], "--epoch 2")
+    assert err.endswith("(did you mean --epochs?)"), err
+
+
+def _choices() -> list[tuple[str, argparse.Action]]:
+    return [(name, a) for name, sub in _subcommands().items() for a in sub._actions if a.choices]
+
+
+@pytest.mark.parametrize("case", _choices(), ids=_label)
+def test_a_bad_choice_is_one_line(case, capsys):
+    name, action = case
+    option = action.option_strings[0]
+    _usage_error(
+        capsys,
+        [name, *MINIMAL[name], option, "nope"],
+        f"canonid {name}: error: argument",
+        option,
+        "invalid choice: 'nope'",
+        repr(action.choices[0]),
+    )
+
+
+def test_a_bad_command_is_one_line(capsys):
+    _usage_error(capsys, ["frobnicate"], "invalid choice: 'frobnicate'", "'train'")
+
+
+def _refuses(action: argparse.Action, text: str) -> bool:
+    try:
+        action.type(text)  # type: ignore[misc]
+    except (ValueError, TypeError, argparse.ArgumentTypeError):
+        return True
+    return False
+
+
+def _typed() -> list[tuple[str, argparse.Action]]:
+    """Every option whose type refuses a word that is no number."""
+    return [
+        (name, a)
+        for name, sub in _subcommands().items()
+        for a in sub._actions
+        if a.option_strings and a.type is not None and _refuses(a, "x@")
+    ]
+
+
+@pytest.mark.parametrize("case", _typed(), ids=_label)
+def test_a_bad_value_is_one_line(case, capsys):
+    name, action = case
+    option = action.option_strings[0]
+    _usage_error(capsys, [name, *MINIMAL[name], option, "x@"], f"canonid {name}: error:", option)
+
+
+def _valued() -> list[tuple[str, argparse.Action]]:
+    return [
+        (name, a)
+        for name, sub in _subcommands().items()
+        for a in sub._actions
+        if a.option_strings and a.nargs in (None, "+") and a.help is not argparse.SUPPRESS
+    ]
+
+
+@pytest.mark.parametrize("case", _valued(), ids=_label)
+def test_a_missing_value_is_one_line(case, capsys):
+    name, action = case
+    option = action.option_strings[0]
+    _usage_error(capsys, [name, *MINIMAL[name], option], f"canonid {name}: error:", option)
+
+
+def _help(name: str, action: argparse.Action) -> str:
+    """The option's help as ``--help`` prints it (``%(default)s`` filled in), on one line."""
+    return " ".join(_subcommands()[name]._get_formatter()._expand_help(action).split())
+
+
+def _defaulted() -> list[tuple[str, argparse.Action]]:
+    """Every option that takes a value and has one when not given."""
+    return [
+        (name, a)
+        for name, a in _cases()
+        if a.option_strings
+        and a.nargs != 0
+        and a.default not in (None, "", argparse.SUPPRESS)
+        and not isinstance(a.default, bool)
+    ]
+
+
+@pytest.mark.parametrize("case", _defaulted(), ids=_label)
+def test_an_options_default_value_is_in_its_help(case):
+    name, action = case
+    text = _help(name, action)
+    assert f"default {help_value(action.default)}" in text, f"canonid {_label(case)}: {text!r}"
+
+
+#: options that another change replaces (the search of windows, widths, cubic branch and members)
+SEARCH_OPTIONS = {"window", "max_window", "weight_decay", "cubic", "members"}
+
+
+@pytest.mark.parametrize("stage", ["train", "reduce", "reproduce"])
+def test_an_option_the_profiles_set_shows_every_profiles_value(stage):
+    """The command of the same name as a profile stage: every option named like a key of that
+    stage shows the value of each profile (generated from canonid.profiles.PROFILES)."""
+    keys = {key for stages in PROFILES.values() for key in stages[stage]}
+    shown = set()
+    for action in _subcommands()[stage]._actions:
+        if action.dest in keys - SEARCH_OPTIONS and action.help is not argparse.SUPPRESS:
+            text = _help(stage, action)
+            assert profile_values(stage, action.dest) in text, text
+            for profile, stages in PROFILES.items():
+                value = help_value(stages[stage][action.dest])
+                assert f"{profile} {value}" in text, f"{profile}'s {action.dest}: {text!r}"
+            shown.add(action.dest)
+    assert (
+        shown
+        >= {
+            "train": {"epochs", "lr", "batch_size", "horizon", "windows_per_epoch"},
+            "reduce": {"epochs", "linear_skip"},
+            "reproduce": {"systems", "windows", "models", "seeds"},
+        }[stage]
+    )
+
+
+def _applied() -> list[tuple[str, str, object]]:
+    """(command, option, the default that the application applies when it is not given)."""
+    cases: list[tuple[str, str, object]] = [
+        ("train", "--model", DEFAULT_MODEL),
+        ("benchmark", "--model", DEFAULT_MODEL),
+        ("train", "--val-fraction", DEFAULT_VAL_FRACTION),
+        ("benchmark", "--val-fraction", DEFAULT_VAL_FRACTION),
+        ("train", "--eval-horizon", EVAL_HORIZON),
+        ("evaluate", "--eval-horizon", EVAL_HORIZON),
+        ("reduce", "--rates", COMPRESSION_RATES),
+    ]
+    for name, sub in _subcommands().items():
+        for option, value in (
+            ("--profile", DEFAULT_PROFILE),
+            ("--figure-format", FIGURE_FORMATS[0]),
+        ):
+            if option in sub._option_string_actions:
+                cases.append((name, option, value))
+    return cases
+
+
+@pytest.mark.parametrize(
+    ("name", "option", "value"), [pytest.param(*c, id=f"{c[0]} {c[1]}") for c in _applied()]
+)
+def test_a_default_the_application_applies_is_in_the_help(name, option, value):
+    text = _help(name, _subcommands()[name]._option_string_actions[option])
+    assert f"default {help_value(value)}" in text, f"canonid {name} {option}: {text!r}"
+
+
+def test_train_help_shows_the_quick_profiles_budget(capsys):
+    with pytest.raises(SystemExit):
+        build_parser("train").parse_args(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for option, value in (("--epochs N", "600"), ("--lr LR", "3e-3"), ("--batch-size B", "32")):
+        start = text.index(option, text.index("options:"))
+        assert f"quick {value}" in text[start : start + 200], text[start : start + 200]
+
+
+def test_every_output_folder_is_out_dir():
+    outs = {name: sub._option_string_actions.get("--out") for name, sub in _subcommands().items()}
+    assert {name for name, out in outs.items() if out} >= {"generate", "train", "reduce"}
+    assert {out.metavar for out in outs.values() if out} == {"DIR"}
+
+
+def test_every_command_that_works_takes_no_progress():
+    for name, sub in _subcommands().items():
+        assert name == "systems" or "--no-progress" in sub._option_string_actions, name
+
+
+#: the options whose value may be left out, and what that means
+OPTIONAL_VALUES = {
+    ("train", "--resume"): "the former spelling --resume RUN",
+    ("benchmark", "--resume"): "the former spelling --resume RUN",
+    ("evaluate", "--residuals"): "K = 10 lags",
+}
+
+
+def test_an_option_with_an_optional_value_is_one_of_few():
+    optional = {
+        (name, a.option_strings[0])
+        for name, a in _cases()
+        if a.nargs == "?" and a.option_strings and not isinstance(a, _options.Bare)
+    }
+    assert optional == set(OPTIONAL_VALUES)
+
+
+def test_linear_takes_a_value_and_alone_is_deprecated(capsys):
+    assert _parse("train", "d.csv", "--linear", "skip").linear == "skip"
+    assert capsys.readouterr().err == ""
+    assert _parse("train", "d.csv", "--linear", "--model", "gru").linear == "arx"
+    warning = "canonid train: warning: --linear alone is deprecated, use --linear arx"
+    assert capsys.readouterr().err.strip() == warning
+    _usage_error(capsys, ["train", "d.csv", "--linear", "on"], "--linear", "invalid choice")
+    with pytest.raises(SystemExit):
+        build_parser("train").parse_args(["train", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    assert "[--linear {off,skip,arx}]" in text and "[{off" not in text
 
 
 def test_shared_option_names_mean_one_thing():
@@ -89,7 +366,7 @@ def test_shared_option_names_mean_one_thing():
 
 def _states(text: str | None) -> bool:
     """The help says the default, or when the option is required."""
-    return bool(text and re.search(r"\bdefaults?\b|\boverride the profile's\b|\brequired\b", text))
+    return bool(text and re.search(r"\bdefaults?\b|\brequired\b", text))
 
 
 def parser_groups(name: str) -> list[argparse._MutuallyExclusiveGroup]:
@@ -151,8 +428,11 @@ def test_former_names_still_work_with_a_warning(argv, old, new, dest, value, cap
         (["train", "d.csv", "--out", "runs/a"], None, Path("runs/a")),
     ],
 )
-def test_resume_continues_the_run_in_out(argv, resume, out):
+def test_resume_continues_the_run_in_out(argv, resume, out, capsys):
     assert _options.resumed(_parse(*argv)) == {"resume": resume, "out": out}
+    former = len(argv) == 3 and argv[1] == "--resume"
+    warning = f"canonid {argv[0]}: warning: --resume RUN is deprecated, use --resume --out {resume}"
+    assert capsys.readouterr().err.strip() == (warning if former else "")
 
 
 def test_resume_without_a_folder_is_one_line(capsys):

@@ -107,7 +107,7 @@ def test_train_writes_a_run_folder_and_evaluate_rewrites_its_metrics(
     assert main(["train", "--resume", "--out", str(run), "--model", "gru", "--no-progress"]) == 1
     err = capsys.readouterr().err
     assert "model: 'mlp' there, 'gru' here" in err and "Traceback" not in err
-    assert main(["train", "--resume", str(run), "--lr", "0.1", "--no-progress"]) == 1
+    assert main(["train", "--resume", "--out", str(run), "--lr", "0.1", "--no-progress"]) == 1
     assert "--lr cannot change when resuming" in capsys.readouterr().err
 
 
@@ -117,7 +117,7 @@ def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys
     folder.mkdir()
     for k, tr in enumerate(data):
         rows = ["time,pump,level"] + [
-            f"{t},{float(tr.u[t, 0])!r},{float(tr.y[t, 0])!r}" for t in range(110)
+            f"{t * 0.5},{float(tr.u[t, 0])!r},{float(tr.y[t, 0])!r}" for t in range(110)
         ]
         (folder / f"exp{k}.csv").write_text("\n".join(rows) + "\n")
     run = tmp_path / "run"
@@ -132,7 +132,7 @@ def test_train_on_csv_splits_off_validation_and_evaluates_on_it(tmp_path, capsys
     # without --dt, the time column gives it (named 'time', so found); switched off, none does
     timed = tmp_path / "timed"
     assert main(["train", *csv_args, "--model", "mlp", *common, "--out", str(timed)]) == 0
-    assert json.loads((timed / "config.json").read_text())["info"]["dt"] == 1.0
+    assert json.loads((timed / "config.json").read_text())["info"]["dt"] == 0.5
     capsys.readouterr()
     off = ["--time-column", "none", "--out", str(tmp_path / "x")]
     assert main(["train", *csv_args, "--model", "mlp", *common, *off]) == 1
@@ -187,7 +187,7 @@ def test_hidden_widths_are_kept_by_the_run_and_another_width_is_refused(
     assert [shape[0] for shape in layers] == [12, 7, 1]  # two hidden layers, then y
     # evaluate and resume rebuild the same network from the run
     assert main(["evaluate", str(run), "--eval-horizon", "20"]) == 0
-    resume = ["train", "--resume", str(run), "--no-progress", "--device", "cpu"]
+    resume = ["train", "--resume", "--out", str(run), "--no-progress", "--device", "cpu"]
     assert main([*resume, "--epochs", "2", "--hidden", "12,7"]) == 0
     capsys.readouterr()
     assert main([*resume, "--epochs", "3", "--hidden", "16,16"]) == 1
@@ -209,7 +209,7 @@ def test_activation_is_kept_by_the_run_and_another_is_refused(dataset_path, tmp_
     argv = ["train", str(dataset_path), "--model", "mlp", *common, "--out", str(run)]
     assert main([*argv, "--activation", "silu"]) == 0
     assert json.loads((run / "config.json").read_text())["net"]["activation"] == "silu"
-    resume = ["train", "--resume", str(run), "--no-progress", "--device", "cpu"]
+    resume = ["train", "--resume", "--out", str(run), "--no-progress", "--device", "cpu"]
     assert main([*resume, "--epochs", "2", "--activation", "silu"]) == 0
     capsys.readouterr()
     assert main([*resume, "--epochs", "3", "--activation", "tanh"]) == 1
@@ -244,7 +244,7 @@ def test_windows_per_epoch_is_kept_by_the_run_and_fixed_on_resume(dataset_path, 
     recipe = json.loads((run / "run.json").read_text())
     assert recipe["train_options"]["windows_per_epoch"] == 5
     capsys.readouterr()
-    resume = ["train", "--resume", str(run), "--epochs", "2", "--no-progress"]
+    resume = ["train", "--resume", "--out", str(run), "--epochs", "2", "--no-progress"]
     assert main([*resume, "--windows-per-epoch", "8"]) == 1
     assert "--windows-per-epoch cannot change when resuming" in capsys.readouterr().err
     assert main([*argv[:-1], str(tmp_path / "bad"), "--windows-per-epoch", "0"]) == 1

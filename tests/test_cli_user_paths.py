@@ -106,6 +106,9 @@ def test_evaluate_data_reuses_the_runs_csv_options_and_names_the_split_all(
     assert metrics["evaluation"]["data_options"]["dt"] == DT
     assert metrics["n_rollouts"] == 2 * (RECORD - 3 - 100 + 1)
     code = main(["evaluate", str(trained), "--data", str(test_csv), "--dt", "1.0"])
+    one_line_error(capsys, code, "dt = 1 s was given, but time column 'time' steps by 2 s")
+    off = ["--time-column", "none"]  # the rows as samples every 1 s: not the run's sampling time
+    code = main(["evaluate", str(trained), "--data", str(test_csv), "--dt", "1.0", *off])
     one_line_error(capsys, code, str(test_csv), "dt = 1 s, the run's is 2 s")
     code = main(["evaluate", str(trained), "--dt", "1.0"])
     one_line_error(capsys, code, "--dt apply to --data FILE")
@@ -256,6 +259,7 @@ def test_analyze_run_checks_a_csv_trained_tank_model(trained, csv_files, tmp_pat
     run = tmp_path / "tank-dt1"
     train_csv, val_csv, _ = csv_files
     fit = ["train", str(train_csv), "--val", str(val_csv), *CSV_OPTIONS, "--dt", "1.0"]
+    fit += ["--time-column", "none"]  # the rows as samples every 1 s, not the column's 2 s
     assert main([*fit, "--model", "mlp", "--window", "3", *QUICK, "--out", str(run)]) == 0
     argv = ["analyze", "tank", "--run", str(run), "--window", "3", "--trials", "5"]
     # CSV records carry no noise-free outputs: refused before the analysis runs
@@ -328,22 +332,45 @@ def test_a_single_csv_record_trains_on_its_head_and_scores_its_tail(tmp_path, ca
         (["--val", "other.csv"], "val: "),
         (["--val-fraction", "0.5"], "val_fraction: 0.2 there, 0.5 here"),
         (["--dt", "1.0"], "dt: 2.0 there, 1.0 here"),
-        (["--out", "elsewhere"], "--out does not apply with --resume"),
     ],
 )
 def test_resume_refuses_what_it_would_ignore(trained, tmp_path, capsys, extra, needle):
     run = tmp_path / "run"
     shutil.copytree(trained, run)
     before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
-    code = main(["train", "--resume", str(run), "--epochs", "3", "--no-progress", *extra])
+    code = main(["train", "--resume", "--out", str(run), "--epochs", "3", "--no-progress", *extra])
     one_line_error(capsys, code, needle)
+    assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
+
+
+def test_the_former_resume_run_is_read_with_a_warning(trained, tmp_path, capsys):
+    """``--resume RUN`` (before ``--resume --out RUN``): read for one release, with a warning; an
+    ``--out`` beside it is refused as before."""
+    run = tmp_path / "run"
+    shutil.copytree(trained, run)
+    before = {p: p.read_bytes() for p in run.rglob("*") if p.is_file()}
+    code = main(["train", "--resume", str(run), "--out", "elsewhere", "--no-progress"])
+    err = capsys.readouterr().err.strip().splitlines()
+    warning = f"canonid train: warning: --resume RUN is deprecated, use --resume --out {run}"
+    assert code == 1 and err[0] == warning and len(err) == 2, err
+    assert "--out does not apply with --resume" in err[1]
     assert {p: p.read_bytes() for p in run.rglob("*") if p.is_file()} == before
 
 
 def test_resume_with_the_same_options_and_an_eval_horizon_runs(trained, tmp_path):
     run = tmp_path / "run"
     shutil.copytree(trained, run)
-    resume = ["train", "--resume", str(run), "--epochs", "3", "--no-progress", "--device", "cpu"]
+    resume = [
+        "train",
+        "--resume",
+        "--out",
+        str(run),
+        "--epochs",
+        "3",
+        "--no-progress",
+        "--device",
+        "cpu",
+    ]
     assert main([*resume, "--dt", str(DT), "--eval-horizon", "20"]) == 0
     assert json.loads((run / "metrics.json").read_text())["rollout_horizon"] == 20
 

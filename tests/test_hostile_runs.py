@@ -499,7 +499,7 @@ def _commands(run: Path) -> dict[str, list[str]]:
             "4",
             "--no-progress",
         ],
-        "resume": ["train", "--resume", str(run), "--epochs", "2", "--no-progress"],
+        "resume": ["train", "--resume", "--out", str(run), "--epochs", "2", "--no-progress"],
     }
 
 

@@ -92,7 +92,7 @@ def test_kill_9_during_training_then_resume_gives_the_same_bytes(tmp_path, monke
     assert cut.returncode == -signal.SIGKILL, cut.stderr[-2000:]
     assert not (killed / "metrics.json").exists()  # it died before the end,
     assert torch.load(killed / "checkpoint.pt", weights_only=True)["epoch"] == 3  # after epoch 3
-    resume = ["train", "--resume", str(killed), "--threads", "1", "--device", "cpu"]
+    resume = ["train", "--resume", "--out", str(killed), "--threads", "1", "--device", "cpu"]
     monkeypatch.setattr("sys.argv", ["canonid", *resume, "--no-progress"])
     assert main([*resume, "--no-progress"]) == 0
 

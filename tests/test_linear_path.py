@@ -300,14 +300,14 @@ def test_cli_defaults_and_paper_options_are_recorded(tmp_path, capsys):
         main(["train", *common, "--model", "arx", "--no-linear", "--out", str(tmp_path / "x")]) == 1
     )
     assert "ARX is the affine path alone" in capsys.readouterr().err
-    # a bare --linear is the ARX start, --linear skip the skip, --no-linear none
-    forms = ((["--linear"], "arx"), (["--linear", "skip"], "skip"), (["--no-linear"], "off"))
+    # --linear arx is the ARX start, --linear skip the skip, --no-linear none
+    forms = ((["--linear", "arx"], "arx"), (["--linear", "skip"], "skip"), (["--no-linear"], "off"))
     for flags, path in forms:
         out = tmp_path / f"lin-{path}"
         argv = ["train", *common, "--model", "mlp", *flags, "--out", str(out)]
         assert main(argv) == 0
         assert json.loads((out / "config.json").read_text())["net"]["linear"] == path
-    resume = ["train", "--resume", str(tmp_path / "d"), "--no-progress", "--device", "cpu"]
+    resume = ["train", "--resume", "--out", str(tmp_path / "d"), "--no-progress", "--device", "cpu"]
     assert main([*resume, "--no-linear"]) == 1
     assert "--linear cannot change when resuming" in capsys.readouterr().err
 

@@ -49,7 +49,7 @@ def test_csv_with_an_experiment_column_equals_one_file_per_experiment(tmp_path, 
     rows = []
     for k, (u, y) in enumerate(experiments):
         for t in range(len(u)):
-            rows.append([f"run{k}", u[t, 0], y[t, 0], u[t, 1], t])
+            rows.append([f"run{k}", u[t, 0], y[t, 0], u[t, 1], t * 0.5])  # t in seconds
         write_csv(
             tmp_path / f"e{k}.csv",
             [[u[t, 0], u[t, 1], y[t, 0]] for t in range(len(u))],
@@ -249,13 +249,14 @@ def test_time_column_problems_are_named(tmp_path, caplog):
     (message,) = [r.getMessage() for r in caplog.records]
     assert f"{path}, line 7: time column 't' goes back from 2 to 0" in message
     assert "joined into one record" in message and "--experiment-column" in message
-    # uneven steps: refused without dt, read as every dt (with a warning) when dt is given
+    # uneven steps: refused, with dt given or not; switched off, the rows are samples every dt
     write_csv(path, [[t, 1.0, 2.0] for t in (0.0, 0.5, 1.0, 1.7)], ["time", "u", "y"])
-    with pytest.raises(DataError, match=r"time column 'time' is not uniformly spaced.*--dt"):
+    uneven = r"time column 'time' is not uniformly spaced \(steps from 0\.5 s to 0\.7 s\)"
+    with pytest.raises(DataError, match=uneven + r".*--time-column none --dt SECONDS\)$"):
         load_csv(path, inputs=["u"], outputs=["y"])
-    caplog.clear()
-    assert load_csv(path, inputs=["u"], outputs=["y"], dt=0.5).dt == 0.5
-    assert "not uniformly spaced" in caplog.records[0].getMessage()
+    with pytest.raises(DataError, match=uneven + r".*every dt = 0\.5 s as given.*none\)$"):
+        load_csv(path, inputs=["u"], outputs=["y"], dt=0.5)
+    assert load_csv(path, inputs=["u"], outputs=["y"], dt=0.5, time_column="").dt == 0.5
     # a repeated time; a named time column that contradicts the dt given
     write_csv(path, [[t, 1.0, 2.0] for t in (0.0, 0.5, 0.5)], ["time", "u", "y"])
     where = re.escape(str(path))
@@ -264,8 +265,44 @@ def test_time_column_problems_are_named(tmp_path, caplog):
     write_csv(path, [[t, 1.0, 2.0] for t in (0.0, 0.5, 1.0)], ["time", "u", "y"])
     with pytest.raises(DataError, match=r"dt = 2 s was given, but time column 'time' steps by"):
         load_csv(path, inputs=["u"], outputs=["y"], dt=2.0, time_column="time")
-    # found by its name only, the column may count samples: the dt given wins
-    assert load_csv(path, inputs=["u"], outputs=["y"], dt=2.0).dt == 2.0
+
+
+@pytest.mark.parametrize("named", [None, "time"])
+def test_a_dt_that_disagrees_with_the_time_column_is_refused(tmp_path, named):
+    """Found by its name or named, a time column decides: a dt given beside it must agree to
+    the relative tolerance, or the column is switched off (time_column="")."""
+    path = tmp_path / "timed.csv"
+    write_csv(path, [[t * 0.5, 1.0, 2.0] for t in range(6)], ["time", "u", "y"])
+    with pytest.raises(DataError) as refused:
+        load_csv(path, inputs=["u"], outputs=["y"], dt=0.1, time_column=named)
+    message = str(refused.value)
+    assert "dt = 0.1 s was given, but time column 'time' steps by 0.5 s" in message
+    assert message.endswith("samples every 0.1 s (CLI: --time-column none)"), message
+    assert "\n" not in message
+    # within the tolerance the dt given is kept; switched off, the rows are samples every dt
+    assert load_csv(path, inputs=["u"], outputs=["y"], dt=0.50001, time_column=named).dt == 0.50001
+    assert load_csv(path, inputs=["u"], outputs=["y"], dt=0.1, time_column="").dt == 0.1
+
+
+@pytest.mark.parametrize(("separator", "name"), [(";", "';'"), ("\t", "tabs")])
+def test_a_file_separated_otherwise_than_by_commas_is_named_so(tmp_path, separator, name):
+    path = tmp_path / "semi.csv"
+    rows = [
+        separator.join(["t", "u", "y"]),
+        *(separator.join([f"{k}", "1,5", "2,5"]) for k in range(4)),
+    ]
+    path.write_text("\n".join(rows) + "\n")
+    with pytest.raises(DataError) as refused:
+        load_csv(path, inputs=["u"], outputs=["y"])
+    message = str(refused.value)
+    assert (
+        message.startswith(f"{path}: the header ")
+        and f"is separated by {name}, not commas" in message
+    )
+    # a comma-separated header that lacks a column is named as before
+    write_csv(path, [[1.0, 2.0]], ["u", "y;z"])
+    with pytest.raises(DataError, match=r"no column\(s\) \['v'\]; the header has \['u', 'y;z'\]"):
+        load_csv(path, inputs=["u"], outputs=["v"], dt=1.0)
 
 
 def test_rows_of_one_experiment_must_be_contiguous(tmp_path):

@@ -87,7 +87,7 @@ def test_other_data_at_the_recorded_path_are_refused_in_one_line(trained, tmp_pa
     other = siso_dataset_file(tmp_path / "other", T=90)
     recipe["data"] = str(other)  # the recorded path now holds other data than the checksum
     (run / "run.json").write_text(json.dumps(recipe))
-    for argv in (["evaluate", str(run)], ["train", "--resume", str(run), "--no-progress"]):
+    for argv in (["evaluate", str(run)], ["train", "--resume", "--out", str(run), "--no-progress"]):
         err = one_line_error(capsys, main(argv), str(run / "run.json"), str(other), "--data FILE")
         assert "SHA-256" in err
     assert (run / "metrics.json").read_bytes() == before
@@ -232,7 +232,17 @@ def test_the_next_writer_removes_what_a_killed_checkpoint_write_left(trained, tm
     victim.write_text(VICTIM_TEXT)
     (run / ".weights.pt.abcdefgh.tmp").symlink_to(victim)  # not a plain file: left alone
     (run / "notes.tmp").write_text(VICTIM_TEXT)  # not the kernel's naming: left alone
-    argv = ["train", "--resume", str(run), "--epochs", "3", "--no-progress", "--threads", "1"]
+    argv = [
+        "train",
+        "--resume",
+        "--out",
+        str(run),
+        "--epochs",
+        "3",
+        "--no-progress",
+        "--threads",
+        "1",
+    ]
     assert main(argv) == 0, capsys.readouterr().err
     assert not stale.exists()
     assert (run / ".weights.pt.abcdefgh.tmp").is_symlink() and victim.read_text() == VICTIM_TEXT

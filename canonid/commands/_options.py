@@ -18,14 +18,16 @@ from canonid.jobs import resume_target
 from canonid.kernel.catalog import DEVICE_NAMES
 from canonid.kernel.errors import OptionError
 from canonid.kernel.io import FIGURE_FORMATS
-from canonid.profiles import DEFAULT_PROFILE, profile_names
+from canonid.profiles import DEFAULT_PROFILE, profile_names, profile_values
 
 __all__ = [
+    "Bare",
     "Items",
     "add_data_options",
     "add_device",
     "add_figure_format",
     "add_former",
+    "add_from_profile",
     "add_no_progress",
     "add_out",
     "add_profile",
@@ -60,7 +62,8 @@ def add_where(
         type=int,
         default=workers,
         metavar="N",
-        help=f"{jobs} on N local Dask worker processes (default: {alone})",
+        help=f"{jobs} on N local Dask worker processes (default"
+        f"{'' if workers is None else f' {workers}'}: {alone})",
     )
     where.add_argument(
         "--scheduler",
@@ -82,6 +85,14 @@ def add_profile(parser: Any, *, what: str, keep_none: bool = False) -> None:
     )
 
 
+def add_from_profile(parser: Any, flag: str, what: str, stage: str = "train", **kw: Any) -> None:
+    """``flag``, which overrides the key of the same name (its ``dest``) of the profile's
+    ``stage``: its help, ``what``, ends with every profile's value
+    (:func:`canonid.profiles.profile_values`)."""
+    key = kw.get("dest", flag[2:].replace("-", "_"))
+    parser.add_argument(flag, help=f"{what} ({profile_values(stage, key)})", **kw)
+
+
 def add_device(parser: Any, *, what: str, default: str | None = "auto") -> None:
     """``--device {auto,cpu,cuda}``: the torch device of ``what``."""
     if default == "auto":
@@ -100,13 +111,11 @@ def add_figure_format(parser: Any) -> None:
     )
 
 
-def add_threads(parser: Any, *, per: str = "") -> None:
-    """``--threads N``: torch's CPU threads (``per``: e.g. `` per job``)."""
+def add_threads(parser: Any, *, per: str = "", default: str = "torch's, one per core") -> None:
+    """``--threads N``: torch's CPU threads (``per``: e.g. `` per job``; ``default``: what the
+    command uses when it is not given)."""
     parser.add_argument(
-        "--threads",
-        type=int,
-        metavar="N",
-        help=f"torch CPU threads{per} (default: torch's, one per core)",
+        "--threads", type=int, metavar="N", help=f"torch CPU threads{per} (default: {default})"
     )
 
 
@@ -117,18 +126,30 @@ def add_no_progress(parser: Any, *, bars: str = "bar") -> None:
 
 def add_resume(parser: Any, *, what: str, path: bool = False) -> None:
     """``--resume``: continue the interrupted ``what`` in the folder of ``--out``; ``path``: the
-    former spelling ``--resume RUN`` (= ``--resume --out RUN``) is still read."""
+    former spelling ``--resume RUN`` (= ``--resume --out RUN``) is still read, with a warning."""
     text = f"continue the interrupted {what} in --out"
     if path:
         parser.add_argument(
             "--resume",
+            action=_FormerResume,
             nargs="?",
             const=True,
             metavar="RUN",
-            help=f"{text} (--resume RUN, the former spelling of --resume --out RUN, still works)",
+            help=f"{text} (the former --resume RUN, = --resume --out RUN, is read with a warning)",
         )
     else:
         parser.add_argument("--resume", action="store_true", help=text)
+
+
+class _FormerResume(argparse.Action):
+    """``--resume``, and its former spelling ``--resume RUN``: read for one release, with a
+    warning naming ``--resume --out RUN``."""
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        if values is not True:  # --resume RUN
+            use = f"use {option} --out {values}"
+            print(f"{parser.prog}: warning: {option} RUN is deprecated, {use}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
 
 
 def resumed(args: argparse.Namespace) -> dict[str, Path | None]:
@@ -157,13 +178,13 @@ def add_out(
     default: str,
     *,
     what: str = "output folder",
-    metavar: str | None = None,
     value: Path | None = None,
 ) -> None:
-    """``--out``: ``what`` (a folder) with the ``default`` the help states; ``value`` is the
-    default where the command has a fixed one, else ``None`` lets the application choose."""
+    """``--out DIR``, in every command: ``what`` (a folder) with the ``default`` the help states;
+    ``value`` is the default where the command has a fixed one, else ``None`` lets the
+    application choose."""
     parser.add_argument(
-        "--out", type=folder, metavar=metavar, default=value, help=f"{what} (default {default})"
+        "--out", type=folder, metavar="DIR", default=value, help=f"{what} (default {default})"
     )
 
 
@@ -178,6 +199,21 @@ class _Former(argparse.Action):
     def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
         print(f"{parser.prog}: warning: {option} is deprecated, use {self.new}", file=sys.stderr)
         setattr(namespace, self.dest, True if self.nargs == 0 else values)
+
+
+class Bare(argparse.Action):
+    """An option that takes a value and that a former release also took alone (meaning
+    ``bare``): still read so for one release, with a warning; ``--help`` shows it with a value."""
+
+    def __init__(self, *args: Any, bare: str, **kwargs: Any) -> None:
+        self.former_bare = bare  # canonid.cli.HelpFormatter shows no [ ] around the value
+        super().__init__(*args, **{**kwargs, "nargs": "?"})
+
+    def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
+        if values is None:
+            use = f"use {option} {self.former_bare}"
+            print(f"{parser.prog}: warning: {option} alone is deprecated, {use}", file=sys.stderr)
+        setattr(namespace, self.dest, self.former_bare if values is None else values)
 
 
 def add_former(parser: Any, old: str, new: str) -> None:

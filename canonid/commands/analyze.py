@@ -39,16 +39,15 @@ def register(p: argparse.ArgumentParser) -> None:
         metavar="L,...",
         help="windows ℓ, e.g. 2,5,10, or a range A-B, e.g. 1-10 (see --window)",
     )
-    p.add_argument(
-        "--trials", type=int, default=1000, help="Monte-Carlo trials per window (default 1000)"
-    )
+    p.add_argument("--trials", type=int, default=1000, help="Monte-Carlo trials per window")
     p.add_argument(
         "--budget",
         type=float,
         default=20.0,
         metavar="SECONDS",
-        help="wall-clock limit of each stage (default 20): each certified branch-and-bound "
-        "search and each sampled bound, checked between steps; loading the run not counted",
+        help="wall-clock limit of each stage (default %(default)g): each certified "
+        "branch-and-bound search and each sampled bound, checked between steps; loading the run "
+        "not counted",
     )
     p.add_argument(
         "--boxes",
@@ -68,12 +67,8 @@ def register(p: argparse.ArgumentParser) -> None:
             metavar="BOX",
             help=f"{what} set of SYSTEM, e.g. {example} (default: the system's {name})",
         )
-    p.add_argument(
-        "--tol", type=float, default=0.05, help="relative tolerance of γ searches (default 0.05)"
-    )
-    p.add_argument(
-        "--seed", type=int, default=0, help="seed of the sampled bounds and trials (default 0)"
-    )
+    p.add_argument("--tol", type=float, default=0.05, help="relative tolerance of γ searches")
+    p.add_argument("--seed", type=int, default=0, help="seed of the sampled bounds and trials")
     p.add_argument(
         "--run",
         type=Path,

@@ -19,7 +19,7 @@ from canonid.benchmark import (
     train_args,
 )
 from canonid.commands import _options, train
-from canonid.kernel.catalog import MODEL_NAMES
+from canonid.kernel.catalog import DEFAULT_MODEL, DEFAULT_VAL_FRACTION, MODEL_NAMES, help_value
 from canonid.kernel.errors import OptionError
 from canonid.training import TrainRequest
 
@@ -42,7 +42,7 @@ def register(p: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="folder of the benchmark files (default ~/.nonlinear_benchmarks, the package's cache)",
     )
-    p.add_argument("--model", choices=MODEL_NAMES, help="model (default mlp)")
+    p.add_argument("--model", choices=MODEL_NAMES, help=f"model (default {DEFAULT_MODEL})")
     p.add_argument(
         "--window",
         metavar="L",
@@ -51,7 +51,7 @@ def register(p: argparse.ArgumentParser) -> None:
         "canonid train",
     )
     _options.add_profile(p, what="training budget", keep_none=True)
-    _options.add_out(p, "runs/NAME-MODEL", what="run folder", metavar="RUN")
+    _options.add_out(p, "runs/NAME-MODEL", what="run folder")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     _options.add_threads(p)
     _options.add_figure_format(p)
@@ -59,7 +59,8 @@ def register(p: argparse.ArgumentParser) -> None:
         "--val-fraction",
         type=float,
         metavar="F",
-        help="share at the end of every training record held out for validation (default 0.2)",
+        help="share at the end of every training record held out for validation (default "
+        f"{help_value(DEFAULT_VAL_FRACTION)})",
     )
     p.add_argument(
         "--train-args",

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from canonid.commands import _options
+from canonid.kernel.catalog import EVAL_HORIZON
 from canonid.residual_check import JSON_HELP, RESIDUALS_HELP, ResidualRequest, check_residuals
 from canonid.scoring import EvaluateRequest, score_run
 
@@ -35,13 +36,11 @@ def register(p: argparse.ArgumentParser) -> None:
         dest="horizon",
         type=int,
         metavar="H",
-        help="rollout length of the evaluation (default 100, or what the longest record holds "
-        "after ℓ)",
+        help=f"rollout length of the evaluation (default {EVAL_HORIZON}, or what the longest "
+        "record holds after ℓ)",
     )
     _options.add_former(p, "--horizon", "--eval-horizon")
-    p.add_argument(
-        "--stride", type=int, default=1, metavar="N", help="stride of rollout starts (default 1)"
-    )
+    p.add_argument("--stride", type=int, default=1, metavar="N", help="stride of rollout starts")
     p.add_argument(
         "--n-init",
         type=int,
@@ -51,6 +50,7 @@ def register(p: argparse.ArgumentParser) -> None:
     _options.add_figure_format(p)
     p.add_argument("--residuals", nargs="?", const=10, type=int, metavar="K", help=RESIDUALS_HELP)
     p.add_argument("--json", type=Path, metavar="FILE", help=JSON_HELP)
+    _options.add_no_progress(p, bars="bar (there is none here; every command takes the option)")
     _options.add_data_options(p, recorded=True)
 
 

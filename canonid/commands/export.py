@@ -24,6 +24,7 @@ def register(p: argparse.ArgumentParser) -> None:
     _options.add_run_data(
         p, "data for the sets X, U, W (default: the training data named in the first RUN/run.json)"
     )
+    _options.add_no_progress(p, bars="bar (there is none here; every command takes the option)")
 
 
 def run(args: argparse.Namespace) -> int:

@@ -21,8 +21,8 @@ def register(p: argparse.ArgumentParser) -> None:
         "system",
         help=f"the scenario: a system or a named design ({', '.join(scenario_names())})",
     )
-    _options.add_out(p, "runs/data/SYSTEM-sSEED", metavar="DIR")
-    p.add_argument("--seed", type=int, default=0, help="root seed (default 0)")
+    _options.add_out(p, "runs/data/SYSTEM-sSEED")
+    p.add_argument("--seed", type=int, default=0, help="root seed")
     for split in SPLITS:
         p.add_argument(
             f"--n-{split}",

@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from canonid.commands import _options
+from canonid.kernel.catalog import COMPRESSION_RATES, help_value
 
 
 def _rate(text: str) -> float:
@@ -34,22 +35,15 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     mode.add_argument("--sweep", action="store_true", help="the compression study")
     _options.add_profile(p, what="budget")
-    _options.add_out(p, "RUN-r<rate> beside RUN; runs/compression-sweep", metavar="DIR")
-    p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
-    p.add_argument(
-        "--linear-skip",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help=(
-            "E and D with an affine path started from the principal components of the training "
-            "windows (default: the profile's; quick on, paper off = the paper's plain MLPs)"
-        ),
-    )
-    p.add_argument(
-        "--seed", type=int, default=0, help="seed (default 0; --sweep: the first of --seeds)"
-    )
+    _options.add_out(p, "RUN-r<rate> beside RUN; runs/compression-sweep")
+    _options.add_from_profile(p, "--epochs", "auto-encoder epochs", "reduce", type=int, metavar="N")
+    skip = "E and D with an affine path started from the principal components of the training "
+    skip += "windows; off: the paper's plain MLPs"
+    kind = argparse.BooleanOptionalAction
+    _options.add_from_profile(p, "--linear-skip", skip, "reduce", action=kind, default=None)
+    p.add_argument("--seed", type=int, default=0, help="seed (--sweep: the first of --seeds)")
     _options.add_device(p, what="torch device")
-    _options.add_threads(p, per=" per job")
+    _options.add_threads(p, per=" per job", default="torch's, one per core; 1 with --sweep")
     _options.add_resume(p, what="reduction")
     _options.add_figure_format(p)
     g = p.add_argument_group("compression study (--sweep)")
@@ -59,9 +53,9 @@ def register(p: argparse.ArgumentParser) -> None:
         nargs="+",
         action=_options.Items,
         metavar="R,...",
-        help="rates, e.g. 0.3,0.6 (default 0.15,0.30,…,0.90)",
+        help=f"rates, e.g. 0.3,0.6 (default {help_value(COMPRESSION_RATES)})",
     )
-    g.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per rate (default 3)")
+    g.add_argument("--seeds", type=int, default=3, metavar="N", help="seeds per rate")
     _options.add_where(g, jobs="run the reductions", sees="RUN and --out")
     _options.add_no_progress(p)
 

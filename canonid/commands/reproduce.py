@@ -7,6 +7,7 @@ import argparse
 from pathlib import Path
 
 from canonid.commands import _options
+from canonid.profiles import profile_values
 
 
 def register(p: argparse.ArgumentParser) -> None:
@@ -14,7 +15,7 @@ def register(p: argparse.ArgumentParser) -> None:
         "Reproduce the paper: generate (or reuse) the datasets, train and score every "
         "(system, model, window, seed) of Table 1, analyse α_ℓ, γ_f and Proposition 2, check "
         "the learned canonical models, run the compression study, and write one report "
-        "(OUT/report.md and OUT/report.html) that sets each number beside the paper's. "
+        "(DIR/report.md and DIR/report.html) that sets each number beside the paper's. "
         "Every job runs serially, on --workers local Dask processes or on a Dask cluster "
         "(--scheduler); --resume keeps every finished job."
     )
@@ -28,16 +29,16 @@ def register(p: argparse.ArgumentParser) -> None:
             f"--{name}",
             type=_options.comma_list(item, what),
             metavar=f"{what},...",
-            help=f"{example} (default: the profile's)",
+            help=f"{example} ({profile_values('reproduce', name)})",
         )
     p.add_argument(
         "--seeds",
         type=int,
         metavar="N",
-        help="training seeds per cell, 0 … N−1 (default: the profile's)",
+        help=f"training seeds per cell, 0 … N−1 ({profile_values('reproduce', 'seeds')})",
     )
     _options.add_out(p, "runs/reproduce", value=Path("runs/reproduce"))
-    _options.add_where(p, jobs="run the jobs", sees="OUT")
+    _options.add_where(p, jobs="run the jobs", sees="--out")
     _options.add_resume(p, what="reproduction")
     _options.add_device(p, what="torch device of the training jobs")
     _options.add_figure_format(p)

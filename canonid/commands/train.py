@@ -8,9 +8,14 @@ import argparse
 from canonid.commands import _options
 from canonid.kernel.catalog import (
     ACTIVATION_NAMES,
+    DEFAULT_MODEL,
+    DEFAULT_VAL_FRACTION,
+    EVAL_HORIZON,
     LINEAR_PATHS,
     MODEL_NAMES,
     PAPER_NET_OPTIONS,
+    help_value,
+    model_label,
     preset_word,
 )
 from canonid.profiles import PROFILES
@@ -40,7 +45,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--model",
         choices=MODEL_NAMES,
-        help="model (default mlp, Ours (MLP); arx: the linear baseline, least squares only)",
+        help=f"model (default {DEFAULT_MODEL}, {model_label(DEFAULT_MODEL)}; arx: the linear "
+        "baseline, least squares only)",
     )
     p.add_argument(
         "--window",
@@ -61,33 +67,27 @@ def register(p: argparse.ArgumentParser) -> None:
         "window the data allow",
     )
     _options.add_profile(p, what="training budget", keep_none=True)
-    p.add_argument("--epochs", type=int, metavar="N", help="override the profile's epochs")
-    p.add_argument("--lr", type=float, help="override the profile's learning rate")
+    _options.add_from_profile(p, "--epochs", "training epochs", type=int, metavar="N")
+    _options.add_from_profile(p, "--lr", "Adam learning rate at the schedule's start", type=float)
     p.add_argument(
         "--weight-decay",
         metavar="W",
         help="Adam weight decay >= 0 (default quick "
         f"{PROFILES['quick']['train']['weight_decay']:g})",
     )
-    p.add_argument("--batch-size", type=int, metavar="B", help="override the profile's batch")
+    _options.add_from_profile(p, "--batch-size", "sub-windows per batch", type=int, metavar="B")
     p.add_argument("--train-horizon", dest="horizon", type=int, metavar="H", help=HORIZON_HELP)
     _options.add_former(p, "--horizon", "--train-horizon")
-    p.add_argument(
-        "--windows-per-epoch",
-        type=int,
-        metavar="N",
-        help="override the profile's random sub-windows per epoch (drawn over all trajectories; "
-        "an epoch is ⌈N / batch⌉ optimiser steps however the data are cut)",
-    )
+    per_epoch = "random sub-windows per epoch, over all trajectories: ⌈N / batch⌉ optimiser"
+    per_epoch += " steps however the data are cut"
+    _options.add_from_profile(p, "--windows-per-epoch", per_epoch, type=int, metavar="N")
     p.add_argument("--seed", type=int, help="seed of weights and sub-windows (default 0)")
     _options.add_device(
         p,
         what="training device (default auto; a resumed run keeps its recorded device)",
         default=None,
     )
-    _options.add_out(
-        p, "runs/MODEL-lL, runs/MODEL-lauto without --window", what="run folder", metavar="RUN"
-    )
+    _options.add_out(p, "runs/MODEL-lL, runs/MODEL-lauto without --window", what="run folder")
     _options.add_resume(p, what="training run", path=True)
     p.add_argument(
         "--val",
@@ -97,7 +97,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--val-fraction",
         type=float,
-        help="share of DATA held out for validation when it has no val split (default 0.2)",
+        help="share of DATA held out for validation when it has no val split (default "
+        f"{help_value(DEFAULT_VAL_FRACTION)})",
     )
     p.add_argument(
         "--hidden",
@@ -131,21 +132,17 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--linear",
-        nargs="?",
-        const="arx",
+        action=_options.Bare,
+        bare="arx",
         choices=LINEAR_PATHS,
         help="canonical models' affine path L·[z; u] + c beside the network: skip, a linear "
-        "skip started at zero and trained with the network; arx (also a bare --linear), started "
+        "skip started at zero and trained with the network; arx, started "
         "at the least-squares ARX fit with the network's output layer at zero; off (default: "
         f"{preset_word('mlp', 'linear')} for Ours (MLP), off for the others; "
         "ARX is the affine path alone)",
     )
     p.add_argument(
-        "--no-linear",
-        dest="linear",
-        action="store_const",
-        const="off",
-        help="no affine path (--linear off)",
+        "--no-linear", dest="linear", action="store_const", const="off", help="no affine path"
     )
     p.add_argument("--cubic", metavar="K|auto", help=CUBIC_HELP)
     p.add_argument(
@@ -158,8 +155,8 @@ def register(p: argparse.ArgumentParser) -> None:
         "--eval-horizon",
         type=int,
         metavar="H",
-        help="rollout length of the evaluation after training (default 100, or the final training "
-        "rollout length when that is shorter, or what the scored records hold)",
+        help=f"rollout length of the evaluation after training (default {EVAL_HORIZON}, or the "
+        "final training rollout length when that is shorter, or what the scored records hold)",
     )
     p.add_argument("--members", type=int, metavar="K", help=MEMBERS_HELP)
     _options.add_figure_format(p)
@@ -168,7 +165,7 @@ def register(p: argparse.ArgumentParser) -> None:
         p,
         jobs="train the search's candidates",
         alone="side by side, one process of one thread per core (--threads)",
-        sees="DATA and RUN",
+        sees="DATA and --out",
         workers=None,
     )
     _options.add_no_progress(p)

@@ -20,8 +20,10 @@ INTRO = """\
 # Command line
 
 Every subcommand has `--help`; this page is generated from the same parsers when the site is
-built, so it lists every flag of the installed version. Errors print one line on stderr and exit
-non-zero; `canonid --debug COMMAND ...` shows the traceback instead. `python -m canonid` is the
+built, so it lists every flag of the installed version. Options are spelt out in full (`--epoch`
+is not `--epochs`). A mistake on the command line (a bad choice or value, a missing or unknown
+argument) prints one line on stderr and exits 2; other errors print one line and exit 1, and
+`canonid --debug COMMAND ...` shows the traceback instead. `python -m canonid` is the
 same program as `canonid`. Every command that writes figures takes `--figure-format png|pdf|svg`
 (default png; pdf and svg are vector graphics for a paper).
 """
