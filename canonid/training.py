@@ -522,7 +522,7 @@ def search_axes(
     elif window is None or window == AUTO:
         windows = windows_up_to(max_window, "max_window")
     else:
-        windows = tuple(int(w) for w in window)  # type: ignore[union-attr]
+        windows = tuple(int(w) for w in window)
     given = (net_options or {}).get("cubic", cubic)
     if isinstance(given, int):
         cubics: tuple[int, ...] = (given,)
