@@ -176,7 +176,7 @@ def test_simulation_loss_is_the_field_s_simulation_score(tmp_path):
     assert ours == pytest.approx(float(errors.mean()), rel=1e-4)
 
 
-def test_train_reports_validation_only_and_resumes_a_killed_search(tmp_path):
+def test_train_reports_validation_only_and_resumes_a_killed_search(tmp_path, capsys):
     """``canonid train`` without --cubic searches; its output and files hold no test score; a
     search killed mid-rung and resumed gives the bytes of an uninterrupted one."""
     from canonid.cli import main
@@ -202,11 +202,15 @@ def test_train_reports_validation_only_and_resumes_a_killed_search(tmp_path):
         "--no-progress",
     ]
     assert main([*argv, "--out", str(tmp_path / "whole")]) == 0
+    printed = capsys.readouterr()
+    assert "[val]" in printed.out and "[test]" not in printed.out + printed.err
+    assert "l4-c16" in printed.out and "l4 " in printed.out  # the candidate table
     whole = tmp_path / "whole"
     metrics = json.loads((whole / "metrics.json").read_text())
     assert metrics["data"]["split"] == "val"
     texts = [p.read_text(errors="ignore") for p in whole.rglob("*.json")]
     assert not any('"split": "test"' in t for t in texts)
+    assert not (whole / "test-ledger.jsonl").exists()  # train read no test split
     search = Search.read(whole)
     assert search.chosen is not None and len(search.candidates) == 2
 
