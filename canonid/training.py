@@ -621,6 +621,7 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe, tuple[Candidate, ...]
         raise OptionError(
             "--hidden auto needs the window: give --window L or a list (e.g. --window 5,10,20)"
         )
+    _check_sizes(request)
     if not _searched(request):
         recipe = _recipe(request)
         run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
@@ -635,6 +636,28 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe, tuple[Candidate, ...]
     run_dir = _candidates_folder(request, base)
     check_new_run(run_dir)
     return run_dir, base, _table(request, base)
+
+
+def _check_sizes(request: TrainRequest) -> None:
+    """Refuse ``--hidden`` widths and ``--cubic`` units whose network would pass the memory
+    ceiling (:func:`~canonid.kernel.catalog.check_network_memory`), before the data are read:
+    counted at the least the data can make it, one input, one output and the smallest window."""
+    from canonid.kernel.catalog import check_network_memory
+
+    widths = request.hidden if isinstance(request.hidden, tuple) else ()
+    cubic = request.cubic if isinstance(request.cubic, int) else 0
+    if not widths and not cubic:
+        return
+    if isinstance(request.window, int):
+        window = request.window
+    else:
+        window = min(request.window if isinstance(request.window, tuple) else WINDOW_CANDIDATES)
+    given = " ".join(
+        f"{flag} {text}"
+        for flag, text in (("--hidden", ",".join(map(str, widths))), ("--cubic", str(cubic)))
+        if text not in ("", "0")
+    )
+    check_network_memory(widths, cubic, 2 * window, 1, given=given)
 
 
 def check_request(request: TrainRequest) -> Path:

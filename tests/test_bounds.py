@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import pytest
 from cli_helpers import one_line_error
 
 from canonid.cli import main
@@ -28,3 +29,40 @@ def test_a_constant_output_column_is_refused_before_the_run_folder_is_written(tm
     argv = ["train", str(data), *CSV, *TINY, "--window", "2", "--cubic", "0", "--out", str(out)]
     one_line_error(capsys, main(argv), "flat.csv", "output column 'y' is constant")
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    ("sizes", "needle"),
+    [
+        (["--hidden", "1000000000"], "--hidden 1000000000: the network would need at least"),
+        (["--hidden", "100000,100000"], "--hidden 100000,100000: the network would need at least"),
+        (["--cubic", "1000000000"], "--cubic 1000000000: the network would need at least"),
+    ],
+)
+def test_a_network_past_the_memory_ceiling_is_refused_before_any_allocation(
+    sizes, needle, tmp_path, capsys, monkeypatch
+):
+    monkeypatch.delenv("CANONID_MAX_NETWORK_GB", raising=False)
+    data = _csv(tmp_path / "ok.csv")
+    out = tmp_path / "run"
+    argv = ["train", str(data), *CSV, *TINY, "--window", "2", *sizes, "--out", str(out)]
+    line = one_line_error(capsys, main(argv), needle, "ceiling of 4 GB", "CANONID_MAX_NETWORK_GB")
+    assert " GB to train" in line
+    assert not out.exists()
+
+
+def test_the_memory_ceiling_can_be_lowered_and_raised(tmp_path, capsys, monkeypatch):
+    from canonid.kernel.catalog import check_network_memory, network_bytes
+
+    # one line of rule: 12 bytes (float32 weight, Adam's two moments) per parameter
+    assert network_bytes([3], 2, 4, 1) == 12 * ((4 + 1) * 3 + (3 + 1) * 1 + 2 * (4 + 1 + 1))
+    monkeypatch.setenv("CANONID_MAX_NETWORK_GB", "1e-6")
+    data = _csv(tmp_path / "ok.csv")
+    out = tmp_path / "run"
+    argv = ["train", str(data), *CSV, *TINY, "--window", "2", "--hidden", "64,64"]
+    one_line_error(capsys, main([*argv, "--out", str(out)]), "ceiling of 1e-06 GB")
+    assert not out.exists()
+    monkeypatch.setenv("CANONID_MAX_NETWORK_GB", "1000")
+    check_network_memory([100000, 100000], 0, 2, 1, given="--hidden 100000,100000")  # 120 GB
+    monkeypatch.setenv("CANONID_MAX_NETWORK_GB", "lots")
+    one_line_error(capsys, main([*argv, "--out", str(out)]), "CANONID_MAX_NETWORK_GB: expected")
