@@ -37,8 +37,10 @@ __all__ = [
     "INFO_TRAINING_RANGE",
     "INFO_UNVALIDATED",
     "LINEAR_PATHS",
+    "MAX_LR",
     "MAX_NETWORK_ENV",
     "MAX_NETWORK_GB",
+    "MAX_WINDOWS_PER_EPOCH",
     "MODEL_LABELS",
     "MODEL_NAMES",
     "PAPER_NET_OPTIONS",
@@ -151,6 +153,13 @@ def preset_word(model: str, option: str) -> str:
     :data:`DEFAULT_NET_OPTIONS`."""
     return help_value(DEFAULT_NET_OPTIONS[model][option])
 
+
+#: the largest learning rate (``--lr``) a run may start from: Adam's steps scale with it, and
+#: far above 1 the weights leave float32's range in a few steps
+MAX_LR = 10.0
+#: the most sub-windows an epoch may draw (``--windows-per-epoch``): their start times are held
+#: in memory, 8 bytes each (10⁷: 80 MB)
+MAX_WINDOWS_PER_EPOCH = 10_000_000
 
 #: the default ceiling, in GB (10⁹ bytes), of the memory a network to be trained may need
 #: (:func:`check_network_memory`); the environment variable :data:`MAX_NETWORK_ENV` overrides it

@@ -66,3 +66,31 @@ def test_the_memory_ceiling_can_be_lowered_and_raised(tmp_path, capsys, monkeypa
     check_network_memory([100000, 100000], 0, 2, 1, given="--hidden 100000,100000")  # 120 GB
     monkeypatch.setenv("CANONID_MAX_NETWORK_GB", "lots")
     one_line_error(capsys, main([*argv, "--out", str(out)]), "CANONID_MAX_NETWORK_GB: expected")
+
+
+@pytest.mark.parametrize(
+    ("option", "needle"),
+    [
+        (["--windows-per-epoch", "1000000000000"], "--windows-per-epoch must be an integer from 1"),
+        (["--windows-per-epoch", "10000001"], "--windows-per-epoch must be an integer from 1"),
+        (["--lr", "1e308"], "--lr must be a number in (0, 10], got 1e+308"),
+        (["--lr", "11"], "--lr must be a number in (0, 10]"),
+    ],
+)
+def test_training_options_out_of_range_leave_nothing_behind(option, needle, tmp_path, capsys):
+    data = _csv(tmp_path / "ok.csv")
+    out = tmp_path / "run"
+    argv = ["train", str(data), *CSV, *TINY, "--window", "2", "--cubic", "0", *option]
+    one_line_error(capsys, main([*argv, "--out", str(out)]), needle)
+    assert not out.exists()
+
+
+def test_train_options_hold_the_same_maxima_for_the_api():
+    from canonid.kernel.errors import OptionError
+    from canonid.learning import TrainOptions
+
+    with pytest.raises(OptionError, match="lr must be at most 10"):
+        TrainOptions(lr=1e308)
+    with pytest.raises(OptionError, match="windows_per_epoch must be at most 1e"):
+        TrainOptions(windows_per_epoch=10**12)
+    TrainOptions(lr=10.0, windows_per_epoch=10_000_000)
