@@ -94,3 +94,42 @@ def test_train_options_hold_the_same_maxima_for_the_api():
     with pytest.raises(OptionError, match="windows_per_epoch must be at most 1e"):
         TrainOptions(windows_per_epoch=10**12)
     TrainOptions(lr=10.0, windows_per_epoch=10_000_000)
+
+
+def test_a_subnormal_or_absurd_sampling_time_is_refused_in_one_line(tmp_path, capsys):
+    import numpy as np
+
+    data = _csv(tmp_path / "ok.csv")
+    out = tmp_path / "run"
+    train = ["train", "--inputs", "u", "--outputs", "y", *TINY, "--window", "2", "--cubic", "0"]
+    for dt in ("1e-320", "1e12"):
+        argv = [*train[:1], str(data), *train[1:], "--dt", dt, "--out", str(out)]
+        one_line_error(capsys, main(argv), "ok.csv", "sampling time dt must be from 1e-09 to")
+        assert not out.exists()
+    # a time column that steps by a subnormal
+    timed = tmp_path / "timed.csv"
+    rows = "".join(f"{k * 1e-320!r},{math.sin(k)!r},{math.cos(k)!r}\n" for k in range(60))
+    timed.write_text("t,u,y\n" + rows, encoding="utf-8")
+    argv = [*train[:1], str(timed), *train[1:], "--out", str(out)]
+    one_line_error(capsys, main(argv), "timed.csv", "time column 't'", "sampling time dt must")
+    # an .npz that stores one
+    npz = tmp_path / "data.npz"
+    np.savez(npz, u=np.sin(np.arange(60.0))[:, None], y=np.cos(np.arange(60.0))[:, None], dt=1e-320)
+    argv = ["train", str(npz), *TINY, "--window", "2", "--cubic", "0", "--out", str(out)]
+    one_line_error(capsys, main(argv), "data.npz", "sampling time dt must be from")
+    assert not out.exists()
+
+
+def test_a_benchmark_file_with_a_subnormal_sampling_time_is_refused(tmp_path):
+    import scipy.io
+
+    from canonid.datagen.benchmarks import benchmark, load_benchmark
+    from canonid.kernel.errors import DataError
+
+    folder = tmp_path / benchmark("cascaded-tanks").folder
+    folder.mkdir(parents=True)
+    col = [[0.1 * k] for k in range(1024)]
+    mat = {"uEst": col, "yEst": col, "uVal": col, "yVal": col, "Ts": [[1e-320]]}
+    scipy.io.savemat(folder / "dataBenchmark.mat", mat)
+    with pytest.raises(DataError, match=r"dataBenchmark\.mat: sampling time dt must be from"):
+        load_benchmark("cascaded-tanks", tmp_path)
