@@ -133,3 +133,11 @@ def test_a_benchmark_file_with_a_subnormal_sampling_time_is_refused(tmp_path):
     scipy.io.savemat(folder / "dataBenchmark.mat", mat)
     with pytest.raises(DataError, match=r"dataBenchmark\.mat: sampling time dt must be from"):
         load_benchmark("cascaded-tanks", tmp_path)
+
+
+@pytest.mark.parametrize("budget", ["1e308", "inf", "nan", "0", "86401"])
+def test_an_analysis_budget_past_its_finite_maximum_is_refused(budget, tmp_path, capsys):
+    out = tmp_path / "a"
+    argv = ["analyze", "linear", "--window", "2", "--budget", budget, "--out", str(out)]
+    one_line_error(capsys, main(argv), "--budget must be a number of seconds in (0, 86400]")
+    assert not out.exists()
