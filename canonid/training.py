@@ -623,15 +623,16 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe, tuple[Candidate, ...]
         raise OptionError(
             "--hidden auto needs the window: give --window L or a list (e.g. --window 5,10,20)"
         )
-    _check_sizes(request)
     if not _searched(request):
         recipe = _recipe(request)
+        _check_sizes(request)
         run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
         check_new_run(run_dir)
         if request.members is not None:
             check_members(request.members, recipe.model, mode="run")
         return run_dir, recipe, None
     base = _candidates_base(request)
+    _check_sizes(request)
     if request.members is not None:  # a list of windows or of widths: members would not fit
         listed = isinstance(request.window, tuple) or request.hidden == AUTO
         check_members(request.members, base.model, mode="select" if listed else "search")
