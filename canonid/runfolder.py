@@ -46,6 +46,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, NoReturn, TypeAlias, TypeVar
 
+import numpy as np
+
 from canonid.coverage import INFO_KEY as COVERAGE_KEY
 from canonid.coverage import (
     VALIDATION_KEY,
@@ -550,6 +552,8 @@ class RunEvaluation:
         }
 
 
+#: an output column whose range is at most this share of its magnitude (or 1) is constant
+_FLAT = 1e-12
 #: the scores :func:`canonid.scoring.metrics_table` prints, each with its per-output list
 _PRINTED_SCORES = ("rollout_mse", "rmse", "nrmse", "fit_percent")
 
@@ -679,6 +683,19 @@ def load_splits(
     dataset, scoring = run_data(recipe)
     train, val = list(dataset.split("train")), list(dataset.split("val"))
     return dataset, train, val, scoring, scoring_source(recipe, scoring)
+
+
+def check_outputs_vary(path: str, dataset: Dataset, train: Sequence[Trajectory]) -> None:
+    """Refuse training data ``train`` (of the file ``path``) in which an output column never
+    changes: there is nothing to identify, and its spread, 0, cannot scale it."""
+    y = np.concatenate([t.y for t in train])
+    for k, name in enumerate(dataset.output_names):
+        column = y[:, k]
+        if column.size and float(np.ptp(column)) <= _FLAT * max(1.0, float(np.abs(column).max())):
+            raise DataError(
+                f"{path}: output column {name!r} is constant ({float(column[0]):g}) over the "
+                "training records: expected an output that varies (there is nothing to identify)"
+            )
 
 
 def scoring_source(recipe: Recipe, split: str) -> str:
@@ -1030,6 +1047,7 @@ def train_run(
     """
     t0, cpu0 = time.perf_counter(), time.process_time()
     dataset, train, val, _, _ = load_splits(recipe)  # the loader's checks first
+    check_outputs_vary(recipe.data, dataset, train)
     if not resume:
         recipe = recipe.pinned()
     table = _table(recipe, run_dir, table, resume=resume)

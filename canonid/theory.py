@@ -30,7 +30,18 @@ if TYPE_CHECKING:
     from canonid.analysis.report import AnalysisReport
     from canonid.models.sets import Box
 
-__all__ = ["AnalysisOutcome", "AnalyzeRequest", "parse_box", "parse_windows", "run_analysis"]
+__all__ = [
+    "MAX_BUDGET",
+    "AnalysisOutcome",
+    "AnalyzeRequest",
+    "parse_box",
+    "parse_windows",
+    "run_analysis",
+]
+
+#: the largest ``--budget``, in seconds (one day): a stage's wall-clock limit must be one a user
+#: can wait for
+MAX_BUDGET = 86_400.0
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -204,9 +215,10 @@ def _check_numbers(request: AnalyzeRequest) -> Budget:
 
     if request.trials < 0:
         raise OptionError(f"--trials must be >= 0, got {request.trials}")
-    if not 0 < request.budget < math.inf:  # NaN fails too
+    if not 0 < request.budget <= MAX_BUDGET:  # NaN fails too
         raise OptionError(
-            f"--budget must be a positive finite number of seconds, got {request.budget}"
+            f"--budget must be a number of seconds in (0, {MAX_BUDGET:g}] (one day), got "
+            f"{request.budget:g}"
         )
     if not 0 < request.tol < math.inf:
         raise OptionError(f"--tol must be a positive finite relative tolerance, got {request.tol}")

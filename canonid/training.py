@@ -19,6 +19,7 @@ loads when :func:`train` runs.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -596,6 +597,7 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe, tuple[Candidate, ...]
     for flag, value in (("--threads", request.threads), ("--eval-horizon", request.eval_horizon)):
         if value is not None and value < 1:
             raise OptionError(f"{flag} must be an integer >= 1, got {value}")
+    _check_ranges(request)
     if request.workers is not None and request.workers < 0:
         raise OptionError(f"--workers must be an integer >= 0, got {request.workers}")
     if request.workers is not None and request.scheduler is not None:
@@ -623,18 +625,58 @@ def _plan(request: TrainRequest) -> tuple[Path, RunRecipe, tuple[Candidate, ...]
         )
     if not _searched(request):
         recipe = _recipe(request)
+        _check_sizes(request)
         run_dir = request.out or Path("runs") / f"{recipe.model}-l{recipe.window}"
         check_new_run(run_dir)
         if request.members is not None:
             check_members(request.members, recipe.model, mode="run")
         return run_dir, recipe, None
     base = _candidates_base(request)
+    _check_sizes(request)
     if request.members is not None:  # a list of windows or of widths: members would not fit
         listed = isinstance(request.window, tuple) or request.hidden == AUTO
         check_members(request.members, base.model, mode="select" if listed else "search")
     run_dir = _candidates_folder(request, base)
     check_new_run(run_dir)
     return run_dir, base, _table(request, base)
+
+
+def _check_ranges(request: TrainRequest) -> None:
+    """Refuse ``--lr`` and ``--windows-per-epoch`` outside their documented ranges, naming the
+    option, before anything is read or written (:class:`~canonid.learning.TrainOptions` checks
+    the same bounds for the API)."""
+    from canonid.kernel.catalog import MAX_LR, MAX_WINDOWS_PER_EPOCH
+
+    lr, per_epoch = request.lr, request.windows_per_epoch
+    if lr is not None and not (math.isfinite(lr) and 0 < lr <= MAX_LR):
+        raise OptionError(f"--lr must be a number in (0, {MAX_LR:g}], got {lr:g}")
+    if per_epoch is not None and not 1 <= per_epoch <= MAX_WINDOWS_PER_EPOCH:
+        raise OptionError(
+            f"--windows-per-epoch must be an integer from 1 to {MAX_WINDOWS_PER_EPOCH:,}, got "
+            f"{per_epoch:,}"
+        )
+
+
+def _check_sizes(request: TrainRequest) -> None:
+    """Refuse ``--hidden`` widths and ``--cubic`` units whose network would pass the memory
+    ceiling (:func:`~canonid.kernel.catalog.check_network_memory`), before the data are read:
+    counted at the least the data can make it, one input, one output and the smallest window."""
+    from canonid.kernel.catalog import check_network_memory
+
+    widths = request.hidden if isinstance(request.hidden, tuple) else ()
+    cubic = request.cubic if isinstance(request.cubic, int) else 0
+    if not widths and not cubic:
+        return
+    if isinstance(request.window, int):
+        window = request.window
+    else:
+        window = min(request.window if isinstance(request.window, tuple) else WINDOW_CANDIDATES)
+    given = " ".join(
+        f"{flag} {text}"
+        for flag, text in (("--hidden", ",".join(map(str, widths))), ("--cubic", str(cubic)))
+        if text not in ("", "0")
+    )
+    check_network_memory(widths, cubic, 2 * window, 1, given=given)
 
 
 def check_request(request: TrainRequest) -> Path:

@@ -72,7 +72,7 @@ from typing import Any
 import numpy as np
 
 from canonid.datagen.loaders import load_csv
-from canonid.kernel.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory, dt_problem
 from canonid.kernel.errors import DataError
 
 __all__ = [
@@ -760,6 +760,9 @@ def load_benchmark(name: str, directory: str | Path | None = None) -> Dataset:
             )
     paths = {file: path for file, path in found.items() if path is not None}
     dt, train, test = bench.reader(paths)
+    problem = dt_problem(dt)
+    if problem:
+        raise DataError(f"{', '.join(map(str, paths.values()))}: {problem}")
     for part in test:
         if len(part.u) <= bench.n_init:
             raise DataError(

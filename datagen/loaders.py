@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from canonid.kernel.dataset import Dataset, Trajectory
+from canonid.kernel.dataset import Dataset, Trajectory, dt_problem
 from canonid.kernel.errors import DataError, ShapeError
 from canonid.kernel.io import read_json, read_npz, sha256_bytes, sha256_file
 
@@ -79,8 +79,9 @@ def _check_dt(dt: Any, where: str) -> float:
         raise DataError(
             f"{where}: sampling time dt must be a number of seconds, got {dt!r}"
         ) from None
-    if not (math.isfinite(value) and value > 0):
-        raise DataError(f"{where}: sampling time dt must be positive and finite, got {dt!r}")
+    problem = dt_problem(value)
+    if problem:
+        raise DataError(f"{where}: {problem}")
     return value
 
 
@@ -500,7 +501,7 @@ def _sampling_time(clocks: Sequence[_Clock], given: float | None, where: str) ->
             "leave dt out to use the time column, or switch the column off to read the rows as "
             f"samples every {given:g} s (CLI: --time-column none)"
         )
-    return given if given is not None else step
+    return given if given is not None else _check_dt(step, f"{where}: time column {name}")
 
 
 def _line_of_row(path: Path, row: int) -> int:

@@ -19,8 +19,12 @@ defaults that the application applies where an option is not given, and that ``-
 from __future__ import annotations
 
 import copy
-from collections.abc import Mapping
+import itertools
+import os
+from collections.abc import Mapping, Sequence
 from typing import Any
+
+from canonid.kernel.errors import OptionError
 
 __all__ = [
     "ACTIVATION_NAMES",
@@ -33,9 +37,14 @@ __all__ = [
     "INFO_TRAINING_RANGE",
     "INFO_UNVALIDATED",
     "LINEAR_PATHS",
+    "MAX_LR",
+    "MAX_NETWORK_ENV",
+    "MAX_NETWORK_GB",
+    "MAX_WINDOWS_PER_EPOCH",
     "MODEL_LABELS",
     "MODEL_NAMES",
     "PAPER_NET_OPTIONS",
+    "check_network_memory",
     "help_value",
     "model_label",
     "net_options",
@@ -143,3 +152,47 @@ def preset_word(model: str, option: str) -> str:
     ``on`` / ``off`` for a boolean, else the value, ``auto``, ``silu``), read from
     :data:`DEFAULT_NET_OPTIONS`."""
     return help_value(DEFAULT_NET_OPTIONS[model][option])
+
+
+#: the largest learning rate (``--lr``) a run may start from: Adam's steps scale with it, and
+#: far above 1 the weights leave float32's range in a few steps
+MAX_LR = 10.0
+#: the most sub-windows an epoch may draw (``--windows-per-epoch``): their start times are held
+#: in memory, 8 bytes each (10⁷: 80 MB)
+MAX_WINDOWS_PER_EPOCH = 10_000_000
+
+#: the default ceiling, in GB (10⁹ bytes), of the memory a network to be trained may need
+#: (:func:`check_network_memory`); the environment variable :data:`MAX_NETWORK_ENV` overrides it
+MAX_NETWORK_GB = 4.0
+MAX_NETWORK_ENV = "CANONID_MAX_NETWORK_GB"
+
+
+def network_bytes(widths: Sequence[int], cubic: int, n_in: int, n_out: int) -> int:
+    """The memory a network needs to train: its parameters (the dense layers
+    ``n_in → widths… → n_out`` and a cubic branch of ``cubic`` units, ``n_in → cubic → n_out``),
+    as float32 weights and Adam's two moments, 12 bytes each."""
+    sizes = [n_in, *widths, n_out]
+    layers = sum((a + 1) * b for a, b in itertools.pairwise(sizes))
+    return 12 * (layers + cubic * (n_in + 1 + n_out))
+
+
+def check_network_memory(
+    widths: Sequence[int], cubic: int, n_in: int, n_out: int, *, given: str
+) -> None:
+    """Refuse, before anything is allocated, a network whose :func:`network_bytes` passes the
+    ceiling (:data:`MAX_NETWORK_GB`, or the environment's :data:`MAX_NETWORK_ENV`); ``given``:
+    the options that asked for it, which the message names."""
+    text = os.environ.get(MAX_NETWORK_ENV)
+    try:
+        ceiling = MAX_NETWORK_GB if text is None else float(text)
+    except ValueError:
+        ceiling = float("nan")
+    if not 0 < ceiling < float("inf"):
+        raise OptionError(f"{MAX_NETWORK_ENV}: expected a number of GB > 0, got {text!r}")
+    need = network_bytes(widths, cubic, n_in, n_out)
+    if need > ceiling * 1e9:
+        raise OptionError(
+            f"{given}: the network would need at least {need / 1e9:.3g} GB to train (its "
+            f"parameters as float32 weights and Adam's two moments), above the ceiling of "
+            f"{ceiling:g} GB; give smaller sizes, or raise the ceiling with {MAX_NETWORK_ENV}=GB"
+        )

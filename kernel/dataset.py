@@ -37,11 +37,22 @@ from canonid.kernel.errors import DataError, ShapeError, UnknownSplitError
 from canonid.kernel.io import atomic_write_json, read_json, read_npz, sha256_file, write_npz
 from canonid.kernel.validate import as_matrix
 
-__all__ = ["FORMAT_VERSION", "Dataset", "Trajectory", "as_trajectories"]
+__all__ = ["DT_RANGE", "FORMAT_VERSION", "Dataset", "Trajectory", "as_trajectories", "dt_problem"]
 
 FORMAT_VERSION = 1
+#: the sampling times, in seconds, that data may have: 1 ns to about 30 years (a subnormal or
+#: absurd one, such as 1e-320, would make every rate and frequency overflow)
+DT_RANGE = (1e-9, 1e9)
 _FIELDS = ("u", "y", "y_clean", "x", "reference")
 SPLITS = ("train", "val", "test")
+
+
+def dt_problem(dt: float) -> str | None:
+    """Why ``dt`` is no sampling time in :data:`DT_RANGE` (``None``: it is one)."""
+    low, high = DT_RANGE
+    if not (np.isfinite(dt) and low <= dt <= high):
+        return f"sampling time dt must be from {low:g} to {high:g} s, got {dt!r}"
+    return None
 
 
 def _check_header(header: Mapping[str, Any], where: Path) -> None:
@@ -272,8 +283,9 @@ class Dataset:
     metadata: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if not (np.isfinite(self.dt) and self.dt > 0):
-            raise ShapeError(f"dataset dt must be a positive number of seconds, got {self.dt}")
+        problem = dt_problem(self.dt)
+        if problem:
+            raise ShapeError(f"dataset {problem}")
         object.__setattr__(self, "input_names", tuple(self.input_names))
         object.__setattr__(self, "output_names", tuple(self.output_names))
         if self.state_names is not None:

@@ -69,7 +69,7 @@ from typing import Any, Literal
 import numpy as np
 import torch
 
-from canonid.kernel.catalog import DEVICE_NAMES
+from canonid.kernel.catalog import DEVICE_NAMES, MAX_LR, MAX_WINDOWS_PER_EPOCH
 from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
 from canonid.kernel.io import atomic_write_bytes
@@ -205,6 +205,14 @@ class TrainOptions:
             value = getattr(self, key)
             if value is not None and not (_real(value) and math.isfinite(value) and value > 0):
                 raise OptionError(f"training option {key} must be a positive number, got {value}")
+        for key, most in (
+            ("lr", MAX_LR),
+            ("lr_final", MAX_LR),
+            ("windows_per_epoch", MAX_WINDOWS_PER_EPOCH),
+        ):
+            value = getattr(self, key)
+            if value is not None and value > most:
+                raise OptionError(f"training option {key} must be at most {most:g}, got {value:g}")
         for key in ("weight_decay", "alpha_first"):
             value = getattr(self, key)
             if not (_real(value) and math.isfinite(value) and value >= 0):

@@ -117,7 +117,7 @@ U, Y = np.zeros((120, 1)), np.ones((120, 1))
 NPZ_CORPUS = {
     "dt empty": (_npz(u=U, y=Y, dt=np.array([])), "array 'dt' must hold one number"),
     "dt two values": (_npz(u=U, y=Y, dt=np.array([1.0, 2.0])), "array 'dt' must hold one"),
-    "dt zero": (_npz(u=U, y=Y, dt=0.0), "dt must be positive and finite"),
+    "dt zero": (_npz(u=U, y=Y, dt=0.0), "dt must be from 1e-09 to 1e+09 s"),
     "complex": (_npz(u=U + 1j, y=Y, dt=1.0), "array 'u' has dtype complex128"),
     "text": (_npz(u=np.array(["1"] * 120), y=Y, dt=1.0), "array 'u' has dtype <U1"),
     "npy renamed": (_npy_renamed, "bad.npz is not an .npz archive"),
@@ -158,7 +158,7 @@ DATASET_CORPUS = {
         "lacks trajectories ['train/00002'",
     ),
     "dt a string": (_dataset_with(dt="fast"), "field 'dt' must be a number of seconds"),
-    "dt negative": (_dataset_with(dt=-1.0), "dt must be a positive number"),
+    "dt negative": (_dataset_with(dt=-1.0), "dt must be from 1e-09 to 1e+09 s"),
     "input names a string": (_dataset_with(input_names="u"), "field 'input_names' must be a list"),
     "trajectory info a list": (_dataset_with(trajectory_info=[]), "field 'trajectory_info'"),
     "metadata a list": (_dataset_with(metadata=[]), "field 'metadata' must be an object"),

@@ -249,7 +249,7 @@ def test_windows_per_epoch_is_kept_by_the_run_and_fixed_on_resume(dataset_path, 
     assert "--windows-per-epoch cannot change when resuming" in capsys.readouterr().err
     assert main([*argv[:-1], str(tmp_path / "bad"), "--windows-per-epoch", "0"]) == 1
     err = capsys.readouterr().err
-    assert "windows_per_epoch must be an integer >= 1" in err
+    assert "--windows-per-epoch must be an integer from 1 to" in err
     assert len(err.strip().splitlines()) == 1
     before = len((run / "history.csv").read_text().splitlines())
     assert main(resume) == 0  # no --device: the run keeps the device it recorded

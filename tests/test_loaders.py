@@ -152,7 +152,7 @@ def test_bad_user_data_is_named(tmp_path, experiments):
     write_csv(tmp_path / "a.csv", [[u[t, 0], y[t, 0]] for t in range(len(u))], ["u", "y"])
     with pytest.raises(DataError, match=r"no column\(s\) \['flow'\]"):
         load_csv(tmp_path / "a.csv", inputs=["flow"], outputs=["y"], dt=1.0)
-    with pytest.raises(DataError, match="dt must be positive"):
+    with pytest.raises(DataError, match="dt must be from 1e-09"):
         load_csv(tmp_path / "a.csv", inputs=["u"], outputs=["y"], dt=0.0)
     with pytest.raises(DataError, match="given as both input and output"):
         load_csv(tmp_path / "a.csv", inputs=["u"], outputs=["u"], dt=1.0)

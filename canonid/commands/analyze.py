@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from canonid.commands import _options
-from canonid.theory import AnalyzeRequest, run_analysis
+from canonid.theory import MAX_BUDGET, AnalyzeRequest, run_analysis
 
 
 def register(p: argparse.ArgumentParser) -> None:
@@ -45,7 +45,8 @@ def register(p: argparse.ArgumentParser) -> None:
         type=float,
         default=20.0,
         metavar="SECONDS",
-        help="wall-clock limit of each stage (default %(default)g): each certified "
+        help=f"wall-clock limit of each stage, at most {MAX_BUDGET:g} (default %(default)g): "
+        "each certified "
         "branch-and-bound search and each sampled bound, checked between steps; loading the run "
         "not counted",
     )
