@@ -92,6 +92,7 @@ PROFILES: dict[str, dict[str, dict[str, Any]]] = {
                 "weight_decay": 0.0,  # nor was there weight decay in it
                 "windows_per_epoch": 240,
                 "val_windows": 1000,
+                "val_measure": "rollout",  # the paper's models validate on rollouts, as it did
                 "per_model": {"gru": {"epochs": 30}, "mlp": {"epochs": 300}},
             },
             "evaluation": {"horizon": 100, "stride": 5},

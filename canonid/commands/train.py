@@ -72,8 +72,7 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--weight-decay",
         metavar="W",
-        help="Adam weight decay >= 0 (default quick "
-        f"{PROFILES['quick']['train']['weight_decay']:g})",
+        help=f"Adam weight decay >= 0 (default quick {PROFILES['quick']['train']['weight_decay']})",
     )
     _options.add_from_profile(p, "--batch-size", "sub-windows per batch", type=int, metavar="B")
     p.add_argument("--train-horizon", dest="horizon", type=int, metavar="H", help=HORIZON_HELP)
