@@ -76,13 +76,13 @@ from canonid.learning.evaluate import default_n_init, evaluate
 from canonid.learning.model import CONFIG_FILE
 from canonid.learning.plots import plot_rollouts, plot_training_curve
 from canonid.learning.search import (
-    CUBIC_UNITS,
     SEARCH_DIR,
     SEARCH_FILE,
     Candidate,
     Search,
     adopt,
     candidate_table,
+    cubic_axis,
     fitting_windows,
 )
 from canonid.learning.search import search as run_search
@@ -1134,8 +1134,7 @@ def _table(
             "runs: it cannot be resumed (canonid evaluate, analyze and export still read it); "
             "train it again"
         )
-    cubics = CUBIC_UNITS if cubic == "auto" else (cubic if isinstance(cubic, int) else 0,)
-    return list(candidate_table((recipe.window,), cubics))
+    return list(candidate_table((recipe.window,), cubic_axis(cubic)))
 
 
 def _fitting(

@@ -29,7 +29,7 @@ from canonid.coverage import recorded_unvalidated, unvalidated_line
 from canonid.horizon_check import ALTERNATIVES as HORIZON_ALTERNATIVES
 from canonid.horizon_check import HORIZON_CHECK_FILE
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
-from canonid.learning.search import CUBIC_UNITS, ETA, SEARCH_FILE, WINDOWS, Search
+from canonid.learning.search import CUBIC_UNITS, ETA, SEARCH_FILE, WINDOWS, Search, cubic_axis
 from canonid.members import check_members
 from canonid.profiles import profile_values
 
@@ -525,13 +525,9 @@ def search_axes(
     else:
         windows = tuple(int(w) for w in window)
     given = (net_options or {}).get("cubic", cubic)
-    if isinstance(given, int):
-        cubics: tuple[int, ...] = (given,)
-    elif model == "mlp" and not paper:
-        cubics = CUBIC_UNITS
-    else:
-        cubics = (0,)
-    return windows, cubics
+    if given in (None, AUTO):  # open where the model has the branch (not the paper's network)
+        given = AUTO if model == "mlp" and not paper else None
+    return windows, cubic_axis(given)
 
 
 def _table(request: TrainRequest, base: RunRecipe) -> tuple[Candidate, ...]:
@@ -544,12 +540,10 @@ def _table(request: TrainRequest, base: RunRecipe) -> tuple[Candidate, ...]:
         windows = (request.window,)
     else:
         windows = request.window_candidates
-    cubic = base.net_options.get("cubic")
-    cubics = CUBIC_UNITS if cubic == AUTO else ((cubic,) if isinstance(cubic, int) else (0,))
     widths: Sequence[tuple[int, ...] | None] = (
         WIDTH_CANDIDATES if request.hidden == AUTO else (None,)
     )
-    return candidate_table(windows, cubics, widths)
+    return candidate_table(windows, cubic_axis(base.net_options.get("cubic")), widths)
 
 
 def _candidates_base(request: TrainRequest) -> RunRecipe:

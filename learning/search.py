@@ -57,6 +57,7 @@ __all__ = [
     "SearchRow",
     "adopt",
     "candidate_table",
+    "cubic_axis",
     "fitting_windows",
     "rung_budgets",
     "search",
@@ -133,6 +134,14 @@ def _count(value: Any, *, zero: bool = False) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < (0 if zero else 1):
         raise ValueError(f"{value!r} is not a count")
     return value
+
+
+def cubic_axis(cubic: Any) -> tuple[int, ...]:
+    """The cubic axis that a network's ``cubic`` option asks for: ``"auto"`` searches
+    :data:`CUBIC_UNITS`, a number fixes it, none (a model without the branch) is ``(0,)``."""
+    if cubic == "auto":
+        return CUBIC_UNITS
+    return (cubic,) if isinstance(cubic, int) and not isinstance(cubic, bool) else (0,)
 
 
 def candidate_table(

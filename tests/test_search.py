@@ -231,3 +231,11 @@ def test_train_reports_validation_only_and_resumes_a_killed_search(tmp_path, cap
         return [{k: v for k, v in row.items() if k != "cpu_seconds"} for row in rows]
 
     assert losses(killed) == losses(whole)
+
+
+def test_the_cubic_axis_is_open_only_for_auto():
+    from canonid.learning.search import CUBIC_UNITS, cubic_axis
+
+    assert cubic_axis("auto") == CUBIC_UNITS
+    assert cubic_axis(0) == (0,) and cubic_axis(8) == (8,)
+    assert cubic_axis(None) == (0,) and cubic_axis(True) == (0,)  # no branch; a flag is no count
