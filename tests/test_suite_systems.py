@@ -242,7 +242,8 @@ def test_the_curve_is_a_monotone_clamp_with_slope_one_at_zero(a, b):
     lo, hi = sorted((a, b))
     s_lo, s_hi = system.curve(lo), system.curve(hi)
     assert s_lo <= s_hi and -0.4 <= s_lo and s_hi <= 1.0
-    assert abs(system.curve(lo)) <= abs(lo)  # a clamp: never amplifies
+    # A clamp never amplifies; c·tanh(w/c) rounds up to one ulp above |w| where w is tiny.
+    assert abs(system.curve(lo)) <= abs(lo) * (1 + 4 * np.finfo(float).eps)
     w = ca.SX.sym("w")
     slope = ca.Function("s", [w], [ca.jacobian(system._curve(w), w)])
     assert float(slope(1e-9)) == pytest.approx(1.0) and float(slope(-1e-9)) == pytest.approx(1.0)
