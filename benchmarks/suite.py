@@ -21,6 +21,8 @@ time (user + system, ``getrusage``) is recorded. Scores: ``canonid evaluate RUN`
 trained: the RMSE of the free-run simulation after ``n_init`` (the data's rule, else 50), over
 the outputs, and whether the simulation stayed finite. Nothing is chosen on the test split.
 
+``--jobs N`` trains N contestants side by side (each child's CPU time is its own).
+
 Writes ``OUT/suite.json`` (machine, load, commit, every cell) and prints per record and as
 geometric means: RMSE, CPU seconds, finite.
 
@@ -36,10 +38,10 @@ import json
 import math
 import os
 import platform
-import resource
 import subprocess
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -103,12 +105,21 @@ def prepare(record: Record, out: Path) -> Path:
     return path
 
 
-def _canonid(python: str, *args: str) -> float:
-    """Run ``canonid ARGS`` with ``python``; the child's CPU seconds."""
-    before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    subprocess.run([python, "-m", "canonid", *args], check=True)
-    after = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+def _canonid(python: str, *args: str, log: Path | None = None) -> float:
+    """Run ``canonid ARGS`` with ``python`` (its output to ``log`` when given); the child's CPU
+    seconds, from its own resource usage (``wait4``), so that children running side by side are
+    counted apart."""
+    with open(log, "a") if log is not None else open(os.devnull, "w") as sink:
+        child = subprocess.Popen(
+            [python, "-m", "canonid", *args],
+            stdout=sink if log is not None else None,
+            stderr=subprocess.STDOUT if log is not None else None,
+        )
+        _, status, usage = os.wait4(child.pid, 0)
+    child.returncode = os.waitstatus_to_exitcode(status)
+    if child.returncode != 0:
+        raise subprocess.CalledProcessError(child.returncode, child.args)
+    return usage.ru_utime + usage.ru_stime
 
 
 def train(python: str, extra: list[str], data: Path, run: Path) -> float:
@@ -120,7 +131,8 @@ def train(python: str, extra: list[str], data: Path, run: Path) -> float:
     args = ["train", str(data), "--threads", "1", "--no-progress", "--out", str(run), *extra]
     if start:  # an interrupted training continues
         args = ["train", "--resume", "--out", str(run), "--threads", "1", "--no-progress"]
-    cpu = _canonid(python, *args)
+    run.mkdir(parents=True, exist_ok=True)
+    cpu = _canonid(python, *args, log=run.parent / f"{run.name}.log")
     done.write_text(json.dumps({"cpu_seconds": cpu}))
     return cpu
 
@@ -158,12 +170,67 @@ def _commit() -> str:
         return "unknown"
 
 
+def _checkout(python: str) -> str:
+    """The commit of the checkout whose ``.venv`` holds ``python`` (``unknown`` elsewhere)."""
+    folder = Path(python).resolve().parent.parent.parent
+    try:
+        return subprocess.run(
+            ["git", "-C", str(folder), "rev-parse", "HEAD"],
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def _write(
+    out: Path,
+    cells: dict[str, dict[str, Any]],
+    contestants: dict[str, tuple[str, list[str]]],
+    load_before: float,
+) -> dict[str, dict[str, Any]]:
+    """Write ``OUT/suite.json`` over the records scored so far; the contestants' means."""
+    from canonid.kernel.io import atomic_write_json
+
+    names = list(cells)
+    means = {
+        who: {
+            "rmse_geomean": geometric_mean([cells[n][who]["rmse"] for n in names]),
+            "cpu_seconds": round(sum(cells[n][who]["cpu_seconds"] or 0.0 for n in names), 1),
+            "all_finite": all(cells[n][who]["finite"] for n in names),
+        }
+        for who in contestants
+    }
+    record = {
+        "command": " ".join(sys.argv),
+        "commit": _commit(),
+        "machine": {
+            "processor": platform.processor() or platform.machine(),
+            "cores": os.cpu_count(),
+        },
+        "load": {"before": load_before, "after": os.getloadavg()[0]},
+        "device": "cpu",
+        "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "records": {n: {"character": RECORDS[n].character, **cells[n]} for n in names},
+        "contestants": {
+            w: {"python": p, "args": e, "commit": _checkout(p)} for w, (p, e) in contestants.items()
+        },
+        "means": means,
+    }
+    atomic_write_json(out / "suite.json", record)
+    return means
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     parser.add_argument("--out", type=Path, default=ROOT / "runs" / "suite")
     parser.add_argument("--records", default=",".join(RECORDS), help="comma-separated names")
     parser.add_argument(
         "--contestant", action="append", required=True, metavar="NAME=PYTHON[:ARGS]"
+    )
+    parser.add_argument(
+        "--jobs", type=int, default=1, help="trainings side by side (one thread each)"
     )
     args = parser.parse_args(argv)
     names = [n for n in args.records.split(",") if n]
@@ -181,44 +248,34 @@ def main(argv: list[str] | None = None) -> int:
     out.mkdir(parents=True, exist_ok=True)
     load_before = os.getloadavg()[0]
     cells: dict[str, dict[str, Any]] = {}
-    for name in names:
-        data = prepare(RECORDS[name], out)
-        cpu = {
-            who: train(python, extra, data, out / "runs" / name / who)
-            for who, (python, extra) in contestants.items()
+    means: dict[str, dict[str, Any]] = {}
+    data = {name: prepare(RECORDS[name], out) for name in names}
+    jobs = [(name, who) for name in names for who in contestants]
+    with ThreadPoolExecutor(args.jobs) as pool:  # each training is its own process
+        futures = {
+            (name, who): pool.submit(
+                train, *contestants[who], data[name], out / "runs" / name / who
+            )
+            for name, who in jobs
         }
-        for who in contestants:  # the test split, after every contestant of the record trained
-            run = out / "runs" / name / who
-            cells.setdefault(name, {})[who] = {
-                **score(run),
-                "cpu_seconds": round(cpu[who], 1),
-            }
-        print(name, json.dumps(cells[name]), flush=True)
-    means = {
-        who: {
-            "rmse_geomean": geometric_mean([cells[n][who]["rmse"] for n in names]),
-            "cpu_seconds": round(sum(cells[n][who]["cpu_seconds"] for n in names), 1),
-            "all_finite": all(cells[n][who]["finite"] for n in names),
-        }
-        for who in contestants
-    }
-    record = {
-        "command": " ".join(sys.argv),
-        "commit": _commit(),
-        "machine": {
-            "processor": platform.processor() or platform.machine(),
-            "cores": os.cpu_count(),
-        },
-        "load": {"before": load_before, "after": os.getloadavg()[0]},
-        "device": "cpu",
-        "time": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "records": {n: {"character": RECORDS[n].character, **cells[n]} for n in names},
-        "contestants": {w: {"python": p, "args": e} for w, (p, e) in contestants.items()},
-        "means": means,
-    }
-    from canonid.kernel.io import atomic_write_json
-
-    atomic_write_json(out / "suite.json", record)
+        for name in names:
+            for who in contestants:  # the test split, after the record's contestants trained
+                try:
+                    cpu = futures[name, who].result()
+                except subprocess.CalledProcessError as error:  # the cell says so; others go on
+                    cells.setdefault(name, {})[who] = {
+                        "rmse": None,
+                        "finite": False,
+                        "cpu_seconds": None,
+                        "failed": f"training exited {error.returncode}",
+                    }
+                    continue
+                cells.setdefault(name, {})[who] = {
+                    **score(out / "runs" / name / who),
+                    "cpu_seconds": round(cpu, 1),
+                }
+            print(name, json.dumps(cells[name]), flush=True)
+            means = _write(out, cells, contestants, load_before)  # after each record
     width = max(len(n) for n in [*names, "geometric mean"])
     print("record".ljust(width), *(f"{w:>24}" for w in contestants))
     for n in names:
