@@ -40,6 +40,7 @@ import os
 import platform
 import subprocess
 import sys
+import tempfile
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -110,8 +111,9 @@ def _canonid(python: str, *args: str, log: Path | None = None) -> float:
     seconds, from its own resource usage (``wait4``), so that children running side by side are
     counted apart."""
     with open(log, "a") if log is not None else open(os.devnull, "w") as sink:
-        child = subprocess.Popen(
+        child = subprocess.Popen(  # cwd: no checkout's canonid/ shadows the interpreter's
             [python, "-m", "canonid", *args],
+            cwd=tempfile.gettempdir(),
             stdout=sink if log is not None else None,
             stderr=subprocess.STDOUT if log is not None else None,
         )
