@@ -44,6 +44,7 @@ from canonid.kernel.errors import CheckpointError, OptionError, OutputError, Wor
 from canonid.kernel.io import (
     atomic_write_json,
     confined,
+    guarded,
     jsonable,
     read_json,
     remove_stale_temporaries,
@@ -376,6 +377,7 @@ def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> 
     refused (:func:`check_run_folder`), checked again under the lock.
     """
     (check_run_folder if new else check_folder)(folder, flag=flag)
+    guarded(folder)  # below a run being written (members/sS, horizon-H): no link followed
     missing = [p for p in (folder, *folder.parents) if not p.exists()]
     try:
         folder.mkdir(parents=True, exist_ok=True)

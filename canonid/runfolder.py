@@ -67,6 +67,7 @@ from canonid.kernel.io import (
     atomic_write_json,
     atomic_write_text,
     check_appendable,
+    confined,
     figure_name,
     guarded,
     is_json_number,
@@ -497,6 +498,11 @@ def load_run_model(run_dir: Path) -> Model:
     without a model yet, whose lock another process holds, is named as being written by it."""
     from canonid.jobs import writer_of
 
+    with confined(run_dir):  # run.json and the model's files: no link below the run followed
+        return _load_run_model(run_dir, writer_of)
+
+
+def _load_run_model(run_dir: Path, writer_of: Callable[[Path], str | None]) -> Model:
     if not (run_dir / CONFIG_FILE).exists() and (writer := writer_of(run_dir)) is not None:
         raise OutputError(
             f"{run_dir} is being written by another canonid process ({writer}) and holds no "

@@ -947,3 +947,19 @@ def test_constant_input_data_train_with_a_note_naming_the_column(tmp_path, caplo
         assert main([*argv, "--hidden", "8,8", "--out", str(tmp_path / "run"), *COMMON]) == 0
     notes = [r.getMessage() for r in caplog.records if "constant" in r.getMessage()]
     assert len(notes) == 1 and "'u'" in notes[0] and str(csv) in notes[0], notes
+
+
+@pytest.mark.parametrize("where", ["members", "horizon-5"])
+def test_a_run_folder_below_a_run_being_written_is_not_made_through_a_link(where, root, tmp_path):
+    """A member's or a horizon alternative's run folder lies below the run: made and locked
+    while the run's own lock is held, a link on its way is refused, its target left alone."""
+    from canonid.jobs import run_folder_lock
+    from canonid.kernel.errors import OutputError
+
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "victim")
+    before = _sums(victim)
+    (run / where).symlink_to(victim, target_is_directory=True)
+    with run_folder_lock(run, flag="--out"), pytest.raises(OutputError, match="symbolic link"):
+        with run_folder_lock(run / where / "s2", new=True):
+            pass
+    assert _sums(victim) == before
