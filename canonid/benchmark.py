@@ -323,6 +323,14 @@ def train_args(text: str, *, progress: bool = True) -> list[str]:
             f"--train-args: {', '.join(taken)} set by canonid benchmark itself; give them as "
             "its own options"
         )
+    from canonid.data_options import DATA_FLAGS
+
+    loader = [a for a in extra if a.split("=")[0] in DATA_FLAGS.values()]
+    if loader:  # CSV options: the benchmark's data carry their own dt and signals
+        raise OptionError(
+            f"--train-args: {', '.join(loader)} read CSV data; a benchmark's data carry their "
+            "own sampling time and signals, so canonid benchmark takes none of these"
+        )
     return extra if progress else [*extra, "--no-progress"]
 
 

@@ -50,7 +50,15 @@ from pathlib import Path
 from typing import Any, Literal
 
 from canonid.kernel.errors import CheckpointError, DataError
-from canonid.kernel.io import atomic_copy, atomic_copy_tree, atomic_write_json, read_json
+from canonid.kernel.io import (
+    atomic_copy,
+    atomic_copy_tree,
+    atomic_write_json,
+    guarded,
+    make_folder,
+    read_json,
+    run_path,
+)
 
 __all__ = [
     "ALTERNATIVES",
@@ -213,6 +221,8 @@ class HorizonChoice:
         if not isinstance(data, Mapping) or data.get("format") != HORIZON_FORMAT:
             raise CheckpointError(f"{path} is not a canonid horizon check")
         try:
+            for i, c in enumerate(data["candidates"]):  # each folder inside the run, no link
+                run_path(run_dir, c["folder"], where=f"{path}: candidates[{i}].folder")
             return cls(
                 tuple(HorizonCandidate(**c) for c in data["candidates"]),
                 int(data["limit"]),
@@ -326,11 +336,11 @@ def _adopt(run_dir: Path, choice: HorizonChoice) -> None:
     alternative's entries copied in and the run's others removed. Repeating it after an
     interruption finishes it."""
     own = horizon_dir(run_dir, choice.own.horizon)
-    alternative = run_dir / choice.kept.folder
-    if not own.is_dir():
+    alternative = run_path(run_dir, choice.kept.folder, where=f"{run_dir / HORIZON_CHECK_FILE}")
+    if not guarded(own).is_dir():
         staged = run_dir / f".{own.name}.staged"
-        shutil.rmtree(staged, ignore_errors=True)
-        staged.mkdir()
+        shutil.rmtree(guarded(staged), ignore_errors=True)
+        make_folder(staged)
         for entry in _runs_entries(run_dir):
             _copy_entry(entry, staged / entry.name)
         staged.rename(own)
@@ -339,7 +349,7 @@ def _adopt(run_dir: Path, choice: HorizonChoice) -> None:
         _copy_entry(entry, run_dir / entry.name)
     for entry in _runs_entries(run_dir):
         if entry.name not in theirs:
-            if entry.is_dir():
+            if guarded(entry).is_dir():
                 shutil.rmtree(entry)
             else:
                 entry.unlink()

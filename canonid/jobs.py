@@ -41,7 +41,14 @@ from pathlib import Path
 from typing import Any, ClassVar, Generic, TypeVar
 
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError, WorkerError
-from canonid.kernel.io import atomic_write_json, jsonable, read_json, remove_stale_temporaries
+from canonid.kernel.io import (
+    atomic_write_json,
+    confined,
+    guarded,
+    jsonable,
+    read_json,
+    remove_stale_temporaries,
+)
 
 __all__ = [
     "LOCK_FILE",
@@ -61,6 +68,7 @@ __all__ = [
     "run_job",
     "store",
     "torch_threads",
+    "writer_of",
 ]
 
 RESULT_FILE = "result.json"
@@ -369,6 +377,7 @@ def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> 
     refused (:func:`check_run_folder`), checked again under the lock.
     """
     (check_run_folder if new else check_folder)(folder, flag=flag)
+    guarded(folder)  # below a run being written (members/sS, horizon-H): no link followed
     missing = [p for p in (folder, *folder.parents) if not p.exists()]
     try:
         folder.mkdir(parents=True, exist_ok=True)
@@ -377,7 +386,8 @@ def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> 
     key = os.path.realpath(folder)
     me = (os.getpid(), threading.get_ident())
     if _HELD.get(key) == me:  # this thread holds it already (a benchmark trains into its folder)
-        yield folder
+        with confined(folder):
+            yield folder
         return
     fd = _acquire(folder, flag=flag)
     _HELD[key] = me
@@ -385,7 +395,8 @@ def run_folder_lock(folder: Path, *, new: bool = False, flag: str = "--out") -> 
         remove_stale_temporaries(folder, before=time.time())
         if new:
             check_run_folder(folder, flag=flag)  # another run may have been written meanwhile
-        yield folder
+        with confined(folder):  # no link below the folder is followed while it is written
+            yield folder
     finally:
         del _HELD[key]
         try:
@@ -412,6 +423,13 @@ def _acquire(folder: Path, *, flag: str) -> int:
         except OSError as exc:
             why = "it is a symbolic link" if exc.errno == errno.ELOOP else exc.strerror
             raise OutputError(f"{flag} {folder}: cannot open the lock file {path}: {why}") from exc
+        links = os.fstat(fd).st_nlink
+        if links > 1:  # a hard link to a file elsewhere: never locked, written or truncated
+            os.close(fd)
+            raise OutputError(
+                f"{flag} {folder}: the lock file {path} has {links} hard links (the same file "
+                "elsewhere too); remove it"
+            )
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as exc:
@@ -432,6 +450,25 @@ def _acquire(folder: Path, *, flag: str) -> int:
             return fd
         os.close(fd)
     raise OutputError(f"{flag} {folder}: the lock file {path} keeps changing; try again")
+
+
+def writer_of(folder: Path) -> str | None:
+    """Who holds ``folder``'s lock now (pid, host, start and command, as a refused writer is
+    told), or ``None`` when no process does; the lock file is opened read-only, never through
+    a link, and nothing is written."""
+    try:
+        fd = os.open(folder / LOCK_FILE, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except OSError as exc:
+        return _holder(fd) if exc.errno in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES) else None
+    else:
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
 
 
 def _write_holder(fd: int) -> None:

@@ -28,6 +28,7 @@ from canonid.models.sets import Box
 from canonid.runfolder import (
     RUN_FILE,
     check_compatible,
+    load_run_model,
     load_splits,
     pick_split,
     recipe_of,
@@ -80,7 +81,7 @@ def learned_system(
         DataError: the run has no recipe naming its data and ``data`` is not given.
     """
 
-    model = Model.load(run_dir)
+    model = load_run_model(run_dir)
     net = model.export().network()  # refuses the non-canonical models first
     recipe = recipe_of(run_dir)
     if data is None:
@@ -93,7 +94,14 @@ def learned_system(
         dataset = load_with_run_options(run_dir, data, {})
         # the sets of another sampling time or other signals would describe another model
         check_compatible(dataset, model.info, where=str(data))
-        check_signal_names(dataset, model.info, where=str(data), explicit=False)
+        check_signal_names(
+            dataset,
+            model.info,
+            where=str(data),
+            explicit=False,
+            remedy="Give --data with the run's signals (their names as it recorded them), or "
+            "leave out --data to use the data the run was trained on",
+        )
         splits = dataset.splits
         train = (
             list(splits["train"]) if "train" in splits else [t for s in splits.values() for t in s]
@@ -122,7 +130,7 @@ def _member_network(run_dir: Path, dataset: Any, window: int) -> Any:
     from canonid.kernel.network import CanonicalNet
     from canonid.scoring import check_signal_names
 
-    model = Model.load(run_dir)
+    model = load_run_model(run_dir)
     net = model.export().network()  # refuses the non-canonical models first
     check_compatible(dataset, model.info, where=str(run_dir))
     check_signal_names(dataset, model.info, where=str(run_dir), explicit=False)

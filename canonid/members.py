@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from canonid.kernel.errors import CheckpointError, OptionError
-from canonid.kernel.io import atomic_write_json, read_json
+from canonid.kernel.io import atomic_write_json, guarded, read_json
 
 if TYPE_CHECKING:
     from canonid.learning import Model
@@ -310,6 +310,6 @@ def choose_members(
         model.save(run_dir)
         rescore_run(run_dir, recipe, model, eval_horizon=eval_horizon, figure_format=figure_format)
     if kept == f"seed {seed}" and own.is_dir():
-        shutil.rmtree(own)
+        shutil.rmtree(guarded(own))
     atomic_write_json(run_dir / MEMBERS_FILE, choice.to_json())
     return choice

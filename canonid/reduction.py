@@ -67,6 +67,7 @@ from canonid.runfolder import (
     eval_defaults,
     evaluate_run,
     figure_file,
+    load_run_model,
     load_splits,
     pick_split,
     read_metrics,
@@ -256,8 +257,8 @@ class ReductionResult:
 
 
 def _load_source(source: Path) -> tuple[Model, Recipe]:
+    model = load_run_model(source)  # a run being trained: its writer named
     recipe = read_recipe(source)
-    model = Model.load(source)
     check_reducible(model.name)
     return model, recipe
 

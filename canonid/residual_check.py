@@ -306,7 +306,7 @@ class ResidualCheck:
 
 def check_residuals(request: ResidualRequest) -> ResidualCheck:
     """The residual check of ``request.run`` on its data's split (module docstring)."""
-    from canonid.learning import Model
+    from canonid.runfolder import load_run_model
 
     if request.residuals is None:
         raise OptionError("--json FILE writes the residual check: give --residuals [K] too")
@@ -318,7 +318,7 @@ def check_residuals(request: ResidualRequest) -> ResidualCheck:
     horizons = residual_horizons(request.residuals)
     if request.json is not None:
         _new_file(request.json)  # before the work, not after it
-    model = Model.load(request.run)
+    model = load_run_model(request.run)
     dataset, data_path, split = scoring_data(
         request.run, request.data, request.data_options, split=request.split, model=model.info
     )

@@ -67,9 +67,12 @@ from canonid.kernel.io import (
     atomic_write_json,
     atomic_write_text,
     check_appendable,
+    confined,
     figure_name,
+    guarded,
     is_json_number,
     read_json,
+    sha256_bytes,
 )
 from canonid.learning import EpochReport, Evaluation, FitResult, Model, TrainOptions, fit
 from canonid.learning.evaluate import default_n_init, evaluate
@@ -488,6 +491,39 @@ def _origin(run_dir: Path, command: Sequence[str]) -> Path | None:
     return Path(*here.parts[: -len(tail)])
 
 
+def load_run_model(run_dir: Path) -> Model:
+    """The model of the run folder ``run_dir`` (:meth:`Model.load`), checked against the
+    folder's ``run.json`` where it has one: a training run's ``model`` and ``window`` must be
+    those of ``config.json``, else one :class:`CheckpointError` names both files. A folder
+    without a model yet, whose lock another process holds, is named as being written by it."""
+    from canonid.jobs import writer_of
+
+    with confined(run_dir):  # run.json and the model's files: no link below the run followed
+        return _load_run_model(run_dir, writer_of)
+
+
+def _load_run_model(run_dir: Path, writer_of: Callable[[Path], str | None]) -> Model:
+    if not (run_dir / CONFIG_FILE).exists() and (writer := writer_of(run_dir)) is not None:
+        raise OutputError(
+            f"{run_dir} is being written by another canonid process ({writer}) and holds no "
+            "model yet; wait for it to save one (its first epoch), then try again"
+        )
+    model = Model.load(run_dir)
+    recipe = recipe_of(run_dir)
+    if isinstance(recipe, RunRecipe):
+        for key, recorded, saved in (
+            ("model", recipe.model, model.name),
+            ("window", recipe.window, model.window),
+        ):
+            if recorded != saved:
+                raise CheckpointError(
+                    f"{run_dir / RUN_FILE}: field '{key}' is {recorded!r}, but "
+                    f"{run_dir / CONFIG_FILE} holds a model with {key} {saved!r}; the two files "
+                    "disagree (edited by hand, or copied from another run)"
+                )
+    return model
+
+
 def recipe_of(run_dir: Path) -> Recipe | None:
     """:func:`read_recipe`, or ``None`` when the folder has no ``run.json`` (a model saved
     without a run)."""
@@ -644,6 +680,7 @@ def check_metrics(body: Any, *, where: Path) -> None:
             isinstance(per_record, list) and all(map(_score, per_record))
         ):
             refuse(f"{prefix}rollout_mse_per_record", "a list of numbers or null", per_record)
+        _check_kstep(scores, prefix, len(names), refuse)
     if not isinstance(body.get("finite", True), bool):
         refuse("finite", "a boolean", body.get("finite"))
     outside = body.get("outside_training_range")
@@ -656,9 +693,69 @@ def check_metrics(body: Any, *, where: Path) -> None:
             raise DataError(f"{where}: field 'outside_training_range[{i}]': {exc}") from exc
 
 
+def _check_kstep(
+    scores: Mapping[str, Any], prefix: str, n_outputs: int, refuse: Callable[..., NoReturn]
+) -> None:
+    """``kstep_nrmse``, where present: a list of scores (one per step k), and
+    ``kstep_nrmse_per_output`` one such list per output, each as long."""
+    steps = scores.get("kstep_nrmse")
+    if steps is None and "kstep_nrmse" not in scores:
+        return
+    if not (isinstance(steps, list) and all(map(_score, steps))):
+        refuse(f"{prefix}kstep_nrmse", "a list of numbers or null (one per step k)", steps)
+    per = scores.get("kstep_nrmse_per_output")
+    if per is not None and not (
+        isinstance(per, list)
+        and len(per) == n_outputs
+        and all(isinstance(p, list) and len(p) == len(steps) and all(map(_score, p)) for p in per)
+    ):
+        refuse(
+            f"{prefix}kstep_nrmse_per_output",
+            f"{n_outputs} list(s) of {len(steps)} numbers or null (per output, per step k)",
+            per,
+        )
+
+
 def _score(value: Any) -> bool:
-    """A score as ``metrics.json`` writes it: a number, or null where it was not finite."""
-    return value is None or is_json_number(value)
+    """A score as ``metrics.json`` writes it: a finite number, or null where it was not finite
+    (a NaN or an infinity there was written by hand: JSON has neither)."""
+    return value is None or (
+        is_json_number(value) and (isinstance(value, int) or math.isfinite(value))
+    )
+
+
+#: the field of ``metrics.json`` that holds the checksum of the rest of its content
+CONTENT_CHECKSUM = "content_sha256"
+
+
+def _content_checksum(body: Mapping[str, Any]) -> str:
+    """SHA-256 of ``body`` less :data:`CONTENT_CHECKSUM`, as compact key-sorted JSON (the same
+    for the parsed file as for what was written: floats round-trip exactly)."""
+    rest = {k: v for k, v in body.items() if k != CONTENT_CHECKSUM}
+    text = json.dumps(rest, sort_keys=True, separators=(",", ":"), ensure_ascii=True)
+    return sha256_bytes(text.encode("ascii"))
+
+
+def sealed(body: Mapping[str, Any]) -> dict[str, Any]:
+    """``body`` with the checksum of its own content (:data:`CONTENT_CHECKSUM`), so that a
+    hand edit of the file is named as such when it is read back (:func:`check_sealed`)."""
+    return {**body, CONTENT_CHECKSUM: _content_checksum(body)}
+
+
+def check_sealed(body: Mapping[str, Any], *, where: Path) -> None:
+    """Refuse a ``metrics.json`` body whose :data:`CONTENT_CHECKSUM` is missing or is not that
+    of its content: edited by hand (or written by a canonid before the checksum)."""
+    recorded = body.get(CONTENT_CHECKSUM)
+    if recorded is None:
+        raise DataError(
+            f"{where}: field '{CONTENT_CHECKSUM}' missing (an older canonid, or edited by hand); "
+            "remove that folder to score again"
+        )
+    if recorded != _content_checksum(body):
+        raise DataError(
+            f"{where}: its content does not match its field '{CONTENT_CHECKSUM}' (edited by "
+            "hand?); remove that folder to score again"
+        )
 
 
 @dataclass(frozen=True)
@@ -696,6 +793,29 @@ def check_outputs_vary(path: str, dataset: Dataset, train: Sequence[Trajectory])
                 f"{path}: output column {name!r} is constant ({float(column[0]):g}) over the "
                 "training records: expected an output that varies (there is nothing to identify)"
             )
+
+
+def _constant(column: np.ndarray) -> bool:
+    return bool(column.size) and float(np.ptp(column)) <= _FLAT * max(
+        1.0, float(np.abs(column).max())
+    )
+
+
+def note_constant_inputs(path: str, dataset: Dataset, train: Sequence[Trajectory]) -> list[str]:
+    """Say (one warning line) which input columns of the training data ``train`` (of the file
+    ``path``) never change: the run trains, but cannot learn the output's response to them.
+    Returns their names."""
+    u = np.concatenate([t.u for t in train])
+    flat = [name for k, name in enumerate(dataset.input_names) if _constant(u[:, k])]
+    if flat:
+        log.warning(
+            "%s: input column(s) %s constant over the training records: the model cannot learn "
+            "how the outputs respond to them (its scores hold only for data where they keep "
+            "that value)",
+            path,
+            ", ".join(repr(n) for n in flat),
+        )
+    return flat
 
 
 def scoring_source(recipe: Recipe, split: str) -> str:
@@ -748,6 +868,13 @@ def check_recorded(recipe: RunSource, path: str, sha256: str | None, *, what: st
     ``sha256``, in one line saying where the path came from and what to do. A recipe of an
     older canonid records no checksum: its data are used unchecked, with a warning."""
     where = recipe.recorded_in or RUN_FILE
+    if sha256 is None and recipe.recorded_in is not None and not os.path.isabs(path):
+        # neither checksum nor a folder to resolve it against: the current folder would decide
+        raise DataError(
+            f"{where} names the {what} by the relative path {path} and records no checksum: "
+            f"canonid would read {os.path.abspath(path)} unchecked; give the data with --data "
+            f"FILE, or write their absolute path into {where}"
+        )
     if sha256 is None:
         if recipe.recorded_in is not None:
             log.warning(
@@ -1002,7 +1129,8 @@ def evaluate_run(
         dt=dataset.dt,
         source=f"{Path(data_path).name} [{name}]",
     )
-    atomic_write_json(run_dir / METRICS_FILE, result.to_json())
+    body = result.to_json()  # an evaluation stored for `evaluate` to read back: sealed
+    atomic_write_json(run_dir / METRICS_FILE, body if request is None else sealed(body))
     return result
 
 
@@ -1049,6 +1177,7 @@ def train_run(
     dataset, train, val, _, _ = load_splits(recipe)  # the loader's checks first
     check_outputs_vary(recipe.data, dataset, train)
     if not resume:
+        note_constant_inputs(recipe.data, dataset, train)
         recipe = recipe.pinned()
     table = _table(recipe, run_dir, table, resume=resume)
     if len(table) > 1:
@@ -1103,6 +1232,7 @@ def train_run(
 def _trained_any(run_dir: Path) -> bool:
     """Whether ``run_dir`` holds a checkpoint to continue, its own or a search candidate's;
     without one, what a failed new run wrote goes (the search's record and folder too)."""
+    guarded(run_dir / SEARCH_DIR)  # a link there is refused, never searched or removed
     if (run_dir / CHECKPOINT_FILE).exists() or any(
         (run_dir / SEARCH_DIR).glob(f"*/{CHECKPOINT_FILE}")
     ):

@@ -101,14 +101,15 @@ def score_run(request: EvaluateRequest) -> Scored:
     docstring): its own ``metrics.json`` and ``rollouts.png``."""
     from canonid.datagen.loaders import data_checksum
     from canonid.jobs import run_folder_lock
-    from canonid.kernel.io import sha256_file
-    from canonid.learning import Model
+    from canonid.kernel.io import guarded, make_folder, sha256_file
     from canonid.runfolder import (
         EVALUATIONS_DIR,
         METRICS_FILE,
         TEST_SPLIT,
+        check_sealed,
         eval_defaults,
         evaluate_run,
+        load_run_model,
         pick_split,
         read_metrics,
         read_recipe,
@@ -121,7 +122,7 @@ def score_run(request: EvaluateRequest) -> Scored:
             raise OptionError(f"{flag} must be an integer >= 1, got {value}")
     if request.n_init is not None and request.n_init < 0:
         raise OptionError(f"--n-init must be an integer >= 0, got {request.n_init}")
-    model = Model.load(request.run)
+    model = load_run_model(request.run)
     dataset, data_path, split = scoring_data(
         request.run, request.data, request.data_options, split=request.split, model=model.info
     )
@@ -158,6 +159,7 @@ def score_run(request: EvaluateRequest) -> Scored:
             metrics = read_metrics(done)
             stored = metrics.get("evaluation")
             if stored == record:
+                check_sealed(metrics, where=done)  # a hand edit of a score is named as such
                 return Scored(folder, metrics, reused=True)
             if (
                 isinstance(stored, Mapping)
@@ -175,7 +177,9 @@ def score_run(request: EvaluateRequest) -> Scored:
             record_test_read(
                 request.run, command="evaluate", split=name, data=data_path, sha256=checksum
             )
-        folder.mkdir(parents=True, exist_ok=True)
+        made = [p for p in (folder, folder.parent) if not guarded(p).exists()]
+        had = set() if made else {entry.name for entry in folder.iterdir()}
+        make_folder(folder)
         try:
             result = evaluate_run(
                 folder,
@@ -191,12 +195,29 @@ def score_run(request: EvaluateRequest) -> Scored:
                 request=record,
             )
         except BaseException:
-            if not done.is_file():  # nothing half-written
-                shutil.rmtree(folder, ignore_errors=True)
-                with contextlib.suppress(OSError):
-                    folder.parent.rmdir()  # the evaluations folder, if this was its first
+            if not done.is_file():  # nothing half-written, and only what this command made
+                _remove_new(folder, had, made)
             raise
     return Scored(folder, result.to_json(), reused=False)
+
+
+def _remove_new(folder: Path, had: set[str], made: list[Path]) -> None:
+    """Undo a failed evaluation: the folders in ``made`` (this command made them) go whole, else
+    only the entries of ``folder`` not among ``had`` (what was there before stays)."""
+    if made:
+        shutil.rmtree(folder, ignore_errors=True)
+        for parent in made[1:]:
+            with contextlib.suppress(OSError):
+                parent.rmdir()  # the evaluations folder, if this was its first
+        return
+    with contextlib.suppress(OSError):
+        for entry in folder.iterdir():
+            if entry.name in had:
+                continue
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
 
 
 def evaluation_name(data_path: str | Path, sha256: str, asked: Mapping[str, Any]) -> str:
@@ -295,15 +316,28 @@ def _shown(value: Any) -> str:
     return ",".join(map(str, value)) if isinstance(value, (list, tuple)) else str(value)
 
 
+#: what a command that chooses columns (evaluate) says to do about other signal names
+CHOOSE_COLUMNS = (
+    "If these are the same signals under other names, choose the columns with "
+    "--inputs/--outputs (CSV and .npz data)"
+)
+
+
 def check_signal_names(
-    dataset: Dataset, info: Mapping[str, Any], *, where: str, explicit: bool
+    dataset: Dataset,
+    info: Mapping[str, Any],
+    *,
+    where: str,
+    explicit: bool,
+    remedy: str = CHOOSE_COLUMNS,
 ) -> None:
     """Refuse data whose signal names differ from those the run was trained on (``info``'s
     ``input_names`` / ``output_names``, where recorded): ``u``/``y`` scoring a model of
     ``pump``/``level`` is data of another system far more often than the same signals renamed.
     Columns chosen ``explicit``-ly with ``--inputs``/``--outputs`` are the user's statement
     that they are the run's signals, and are accepted; so are data without names (arrays of an
-    ``.npz``, which the loader calls ``u1``, ``y1``, …)."""
+    ``.npz``, which the loader calls ``u1``, ``y1``, …). ``remedy``: what the command lets the
+    user do about it (a command without ``--inputs`` names what it does accept)."""
     if explicit:
         return
     theirs = {"inputs": list(dataset.input_names), "outputs": list(dataset.output_names)}
@@ -321,8 +355,7 @@ def check_signal_names(
             + ", ".join(f"{k} {theirs[k]}" for k in differ)
             + "; the run was trained on "
             + ", ".join(f"{k} {ours[k]}" for k in differ)
-            + ". If these are the same signals under other names, choose the columns with "
-            "--inputs/--outputs (CSV and .npz data)"
+            + f". {remedy}"
         )
 
 

@@ -101,7 +101,7 @@ class AnalysisOutcome:
 def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
     """Run the analysis of ``request`` (see the module docstring)."""
     from canonid.analysis.report import analyze
-    from canonid.jobs import check_folder, run_folder_lock
+    from canonid.jobs import check_run_folder, run_folder_lock
     from canonid.models.registry import get_system
 
     if request.window is not None and request.window < 1:
@@ -131,7 +131,8 @@ def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
     if request.run is not None:
         model, dataset, split, source = _learned_source(request.run, request.data, system)
         windows = sorted({*windows, int(model.window)})
-    out = check_folder(request.out or Path("runs") / f"analyze-{system.name}")
+    # a folder of the user's own files is refused, as train --out refuses it
+    out = check_run_folder(request.out or Path("runs") / f"analyze-{system.name}")
     bar, progress = _progress_bar(request.progress)
     try:
         report = analyze(
@@ -166,7 +167,7 @@ def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
             if request.learned_gamma
             else {"available": False, "why": "not asked for (--learned-gamma)"}
         )
-    with run_folder_lock(out):  # one writer of the analysis folder at a time
+    with run_folder_lock(out, new=True):  # one writer of the analysis folder at a time
         json_path = report.write_json(out / "analysis.json")
     lines = [report.table()]
     if report.learned:
@@ -234,11 +235,10 @@ def _learned_source(
 ) -> tuple[Any, Any, str, dict[str, str]]:
     """The run's exported model, the data that check it, their split and the source labels;
     refuses a run whose signals do not match ``system``."""
-    from canonid.learning import Model
-    from canonid.runfolder import pick_split
+    from canonid.runfolder import load_run_model, pick_split
     from canonid.scoring import scoring_data
 
-    trained = Model.load(run_dir)
+    trained = load_run_model(run_dir)
     model, info = trained.export(), trained.info
     _check_run_matches_system(run_dir, info, int(model.n_u), int(model.n_y), system)
     dataset, data_path, split = scoring_data(run_dir, data, {}, split=None, model=info)
@@ -288,9 +288,9 @@ def _check_run_matches_system(
 
 def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
     """``canonid analyze --run RUN`` without a system: γ_f of the learned model alone."""
-    from canonid.jobs import check_folder, run_folder_lock
-    from canonid.kernel.io import atomic_write_json, jsonable
-    from canonid.learning import Model
+    from canonid.jobs import check_run_folder, run_folder_lock
+    from canonid.kernel.io import atomic_write_json, check_inside, jsonable
+    from canonid.runfolder import load_run_model
 
     assert request.run is not None
     for flag, value in (("--windows", request.windows), ("--X", request.X), ("--U", request.U)):
@@ -299,12 +299,14 @@ def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
     if request.W is not None:
         raise OptionError("--W applies to a registered SYSTEM")
     budget = _check_numbers(request)
-    model = Model.load(request.run).export()
+    model = load_run_model(request.run).export()
     if request.window is not None and request.window != int(model.window):
         raise OptionError(
             f"--window {request.window}: the run's model has window ℓ = {model.window}"
         )
-    out = check_folder(request.out or request.run / "analysis")
+    if request.out is None:  # RUN/analysis: no link there is followed
+        check_inside(request.run, request.run / "analysis")
+    out = check_run_folder(request.out or request.run / "analysis")
     record = _learned_gamma_record(model, request, budget)
     if not record["available"]:
         raise OptionError(f"--run {request.run}: {record['why']}")
@@ -316,7 +318,7 @@ def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
         "window": int(model.window),
         "gamma_f": record,
     }
-    with run_folder_lock(out):
+    with run_folder_lock(out, new=True):
         path = atomic_write_json(out / "learned_analysis.json", jsonable(body))
     return AnalysisOutcome(
         f"learned model ({body['model']}), ℓ = {body['window']}; no registered system, so no "

@@ -185,6 +185,8 @@ class TrainOutcome:
     search: Search | None = None
     members: MemberChoice | None = None
     horizon: HorizonChoice | None = None
+    #: lines the summary says whatever the progress display (the horizon check not made)
+    notes: tuple[str, ...] = ()
 
     def summary(self) -> str:
         """What ``canonid train`` prints: the search, how training ended, the validation
@@ -214,6 +216,7 @@ class TrainOutcome:
             head.append(unseen)
         if self.horizon is not None:
             head.append(self.horizon.summary())
+        head.extend(self.notes)
         if self.members is not None:
             head.append(f"{self.members.summary()}; the scores below are the kept model's")
         return "\n".join(
@@ -322,10 +325,7 @@ def _hidden_option(model: str) -> str:
 
     option = NETS[model].hidden_option
     if option is None:
-        raise OptionError(
-            f"--hidden does not apply to {model}: its layer sizes follow from the window "
-            "(⌈ℓ(n_u+n_y)/2⌉, as in the paper)"
-        )
+        raise OptionError(f"--hidden does not apply to {model}: {NETS[model].no_widths}")
     return option
 
 
@@ -774,12 +774,17 @@ def _horizon(request: TrainRequest, outcome: TrainOutcome) -> TrainOutcome:
     def alternative(folder: Path, resume: bool, horizon: int) -> None:
         trained[horizon] = _train_alternative(request, run_dir, folder, resume, horizon)
 
+    notes: list[str] = []
+
     def say(line: str) -> None:
-        if request.progress:
+        if "not checked" in line:  # a verdict, not progress: in the summary, bars on or off
+            notes.append(line)
+        elif request.progress:
             print(line, file=sys.stderr)
 
     with run_folder_lock(run_dir, flag="--out"):
         choice = choose_horizon(run_dir, alternative, say=say)
+    outcome = dataclasses.replace(outcome, notes=(*outcome.notes, *notes))
     if choice is None:
         return outcome
     if choice.adopted and choice.chosen in trained:  # trained here: its outcome is the run's now

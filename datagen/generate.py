@@ -644,7 +644,13 @@ def _check_existing(dataset_path: Path, config: GenerationConfig) -> None:
     if not meta.is_file():
         return
     header = read_json(meta, what="dataset metadata")
-    found = header.get("metadata", {}).get("generation") if isinstance(header, dict) else None
+    body = header.get("metadata") if isinstance(header, dict) else None
+    found = body.get("generation") if isinstance(body, dict) else None
+    if not isinstance(found, Mapping):  # no generation recorded: not a canonid generate dataset
+        raise DataError(
+            f"{meta} is not the record of a dataset canonid generate wrote (no "
+            "'metadata.generation' in it); generate into another --out, or move it away first"
+        )
     if found != config.to_json():
         raise DataError(
             f"{dataset_path.parent} already holds a dataset of another configuration "

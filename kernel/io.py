@@ -19,6 +19,11 @@ They live in the kernel, under every layer; they need only numpy.
   raises :class:`~canonid.kernel.errors.OutputError` naming the file, and leaves no temporary file.
 * Appended, not replaced: :func:`append_line` adds one line to a log (the run folder's ledger of
   test reads) in one ``write`` to a file opened ``O_APPEND``, never through a symlink.
+* No link followed inside a run folder: while a block runs :func:`confined` to a folder, every
+  path below it that these helpers read, write, copy or make (:func:`make_folder`) is checked by
+  :func:`check_inside`: no component below the folder may be a symbolic link, and a file read,
+  appended to or copied may have no second (hard) link. A path that a record holds is resolved
+  by :func:`run_path`: relative to the folder, and inside it.
 """
 
 from __future__ import annotations
@@ -31,6 +36,7 @@ import re
 import stat
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import IO, Any, Protocol
 
@@ -48,20 +54,126 @@ __all__ = [
     "atomic_write_json",
     "atomic_write_text",
     "check_appendable",
+    "check_inside",
+    "confined",
     "figure_name",
+    "guarded",
     "is_json_number",
     "is_outside_record",
     "jsonable",
+    "make_folder",
     "npz_bytes",
     "read_json",
     "read_npz",
     "remove_stale_temporaries",
+    "run_path",
     "sha256_bytes",
     "sha256_file",
     "write_npz",
 ]
 
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)
+
+#: the run folders whose paths the helpers below check (:func:`confined`), innermost last
+_ROOTS: ContextVar[tuple[str, ...]] = ContextVar("canonid_confined_roots", default=())
+
+
+@contextmanager
+def confined(root: str | os.PathLike[str]) -> Iterator[Path]:
+    """While the block runs, every path below ``root`` that this module's helpers read, write,
+    copy or make is checked by :func:`check_inside` (``root`` itself is the user's choice and
+    may be reached through links)."""
+    token = _ROOTS.set((*_ROOTS.get(), os.path.abspath(root)))
+    try:
+        yield Path(root)
+    finally:
+        _ROOTS.reset(token)
+
+
+def _below(root: str, path: str) -> bool:
+    return path != root and path.startswith(root.rstrip(os.sep) + os.sep)
+
+
+def check_inside(
+    root: str | os.PathLike[str], path: str | os.PathLike[str], *, replaced: bool = False
+) -> Path:
+    """``path``, checked to be below the folder ``root`` without a link: every component below
+    ``root`` that exists is no symbolic link (an intermediate one a folder), and the last, when
+    a regular file, has no second hard link (``replaced``: the last is replaced by a rename, not
+    opened, so a link there is replaced, not followed, and allowed). A missing component passes:
+    it will be made. Anything else raises one :class:`OutputError` naming the path."""
+    base, full = os.path.abspath(root), os.path.abspath(path)
+    if not _below(base, full):
+        raise OutputError(f"{path}: outside the run folder {root}; canonid keeps to the folder")
+    parts = os.path.relpath(full, base).split(os.sep)
+    current = base
+    for depth, part in enumerate(parts, start=1):
+        current = os.path.join(current, part)
+        try:
+            info = os.lstat(current)
+        except FileNotFoundError:
+            return Path(path)
+        except OSError as exc:
+            raise OutputError(f"{current}: cannot read ({exc.strerror})") from None
+        last = depth == len(parts)
+        if stat.S_ISLNK(info.st_mode) and not (last and replaced):
+            raise OutputError(
+                f"{current} is a symbolic link inside the run folder {root}; canonid follows no "
+                "link there (remove it)"
+            )
+        if not last and not stat.S_ISDIR(info.st_mode):
+            raise OutputError(f"{current} is not a folder; expected a folder of the run {root}")
+        if last and not replaced and stat.S_ISREG(info.st_mode) and info.st_nlink > 1:
+            raise OutputError(
+                f"{current} has {info.st_nlink} hard links (the same file elsewhere too); canonid "
+                "reads and writes only a run folder's own files (copy it, then remove the link)"
+            )
+    return Path(path)
+
+
+def guarded(path: str | os.PathLike[str], *, replaced: bool = False) -> Path:
+    """``path``, checked by :func:`check_inside` for each folder :func:`confined` holds it below
+    (for a reader or writer outside this module: ``torch.load``, ``shutil.rmtree``)."""
+    full = os.path.abspath(path)
+    for root in _ROOTS.get():
+        if _below(root, full):
+            check_inside(root, full, replaced=replaced)
+    return Path(path)
+
+
+def make_folder(path: str | os.PathLike[str]) -> Path:
+    """Make the folder ``path`` (and its parents), checked by :func:`guarded` first: no link is
+    followed below a :func:`confined` folder; a failure is an :class:`OutputError` naming it."""
+    guarded(path)
+    try:
+        Path(path).mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot make the folder {path}: {exc.strerror or exc}") from exc
+    guarded(path)  # a link planted while it was made
+    return Path(path)
+
+
+def run_path(root: str | os.PathLike[str], recorded: Any, *, where: str) -> Path:
+    """The path that a record (``where``: its file and field) holds, relative to the run folder
+    ``root``: a relative path that stays inside the folder (``"."``: the folder itself), with no
+    link below it (:func:`check_inside`); anything else is one :class:`DataError` naming the
+    record."""
+    if not isinstance(recorded, str) or not recorded or "\0" in recorded:
+        raise DataError(f"{where}: expected a path relative to the run folder; got {recorded!r}")
+    if os.path.isabs(recorded) or ".." in Path(recorded).parts:
+        raise DataError(
+            f"{where}: {recorded!r} is not a path inside the run folder (expected one relative "
+            "to it, without '..')"
+        )
+    if recorded in (".", "./"):
+        return Path(root)
+    target = Path(root) / recorded
+    try:
+        check_inside(root, target)
+    except OutputError as exc:
+        raise DataError(f"{where}: {exc}") from None
+    return target
+
 
 # tempfile, zipfile and hashlib are imported where a write, an .npz or a checksum needs them:
 # reading a CSV needs none of them, and canonid.load_data's start-up is measured
@@ -85,6 +197,7 @@ def atomic_copy(
     new file with the mode a plain ``open()`` gives); return the path. A source that cannot be
     read raises :class:`OutputError` naming both files and leaves ``path`` as it was."""
     src, target = Path(source), Path(path)
+    guarded(src)
     try:
         reader = open(src, "rb")  # closed by the with below
     except OSError as exc:
@@ -120,6 +233,11 @@ def atomic_copy_tree(source: str | os.PathLike[str], path: str | os.PathLike[str
 
     src, target = Path(source), Path(path)
     staged = target.with_name(f".{target.name}.staged")
+    guarded(src)
+    guarded(target.parent)
+    for folder, names, files in os.walk(src):  # a link inside a confined source is refused too
+        for name in (*names, *files):
+            guarded(os.path.join(folder, name))
     try:
         remove(staged)
         shutil.copytree(src, staged, symlinks=True)
@@ -188,6 +306,7 @@ def _replacing(
     import tempfile
 
     target = Path(path)
+    guarded(target, replaced=True)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent)
@@ -301,6 +420,7 @@ def is_outside_record(value: Any) -> bool:
 def read_json(path: str | os.PathLike[str], *, what: str = "JSON file") -> Any:
     """Read a JSON file, turning every failure into a :class:`DataError` naming the file."""
     p = Path(path)
+    guarded(p)
     if not p.is_file():
         raise DataError(f"{what} not found: {p}")
     try:
@@ -342,6 +462,7 @@ def read_npz(path: str | os.PathLike[str], *, what: str = "array file") -> dict[
     import zipfile
 
     p = Path(path)
+    guarded(p)
     if not p.is_file():
         raise DataError(f"{what} not found: {p}")
     if not zipfile.is_zipfile(p):
@@ -371,6 +492,7 @@ def append_line(path: str | os.PathLike[str], line: str, *, what: str = "log") -
     import errno
 
     target = Path(path)
+    guarded(target)
     data = (line.rstrip("\n") + "\n").encode("utf-8")
     flags = os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC
     try:
@@ -381,8 +503,11 @@ def append_line(path: str | os.PathLike[str], line: str, *, what: str = "log") -
         check_appendable(target, what=what)  # a folder or a FIFO there: named as such
         raise OutputError(f"{target}: cannot append to the {what}: {exc.strerror}") from None
     try:
-        if not stat.S_ISREG(os.fstat(fd).st_mode):
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode):
             raise _not_appendable(target, what, symlink=False)
+        if info.st_nlink > 1:  # a hard link: appending would change the file elsewhere too
+            raise OutputError(f"{target}: the {what} has {info.st_nlink} hard links; remove it")
         written = os.write(fd, data)
         if written != len(data):
             raise OutputError(f"{target}: the {what} took {written} of {len(data)} bytes")
@@ -427,6 +552,7 @@ def sha256_bytes(data: bytes) -> str:
 def sha256_file(path: str | os.PathLike[str]) -> str:
     import hashlib
 
+    guarded(path)
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for chunk in iter(lambda: fh.read(1 << 20), b""):

@@ -32,8 +32,11 @@ from canonid.kernel.errors import CanonidError, CheckpointError, DataError, Shap
 from canonid.kernel.io import (
     atomic_write_bytes,
     atomic_write_json,
+    confined,
+    guarded,
     is_json_number,
     is_outside_record,
+    make_folder,
     read_json,
 )
 from canonid.learning.data import Normalisation
@@ -131,8 +134,7 @@ class Model:
     # ------------------------------------------------------------------ storage
     def save(self, folder: str | os.PathLike[str]) -> Path:
         """Write ``config.json``, ``weights.pt`` and ``normalisation.json`` into ``folder``."""
-        out = Path(folder)
-        out.mkdir(parents=True, exist_ok=True)
+        out = make_folder(folder)
         buf = io.BytesIO()
         torch.save({k: v.detach().cpu() for k, v in self.net.state_dict().items()}, buf)
         atomic_write_bytes(out / WEIGHTS_FILE, buf.getvalue())
@@ -164,6 +166,17 @@ class Model:
         :class:`CheckpointError`, as is any weight whose name or shape does not fit.
         """
         folder = Path(folder)
+        with confined(folder):  # no link below the folder is followed
+            return cls._load(folder, expect=expect, map_location=map_location)
+
+    @classmethod
+    def _load(
+        cls,
+        folder: Path,
+        *,
+        expect: Mapping[str, Any] | None,
+        map_location: str | torch.device,
+    ) -> Model:
         if not folder.is_dir():
             raise CheckpointError(f"model folder not found: {folder}")
         if not (folder / CONFIG_FILE).exists():
@@ -174,6 +187,12 @@ class Model:
         config = read_json(folder / CONFIG_FILE, what="model configuration")
         if not isinstance(config, dict) or config.get("format") != "canonid-model":
             raise CheckpointError(f"{folder / CONFIG_FILE} is not a canonid model configuration")
+        version = config.get("format_version", MODEL_FORMAT_VERSION)
+        if type(version) is not int or version != MODEL_FORMAT_VERSION:
+            raise CheckpointError(
+                f"{folder / CONFIG_FILE}: field 'format_version' is {version!r}; this canonid "
+                f"reads version {MODEL_FORMAT_VERSION} (a newer canonid wrote it, or a hand edit)"
+            )
         name, net_config = config.get("model"), config.get("net")
         if not isinstance(name, str) or name not in ALL_NETS or not isinstance(net_config, dict):
             raise CheckpointError(
@@ -288,7 +307,7 @@ def load_weights(
 def read_weights(path: Path, *, map_location: str | torch.device = "cpu") -> Any:
     """The ``state_dict`` saved in ``path``, read with ``weights_only=True`` (tensors, never
     Python objects); a file that is missing, corrupt or holds NaN raises CheckpointError."""
-    if not path.is_file():
+    if not guarded(path).is_file():
         raise CheckpointError(f"weights file not found: {path}")
     if not zipfile.is_zipfile(path):  # torch.save writes a zip archive
         raise CheckpointError(

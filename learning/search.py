@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError
-from canonid.kernel.io import atomic_write_json, read_json
+from canonid.kernel.io import atomic_write_json, confined, make_folder, read_json
 
 if TYPE_CHECKING:
     from canonid.learning.training import FitResult
@@ -440,12 +440,18 @@ class CandidateTrainer:
     info: Mapping[str, Any] | None = None
 
     def __call__(self, candidate: Candidate, rung: int, until: int) -> SearchRow:
+        where = self.folder / candidate.name
+        start = time.process_time()
+        with confined(self.folder.parent):  # in a worker too: no link below the run followed
+            make_folder(where)
+            fitted = self._fit(candidate, where, until)
+        return _as_row(candidate, rung, until, fitted, time.process_time() - start)
+
+    def _fit(self, candidate: Candidate, where: Path, until: int) -> FitResult:
         from canonid.learning.nets import NETS
         from canonid.learning.training import CHECKPOINT_FILE, fit
 
-        where = self.folder / candidate.name
-        start = time.process_time()
-        fitted = fit(
+        return fit(
             self.train,
             self.val,
             model=self.model,
@@ -457,7 +463,6 @@ class CandidateTrainer:
             resume=(where / CHECKPOINT_FILE).is_file(),
             until=until,
         )
-        return _as_row(candidate, rung, until, fitted, time.process_time() - start)
 
 
 def executor_rung(
@@ -566,8 +571,7 @@ def _folder(run_dir: str | Path | None) -> Iterator[Path]:
     """``run_dir`` as a path (made when missing), or a temporary folder removed on exit when it
     is ``None``."""
     if run_dir is not None:
-        Path(run_dir).mkdir(parents=True, exist_ok=True)
-        yield Path(run_dir)
+        yield make_folder(run_dir)
         return
     with tempfile.TemporaryDirectory(prefix="canonid-search-") as tmp:
         yield Path(tmp)

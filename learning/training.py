@@ -72,7 +72,7 @@ import torch
 from canonid.kernel.catalog import DEVICE_NAMES, MAX_LR, MAX_WINDOWS_PER_EPOCH
 from canonid.kernel.dataset import Trajectory, as_trajectories
 from canonid.kernel.errors import CheckpointError, OptionError, ShapeError
-from canonid.kernel.io import atomic_write_bytes
+from canonid.kernel.io import atomic_write_bytes, guarded
 from canonid.learning.data import Normalisation, WindowBank
 from canonid.learning.linear import feedthrough_test, initialise_linear
 from canonid.learning.model import Model, check_same, load_state
@@ -1079,7 +1079,7 @@ def _load_checkpoint(path: Path, identity: Mapping[str, Any]) -> dict[str, Any]:
 def _read_checkpoint(path: Path) -> dict[str, Any]:
     """A canonid training checkpoint (tensors and plain data only), or :class:`CheckpointError`
     naming what is wrong with the file."""
-    if not path.is_file():
+    if not guarded(path).is_file():
         raise CheckpointError(f"no checkpoint to resume from: {path} does not exist")
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)

@@ -581,6 +581,15 @@ def test_train_args_take_no_abbreviation_and_no_data(tmp_path, capsys):
     _folder_after(tmp_path, [*argv, "--train-args=other.npz"], capsys, "'other.npz'")
 
 
+@pytest.mark.parametrize("given", ["--dt 5", "--dt=5", "--inputs u", "--time-column t"])
+def test_train_args_refuse_data_options_naming_them_not_the_internal_file(given, tmp_path, capsys):
+    """Issue 54: ``--train-args '--dt 5'`` was refused naming ``benchmark-data.npz``, a file
+    the user never gave."""
+    write_benchmark("cascaded-tanks", tmp_path)
+    argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path), f"--train-args={given}"]
+    _folder_after(tmp_path, argv, capsys, "--train-args", given.split()[0].split("=")[0], "CSV")
+
+
 def test_the_default_searches_only_windows_within_n_init(tmp_path, capsys):
     from canonid.learning.search import Search
 

@@ -31,6 +31,16 @@ def test_a_constant_output_column_is_refused_before_the_run_folder_is_written(tm
     assert not out.exists()
 
 
+def test_arx_on_constant_data_is_refused_not_reported_as_a_perfect_fit(tmp_path, capsys):
+    """Issue 54, case 14: ARX on constant data reported a 100 % fit beside raw matplotlib
+    warnings; the constant output is refused first, for the linear model too."""
+    data = _csv(tmp_path / "flat.csv", y=lambda t: 2.5)
+    out = tmp_path / "run"
+    argv = ["train", str(data), *CSV, *TINY, "--model", "arx", "--window", "2", "--out", str(out)]
+    one_line_error(capsys, main(argv), "flat.csv", "output column 'y' is constant")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     ("sizes", "needle"),
     [

@@ -139,6 +139,9 @@ def test_run_checks_a_trained_model_through_its_numpy_export(tmp_path, capsys, m
     monkeypatch.setattr(canonid, "learned", canonid.learned)
     monkeypatch.delitem(sys.modules, "canonid.learned")
     monkeypatch.setitem(sys.modules, "canonid.learning", fake)
+    import canonid.runfolder  # the run's model is read through its checks against run.json
+
+    monkeypatch.setattr(canonid.runfolder, "load_run_model", Model.load)
     out = tmp_path / "out"
     code = main(
         [

@@ -324,6 +324,19 @@ def test_a_dataset_of_another_configuration_is_not_replaced_silently(tmp_path):
     assert first.read_bytes() == before
 
 
+@pytest.mark.parametrize("header", ['{"x": 1}', '{"metadata": 3}', '{"metadata": {}}', "[]"])
+def test_a_foreign_dataset_json_is_named_not_called_another_configuration(header, tmp_path):
+    """A ``dataset.json`` that no ``canonid generate`` wrote: named as such (issue 54: the
+    message said "another configuration (None)"), and left as it is."""
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "dataset.json").write_text(header, encoding="utf-8")
+    config = GenerationConfig("tank", seed=8, counts={"train": 4, "val": 2, "test": 2})
+    with pytest.raises(DataError, match="not the record of a dataset canonid generate wrote"):
+        generate_dataset(config, tmp_path / "a")
+    assert (tmp_path / "a" / "dataset.json").read_text(encoding="utf-8") == header
+    assert sorted(p.name for p in (tmp_path / "a").iterdir()) == ["dataset.json"]
+
+
 def test_truncated_generated_dataset_is_refused_naming_it(tmp_path):
     path = _small(tmp_path, "a").path
     path.write_bytes(path.read_bytes()[:1000])

@@ -8,6 +8,7 @@ SIGTERM as on Ctrl-C.
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -249,7 +250,9 @@ def test_data_with_other_signal_names_are_refused_unless_the_columns_are_named(
     before = _snapshot(run)
     other = str(root / "other-names")
     _refused(capsys, ["evaluate", str(run), "--data", other], "['u']", "['pump']", "--inputs")
-    _refused(capsys, ["export", str(run), "--casadi", str(tmp_path / "m.casadi"), "--data", other])
+    export = ["export", str(run), "--casadi", str(tmp_path / "m.casadi"), "--data", other]
+    err = _refused(capsys, export, "['u']", "['pump']", "leave out --data")
+    assert "--inputs" not in err  # export has no --inputs (issue 54)
     assert _snapshot(run) == before
     # the same signals as CSV columns, chosen by name: the user's statement, accepted
     ds = _dataset(1, 7, dt=0.5, names=("u", "y"))
@@ -579,3 +582,384 @@ def test_any_field_of_a_stored_evaluation_changed_is_printed_or_named_never_a_tr
             assert code == 1 and len(err.strip().splitlines()) == 1, err
             assert str(stored.parent) in err, err  # the file, or its folder of other weights
         assert _snapshot(run) == before
+
+
+# ------------------------------------------------------------------ links and recorded paths (54)
+def _victim(folder: Path) -> Path:
+    """A tree of someone else's files, with the names a run folder's writers use."""
+    for name in ("rollouts.png", "weights.pt", "config.json", "learned_analysis.json", "notes"):
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)
+        (folder / name).write_bytes(f"the victim's {name}\n".encode())
+    (folder / "inner").mkdir()
+    (folder / "inner" / "metrics.json").write_text('{"theirs": 1}\n', encoding="utf-8")
+    return folder
+
+
+def _sums(folder: Path) -> dict[str, str]:
+    """Every entry below ``folder`` without following links: its kind and bytes' checksum."""
+    import hashlib
+
+    sums = {}
+    for p in sorted(folder.rglob("*")):
+        key = str(p.relative_to(folder))
+        if p.is_symlink():
+            sums[key] = "link " + str(p.readlink())
+        elif p.is_dir():
+            sums[key] = "folder"
+        else:
+            sums[key] = hashlib.sha256(p.read_bytes()).hexdigest()
+    return sums
+
+
+@pytest.fixture(scope="module")
+def evaluation_dir(root, tmp_path_factory) -> str:
+    """The folder name ``canonid evaluate RUN`` gives the run's test split."""
+    run = Path(shutil.copytree(root / "run", tmp_path_factory.mktemp("named") / "run"))
+    assert main(["evaluate", str(run)]) == 0
+    (folder,) = (run / "evaluations").iterdir()
+    return folder.name
+
+
+@pytest.mark.parametrize("where", ["evaluations", "evaluations/NAME"])
+def test_evaluate_follows_no_link_to_a_folder(where, root, evaluation_dir, tmp_path, capsys):
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "victim")
+    before = _sums(victim)
+    link = run / where.replace("NAME", evaluation_dir)
+    link.parent.mkdir(parents=True, exist_ok=True)
+    link.symlink_to(victim, target_is_directory=True)
+    _refused(capsys, ["evaluate", str(run)], "symbolic link", where.split("/")[0])
+    assert _sums(victim) == before
+
+
+def test_analyze_run_follows_no_link_at_its_analysis_folder(root, tmp_path, capsys):
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "victim")
+    before = _sums(victim)
+    (run / "analysis").symlink_to(victim, target_is_directory=True)
+    argv = ["analyze", "--run", str(run), "--budget", "0.5", "--boxes", "4", "--no-progress"]
+    _refused(capsys, argv, "analysis", "symbolic link")
+    assert _sums(victim) == before
+
+
+@pytest.mark.parametrize("where", ["search", "search/l3-c16", "members", ".horizon-20.staged"])
+def test_train_resume_follows_no_link_to_a_folder(where, root, tmp_path, capsys):
+    """The search's candidates train in ``RUN/search/<name>``: a link there (or at another
+    folder a resumed run writes) is refused, and the folder it points to is left alone."""
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "victim")
+    before = _sums(victim)
+    (run / where).parent.mkdir(parents=True, exist_ok=True)
+    if where.startswith("search"):  # a search killed before its choice: it resumes there
+        (run / "checkpoint.pt").unlink()
+    if (run / where).is_dir():
+        shutil.rmtree(run / where)
+    (run / where).symlink_to(victim, target_is_directory=True)
+    code = main(["train", "--resume", "--out", str(run), "--no-progress"])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    if where.startswith("search"):
+        assert code == 1 and "symbolic link" in err, err
+    assert code == 0 or "symbolic link" in err, err
+    assert _sums(victim) == before
+
+
+def _crafted_horizon_check(run: Path, victim: Path, folder, state: str) -> None:
+    """A ``horizon-check.json`` keeping H = 5 from ``folder`` (``VICTIM``: the victim's absolute
+    path; ``LINK``: ``horizon-5/link``, a link to the victim planted for it)."""
+    (run / "horizon-5").mkdir(exist_ok=True)
+    if not (run / "horizon-5" / "link").exists():
+        (run / "horizon-5" / "link").symlink_to(victim, target_is_directory=True)
+    folder = {"VICTIM": str(victim), "LINK": "horizon-5/link"}.get(folder, folder)
+    entry = {"window": 3, "outside": 0, "tests": 1, "largest": 0.0, "best_val_loss": None}
+    body = {
+        "format": "canonid-horizon-check",
+        "version": 2,
+        "limit": 0,
+        "chosen": 5,
+        "state": state,
+        "k": 5,
+        "confidence": 0.99,
+        "candidates": [
+            {**entry, "horizon": 20, "folder": "."},
+            {**entry, "horizon": 5, "folder": folder},
+        ],
+    }
+    (run / "horizon-check.json").write_text(json.dumps(body), encoding="utf-8")
+
+
+@pytest.mark.parametrize(
+    "folder", ["VICTIM", "../outside", "horizon-5/../../outside", "LINK", "", 3, None]
+)
+def test_a_horizon_check_record_may_name_only_a_folder_inside_the_run(
+    folder, root, tmp_path, capsys
+):
+    """``horizon-check.json`` names its candidates' folders relative to the run: an absolute
+    path, one with ``..``, or one through a link is named, and nothing is copied or moved."""
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "outside")
+    _crafted_horizon_check(run, victim, folder, "adopting")
+    before, mine = _sums(victim), _sums(run)
+    argv = ["train", "--resume", "--out", str(run), "--epochs", "2", "--no-progress"]
+    _refused(capsys, argv, "horizon-check.json", "candidates[1].folder")
+    assert _sums(victim) == before and _sums(run) == mine
+
+
+def test_a_hard_link_at_the_lock_is_refused_and_its_file_left_whole(root, tmp_path, capsys):
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "victim")
+    before = _sums(victim)
+    (run / ".canonid.lock").unlink(missing_ok=True)
+    (run / ".canonid.lock").hardlink_to(victim / "notes")
+    argv = ["train", "--resume", "--out", str(run), "--epochs", "2", "--no-progress"]
+    _refused(capsys, argv, ".canonid.lock", "hard link")
+    _refused(capsys, ["evaluate", str(run)], ".canonid.lock", "hard link")
+    assert _sums(victim) == before
+
+
+@pytest.mark.parametrize("name", ["config.json", "weights.pt", "test-ledger.jsonl"])
+def test_a_hard_link_to_a_file_elsewhere_is_neither_read_nor_written(name, root, tmp_path, capsys):
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "victim")
+    (victim / name).write_bytes((run / name).read_bytes() if (run / name).exists() else b"")
+    before = _sums(victim)
+    (run / name).unlink(missing_ok=True)
+    (run / name).hardlink_to(victim / name)
+    _refused(capsys, ["evaluate", str(run)], name, "hard link")
+    assert _sums(victim) == before
+
+
+#: folders of a run that a command may write, read or copy: a link to the victim planted there
+LINKED_FOLDERS = (
+    "evaluations",
+    "evaluations/NAME",
+    "analysis",
+    "search",
+    "search/l3-c16",
+    "search/l3",
+    "members",
+    "horizon-5",
+    ".horizon-20.staged",
+)
+#: files of a run: a hard link to a copy in the victim's tree planted there
+LINKED_FILES = (
+    *JSON_FILES,
+    *RUN_FILES[4:6],  # weights.pt, checkpoint.pt
+    "search.json",
+    ".canonid.lock",
+    "test-ledger.jsonl",
+    "evaluations/NAME/metrics.json",
+    "search/l3-c16/weights.pt",
+    "search/l3-c16/checkpoint.pt",
+)
+#: what a crafted horizon-check.json may name as a candidate's folder (VICTIM: its absolute path)
+RECORDED_FOLDERS = ("VICTIM", "../victim", "horizon-5/../../victim", "horizon-5", "LINK", ".")
+
+_planted = st.one_of(
+    st.tuples(st.just("folder link"), st.sampled_from(LINKED_FOLDERS)),
+    st.tuples(st.just("hard link"), st.sampled_from(LINKED_FILES)),
+    st.tuples(
+        st.just("record"),
+        st.sampled_from(RECORDED_FOLDERS),
+        st.sampled_from(["adopting", "decided"]),
+    ),
+)
+
+
+def _plant(run: Path, victim: Path, name: str, hazard) -> None:
+    kind, where, *rest = hazard
+    if kind == "folder link":
+        path = run / where.replace("NAME", name)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.is_symlink() or path.is_file():
+            path.unlink()
+        elif path.is_dir():
+            shutil.rmtree(path)
+        path.symlink_to(victim, target_is_directory=True)
+    elif kind == "hard link":
+        path = run / where.replace("NAME", name)
+        if path.is_symlink() or not path.parent.is_dir() or path.parent.is_symlink():
+            return
+        copy = victim / "linked" / where.replace("/", "_")
+        copy.parent.mkdir(exist_ok=True)
+        if not copy.exists():
+            copy.write_bytes(path.read_bytes() if path.is_file() else b"")
+        path.unlink(missing_ok=True)
+        path.hardlink_to(copy)
+    else:
+        _crafted_horizon_check(run, victim, where, rest[0])
+
+
+#: the commands, a resumed training (the slowest, it scores the run again) one in ten
+_PLANTED_COMMANDS = st.sampled_from([*["evaluate", "export", "analyze"] * 3, "resume"])
+
+
+@pytest.mark.slow
+@settings(
+    max_examples=500, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(hazards=st.lists(_planted, min_size=1, max_size=3), command=_PLANTED_COMMANDS)
+def test_planted_links_and_recorded_paths_never_change_a_file_outside_the_run(
+    evaluated, evaluation_dir, hazards, command, capsys
+):
+    """Links to folders, hard links to files and crafted paths in records, planted at random in
+    a run folder: every command exits with a line or succeeds, and the victim's tree (which the
+    links point to) keeps every checksum."""
+    with tempfile.TemporaryDirectory() as scratch_name:
+        scratch = Path(scratch_name)
+        run = Path(shutil.copytree(evaluated, scratch / "run", symlinks=True))
+        victim = _victim(scratch / "victim")
+        for hazard in hazards:
+            _plant(run, victim, evaluation_dir, hazard)
+        before = _sums(victim)
+        argv = {
+            "evaluate": ["evaluate", str(run)],
+            "export": ["export", str(run), "--casadi", str(run / "export" / "m.casadi")],
+            "analyze": ["analyze", "--run", str(run), "--budget", "0.05", "--boxes", "1"],
+            "resume": ["train", "--resume", "--out", str(run)],
+        }[command]
+        try:
+            code = main([*argv, "--no-progress"] if command in ("analyze", "resume") else argv)
+        except SystemExit as exc:
+            code = exc.code
+        err = capsys.readouterr().err
+        event(f"{command} exit {code}")
+        assert code in (0, 1), err
+        assert "Traceback" not in err, err
+        if code != 0:
+            assert len(err.strip().splitlines()) == 1, err
+        assert _sums(victim) == before
+        assert sorted(p.name for p in scratch.iterdir()) == ["run", "victim"]
+
+
+# ------------------------------------------------------------------ nothing of the user's lost (54)
+def test_analyze_out_refuses_a_folder_of_the_users_own_files(tmp_path, capsys):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "analysis.json").write_text('{"mine": true}\n', encoding="utf-8")
+    argv = ["analyze", "tank", "--window", "2", "--out", str(out), "--no-progress"]
+    _refused(capsys, argv, str(out), "canonid did not write", "analysis.json")
+    assert [p.name for p in out.iterdir()] == ["analysis.json"]
+    assert (out / "analysis.json").read_text(encoding="utf-8") == '{"mine": true}\n'
+
+
+def test_a_failed_evaluation_write_removes_only_what_it_wrote(
+    root, evaluation_dir, tmp_path, capsys
+):
+    """``rollouts.png`` is a folder: the write fails, and the evaluation folder keeps what was
+    there before (a user's note, that folder) while what this evaluation wrote goes."""
+    run = _run(root, tmp_path)
+    folder = run / "evaluations" / evaluation_dir
+    (folder / "rollouts.png").mkdir(parents=True)
+    (folder / "notes.txt").write_text("mine\n", encoding="utf-8")
+    before = _sums(folder)
+    _refused(capsys, ["evaluate", str(run)], "rollouts.png")
+    assert _sums(folder) == before
+
+
+def test_a_run_json_without_checksum_and_a_relative_data_path_is_refused(
+    root, tmp_path, monkeypatch, capsys
+):
+    """Neither a checksum nor a recorded folder to resolve ``data`` against: the current
+    folder would decide what is scored, so the command names the file and asks for --data."""
+    run = _run(root, tmp_path)
+    elsewhere = tmp_path / "elsewhere"
+    _dataset(2, 9, dt=0.5, names=("pump", "level")).save(elsewhere / "data" / "dataset.npz")
+    _edit_json(run / "run.json", lambda r: r.update(data="data/dataset.npz", data_sha256=None))
+    monkeypatch.chdir(elsewhere)
+    before = _snapshot(run)
+    _refused(
+        capsys, ["evaluate", str(run)], "run.json", "no checksum", "--data", "data/dataset.npz"
+    )
+    assert _snapshot(run) == before
+    data = str(root / "data" / "dataset.npz")
+    assert main(["evaluate", str(run), "--data", data]) == 0
+
+
+# ------------------------------------------------------------------ records checked (54)
+@pytest.mark.parametrize(
+    ("edit", "needles"),
+    [
+        (lambda m: m.update(rmse=12345), ("content_sha256", "edited by hand")),
+        (lambda m: m.update(rollout_mse=float("nan")), ("'rollout_mse'", "a number or null")),
+        (lambda m: m["kstep_nrmse"].__setitem__(0, {}), ("'kstep_nrmse'",)),
+        (lambda m: m["kstep_nrmse_per_output"][0].pop(), ("'kstep_nrmse_per_output'",)),
+        (lambda m: m.pop("content_sha256"), ("content_sha256", "missing")),
+    ],
+)
+def test_a_stored_evaluation_edited_by_hand_is_named_not_printed(
+    edit, needles, evaluated, tmp_path, capsys
+):
+    """The stored evaluation holds a checksum of its own content: a score changed by hand
+    (``rmse: 12345``) is named as an edit, a number of the wrong kind or shape by its field."""
+    run = Path(shutil.copytree(evaluated, tmp_path / "run"))
+    (stored,) = (run / "evaluations").glob("*/metrics.json")
+    _edit_json(stored, edit)
+    before = _snapshot(run)
+    err = _refused(capsys, ["evaluate", str(run)], str(stored), *needles)
+    assert "12345" not in capsys.readouterr().out + err
+    assert _snapshot(run) == before
+
+
+@pytest.mark.parametrize(
+    ("file", "edit", "needles"),
+    [
+        ("run.json", lambda r: r.update(window=5), ("run.json", "'window'", "config.json")),
+        ("run.json", lambda r: r.update(model="gru"), ("run.json", "'model'", "config.json")),
+        ("config.json", lambda c: c.update(format_version=99), ("'format_version'", "99")),
+    ],
+)
+def test_run_json_and_config_json_that_disagree_are_refused(
+    file, edit, needles, root, tmp_path, capsys
+):
+    run = _run(root, tmp_path)
+    _edit_json(run / file, edit)
+    before = _snapshot(run)
+    _refused(capsys, ["evaluate", str(run)], *needles)
+    _refused(capsys, ["export", str(run), "--casadi", str(tmp_path / "m.casadi")], *needles)
+    assert _snapshot(run) == before and not (tmp_path / "m.casadi").exists()
+
+
+# ------------------------------------------------------------------ messages (54)
+@pytest.mark.parametrize(
+    "command", [["evaluate"], ["reduce", "--compression", "0.5", "--no-progress"]]
+)
+def test_a_run_being_trained_names_its_writer_not_a_missing_model(command, tmp_path, capsys):
+    """Before its first model is saved, a run folder holds its lock and ``run.json`` only: a
+    reader is told who writes it and to wait, not that the folder "holds no model"."""
+    from canonid.jobs import run_folder_lock
+
+    run = tmp_path / "run"
+    with run_folder_lock(run, new=True):
+        (run / "run.json").write_text('{"format": "canonid-run"}\n', encoding="utf-8")
+        err = _refused(capsys, [*command, str(run)], "being written by another canonid process")
+    assert "holds no model yet" in err and f"pid {os.getpid()}" in err
+
+
+def test_hidden_widths_for_arx_say_it_is_linear_not_the_gru_rule(root, tmp_path, capsys):
+    argv = ["train", str(root / "data" / "dataset.npz"), "--model", "arx", "--hidden", "8"]
+    err = _refused(capsys, [*argv, "--out", str(tmp_path / "run"), *COMMON], "--hidden", "arx")
+    assert "linear" in err and "⌈ℓ" not in err
+    assert not (tmp_path / "run").exists()
+
+
+def test_constant_input_data_train_with_a_note_naming_the_column(tmp_path, caplog):
+    """Issue 54: data whose input never changes trained without a word."""
+    y = np.cumsum(np.random.default_rng(0).normal(size=160))
+    csv = tmp_path / "flat.csv"
+    csv.write_text("u,y\n" + "".join(f"1.5,{v:.17g}\n" for v in y), encoding="utf-8")
+    argv = ["train", str(csv), "--inputs", "u", "--outputs", "y", "--dt", "1", "--window", "3"]
+    with caplog.at_level("WARNING"):
+        assert main([*argv, "--hidden", "8,8", "--out", str(tmp_path / "run"), *COMMON]) == 0
+    notes = [r.getMessage() for r in caplog.records if "constant" in r.getMessage()]
+    assert len(notes) == 1 and "'u'" in notes[0] and str(csv) in notes[0], notes
+
+
+@pytest.mark.parametrize("where", ["members", "horizon-5"])
+def test_a_run_folder_below_a_run_being_written_is_not_made_through_a_link(where, root, tmp_path):
+    """A member's or a horizon alternative's run folder lies below the run: made and locked
+    while the run's own lock is held, a link on its way is refused, its target left alone."""
+    from canonid.jobs import run_folder_lock
+    from canonid.kernel.errors import OutputError
+
+    run, victim = _run(root, tmp_path), _victim(tmp_path / "victim")
+    before = _sums(victim)
+    (run / where).symlink_to(victim, target_is_directory=True)
+    with run_folder_lock(run, flag="--out"), pytest.raises(OutputError, match="symbolic link"):
+        with run_folder_lock(run / where / "s2", new=True):
+            pass
+    assert _sums(victim) == before

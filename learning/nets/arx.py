@@ -27,6 +27,7 @@ class ARX(CanonicalModel):
     name = "arx"
     label = "ARX (linear)"
     iterative = False
+    no_widths = "it is linear, with no hidden layers (its size is the window ℓ alone)"
 
     def __init__(self, **common: Any) -> None:
         common.pop("linear", None)

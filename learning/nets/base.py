@@ -105,6 +105,10 @@ class SequenceModel(nn.Module, ABC):
     #: the constructor argument holding the widths of the hidden layers (what
     #: ``canonid train --hidden`` sets), or ``None`` where the sizes are not a list of widths
     hidden_option: ClassVar[str | None] = None
+    #: why there are no widths to set, where ``hidden_option`` is ``None``
+    no_widths: ClassVar[str] = (
+        "its layer sizes follow from the window (⌈ℓ(n_u+n_y)/2⌉, as in the paper)"
+    )
     #: whether the network is trained by gradient steps (``False``: fitted in closed form only)
     iterative: ClassVar[bool] = True
     residual_scale: torch.Tensor
