@@ -457,3 +457,17 @@ def test_the_docs_command_line_page_lists_every_command_with_a_summary():
     assert list(rows) == [c.name for c in COMMANDS]
     for name, summary in rows.items():
         assert summary.strip() and "%%" not in summary, f"{name}: {summary!r}"
+
+
+def test_train_help_is_grouped_data_model_training_search_output(capsys):
+    parser = _subcommands()["train"]
+    titles = [g.title for g in parser._action_groups]
+    assert titles == ["options", "data", "model", "training", "search", "output"], titles
+    grouped = {a for g in parser._action_groups[1:] for a in g._group_actions}
+    loose = [a.dest for a in _shown(parser) if a not in grouped]
+    assert not loose, f"canonid train options in no section: {loose}"
+    with pytest.raises(SystemExit):
+        build_parser("train").parse_args(["train", "--help"])
+    out = capsys.readouterr().out
+    heads = [line[:-1] for line in out.splitlines() if line.endswith(":") and line[:1].isalpha()]
+    assert heads[-5:] == ["data", "model", "training", "search", "output"], heads

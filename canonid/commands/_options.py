@@ -37,6 +37,7 @@ __all__ = [
     "add_where",
     "argument",
     "comma_list",
+    "group_options",
     "request",
     "resumed",
 ]
@@ -298,3 +299,26 @@ def add_data_options(parser: argparse.ArgumentParser, *, recorded: bool = False)
         given = "the run's" if recorded else default
         tail = f" (default: {given})" if given else " (required for CSV data)"
         g.add_argument(flag, type=argument(parse), metavar=metavar, help=what + tail)
+
+
+def group_options(
+    parser: argparse.ArgumentParser, groups: dict[str, tuple[str | None, tuple[str, ...]]]
+) -> None:
+    """Sort the registered arguments of ``parser`` into argument groups, in ``--help`` in the
+    order of ``groups``: title → (description, the ``dest`` of each argument); an argument in
+    none keeps its place, a group left empty (e.g. ``CSV data``) is dropped. One table after
+    registration, so the options themselves are written once, where they are registered."""
+    made = []
+    for title, (description, dests) in groups.items():
+        group = parser.add_argument_group(title, description)
+        for action in parser._actions:
+            if action.dest in dests:
+                for old in parser._action_groups:
+                    if action in old._group_actions:
+                        old._group_actions.remove(action)
+                group._group_actions.append(action)
+        made.append(group)
+    first = [parser._positionals, parser._optionals]  # argparse's own two groups, then ours
+    rest = [g for g in parser._action_groups if g not in made and g not in first]
+    order = [*first, *made, *rest]
+    parser._action_groups[:] = [g for g in order if g._group_actions]

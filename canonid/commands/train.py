@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from canonid.commands import _options
+from canonid.data_options import DATA_FLAGS
 from canonid.kernel.catalog import (
     ACTIVATION_NAMES,
     DEFAULT_MODEL,
@@ -169,6 +170,36 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     _options.add_no_progress(p)
     _options.add_data_options(p)
+    _options.group_options(p, GROUPS)
+
+
+#: ``canonid train --help``'s sections: title → (description, the options' dest)
+GROUPS = {
+    "data": (
+        "DATA and --val: a canonid dataset, an .npz of arrays, or a .csv file or a folder of "
+        "them (one experiment each), read with the CSV options.",
+        ("data", "val", "val_fraction", *DATA_FLAGS),
+    ),
+    "model": (
+        None,
+        (
+            *("model", "hidden", "activation", "residual", "feedthrough", "linear", "cubic"),
+            *("paper_options", "members"),
+        ),
+    ),
+    "training": (
+        None,
+        (
+            *("profile", "epochs", "lr", "weight_decay", "batch_size", "horizon"),
+            *("windows_per_epoch", "seed", "device", "threads"),
+        ),
+    ),
+    "search": (
+        "What is not given is chosen on validation; --window L and --cubic K fix those axes.",
+        ("window", "max_window", "workers", "scheduler"),
+    ),
+    "output": (None, ("out", "resume", "eval_horizon", "figure_format", "no_progress")),
+}
 
 
 def request(args: argparse.Namespace) -> TrainRequest:
