@@ -40,7 +40,7 @@ MEANINGS = {
     "--windows": "windows ℓ, e.g. ",
 }
 #: former names: still read, in no command's --help
-FORMER = ("--horizon", "--quiet")
+FORMER = ("--horizon",)
 
 
 #: the shortest command line each command parses (its required arguments), to which a test adds
@@ -409,7 +409,6 @@ def test_a_bad_list_is_one_line_naming_the_option(argv, capsys):
         (["evaluate", "RUN", "--horizon", "20"], "--horizon", "--eval-horizon", "horizon", 20),
         (["train", "d.csv", "--horizon", "20"], "--horizon", "--train-horizon", "horizon", 20),
         (["generate", "drone2d", "--horizon", "10"], "--horizon", "--mpc-horizon", "horizon", 10),
-        (["analyze", "tank", "--quiet"], "--quiet", "--no-progress", "no_progress", True),
     ],
 )
 def test_former_names_still_work_with_a_warning(argv, old, new, dest, value, capsys):
@@ -471,3 +470,19 @@ def test_train_help_is_grouped_data_model_training_search_output(capsys):
     out = capsys.readouterr().out
     heads = [line[:-1] for line in out.splitlines() if line.endswith(":") and line[:1].isalpha()]
     assert heads[-5:] == ["data", "model", "training", "search", "output"], heads
+
+
+#: the commands that write nothing and show no progress
+SILENT = {"systems"}
+
+
+def test_quiet_is_no_progress_in_every_command(capsys):
+    for name, sub in _subcommands().items():
+        if name in SILENT:
+            continue
+        action = sub._option_string_actions.get("--quiet")
+        assert action is not None, f"canonid {name} has no --quiet"
+        assert action.option_strings == ["--no-progress", "--quiet"], name
+        assert _parse(name, *MINIMAL[name], "--quiet").no_progress is True
+        assert _parse(name, *MINIMAL[name]).no_progress is False
+    assert capsys.readouterr().err == ""  # an alias, not a former name: no warning

@@ -121,8 +121,9 @@ def add_threads(parser: Any, *, per: str = "", default: str = "torch's, one per 
 
 
 def add_no_progress(parser: Any, *, bars: str = "bar") -> None:
-    """``--no-progress``: no progress bar(s) on stderr."""
-    parser.add_argument("--no-progress", action="store_true", help=f"no progress {bars}")
+    """``--no-progress``, alias ``--quiet``: no progress bar(s) on stderr (one meaning in every
+    command; nothing else is silenced)."""
+    parser.add_argument("--no-progress", "--quiet", action="store_true", help=f"no progress {bars}")
 
 
 def add_resume(parser: Any, *, what: str, path: bool = False) -> None:

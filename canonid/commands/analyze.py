@@ -92,7 +92,6 @@ def register(p: argparse.ArgumentParser) -> None:
     _options.add_out(p, "runs/analyze-SYSTEM, or RUN/analysis without SYSTEM")
     _options.add_figure_format(p)
     _options.add_no_progress(p)
-    _options.add_former(p, "--quiet", "--no-progress")
 
 
 def run(args: argparse.Namespace) -> int:
