@@ -381,15 +381,60 @@ def _parse(*argv: str) -> argparse.Namespace:
     ("argv", "dest", "value"),
     [
         (["reduce", "r", "--sweep", "--rates", "0.3,0.6"], "rates", [0.3, 0.6]),
-        (["reduce", "r", "--sweep", "--rates", "0.3", "0.6"], "rates", [0.3, 0.6]),
-        (["reduce", "r", "--sweep", "--rates", "0.3,0.45", "0.6"], "rates", [0.3, 0.45, 0.6]),
         (["reproduce", "--windows", "5,10,15"], "windows", [5, 10, 15]),
+        (["reproduce", "--windows", "5-7,10"], "windows", [5, 6, 7, 10]),
         (["reproduce", "--systems", "tank, drone2d"], "systems", ["tank", "drone2d"]),
-        (["analyze", "tank", "--windows", "2,5,10"], "windows", "2,5,10"),
+        (["analyze", "tank", "--windows", "2,5,10"], "windows", [2, 5, 10]),
+        (["analyze", "tank", "--windows", "1-4"], "windows", [1, 2, 3, 4]),
     ],
 )
-def test_lists_are_comma_separated(argv, dest, value):
+def test_lists_are_comma_separated(argv, dest, value, capsys):
     assert getattr(_parse(*argv), dest) == value
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    ("argv", "value"),
+    [
+        (["reduce", "r", "--sweep", "--rates", "0.3", "0.6"], [0.3, 0.6]),
+        (["reduce", "r", "--sweep", "--rates", "0.3,0.45", "0.6"], [0.3, 0.45, 0.6]),
+    ],
+)
+def test_a_list_of_words_is_the_former_spelling(argv, value, capsys):
+    assert _parse(*argv).rates == value
+    use = ",".join(map(str, value))
+    warning = f"canonid reduce: warning: --rates A B is deprecated, use --rates {use}"
+    assert capsys.readouterr().err.strip() == warning
+
+
+#: list options of a fixed length: their metavar names each item
+PAIRS = {"--band", "--hidden"}
+
+
+def _lists() -> list[tuple[str, argparse.Action]]:
+    """Every option that takes a list: its metavar holds a comma, or its type is a list's."""
+    return [
+        (name, a)
+        for name, a in _cases()
+        if a.option_strings and ("," in str(a.metavar) or hasattr(a.type, "list_of"))
+    ]
+
+
+@pytest.mark.parametrize("case", _lists(), ids=_label)
+def test_every_list_option_uses_the_one_syntax(case):
+    """Comma-separated (``X,...`` in --help, one word on the command line: no nargs), integer
+    ranges A-B where the items are integers (canonid.kernel.catalog.parse_list)."""
+    _, action = case
+    option = action.option_strings[0]
+    assert action.nargs is None or isinstance(action, _options.Items), _label(case)
+    assert str(action.metavar).endswith(",...") or option in PAIRS, _label(case)
+    if getattr(action.type, "ranges", False):  # integers
+        assert action.type("1-3,5") == [1, 2, 3, 5], _label(case)
+
+
+def test_no_option_takes_several_words():
+    several = [_label(c) for c in _cases() if c[1].option_strings and c[1].nargs in ("+", "*")]
+    assert several == ["reduce --rates"], several  # the former spelling, with a warning
 
 
 @pytest.mark.parametrize(
