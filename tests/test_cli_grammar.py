@@ -92,6 +92,8 @@ def test_every_option_has_help_that_states_its_default(case):
     name, action = case
     assert action.help and action.help.strip(), f"canonid {name} {_label(case)}: no help"
     text = _help(name, action)  # as --help prints it: the parser adds a default it holds
+    if isinstance(action, argparse.BooleanOptionalAction):  # --x / --no-x: which when neither
+        assert _states(text), f"canonid {_label(case)}: the help does not state the default"
     flag = action.nargs == 0 or action.const is True  # on or off: off unless given
     groups = [g for g in parser_groups(name) if action in g._group_actions]
     if flag or action.required or any(g.required for g in groups) or not action.option_strings:
@@ -531,3 +533,31 @@ def test_quiet_is_no_progress_in_every_command(capsys):
         assert _parse(name, *MINIMAL[name], "--quiet").no_progress is True
         assert _parse(name, *MINIMAL[name]).no_progress is False
     assert capsys.readouterr().err == ""  # an alias, not a former name: no warning
+
+
+#: commands without --out, and why
+NO_OUT = {
+    "systems": "writes nothing",
+    "evaluate": "writes into RUN/evaluations/, a folder named by the data and the options",
+    "export": "writes one file, --casadi FILE",
+}
+#: commands without --resume: they write nothing, or nothing they could continue
+NO_RESUME = {"systems", "evaluate", "export", "analyze"}
+
+
+def test_out_resume_and_quiet_are_present_with_one_meaning():
+    """--out DIR in every command that writes a folder; --resume where a command can continue
+    an interrupted run, always a flag continuing the run in --out (train's and benchmark's former
+    --resume RUN aside); --quiet, alias of --no-progress, in every command but systems."""
+    for name, sub in _subcommands().items():
+        options = sub._option_string_actions
+        out, resume = options.get("--out"), options.get("--resume")
+        assert (out is None) == (name in NO_OUT), name
+        if out is not None:
+            assert out.metavar == "DIR" and out.nargs is None, name
+        assert (resume is None) == (name in NO_RESUME), name
+        if resume is not None:
+            assert resume.help and resume.help.startswith("continue the interrupted "), name
+            assert " in --out" in resume.help, name
+            assert resume.nargs == 0 or (name, "--resume") in OPTIONAL_VALUES, name
+        assert ("--quiet" in options) == (name not in SILENT), name
