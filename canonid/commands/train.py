@@ -52,8 +52,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--window",
         metavar="L",
-        help="window ℓ: L fixes it; a list, e.g. 5,10,20, is the search's window axis; default "
-        "auto (a resumed run keeps its own): the search's axis ℓ = "
+        help="window ℓ: L fixes it; a list, e.g. 5,10,20 or 5-8, is the search's window axis; "
+        "default auto (a resumed run keeps its own): the search's axis ℓ = "
         f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) beside the cubic "
         f"branch ({' or '.join(map(str, SEARCH_CUBIC_UNITS))} units): successive halving, each "
         f"rung keeping the best 1/{SEARCH_ETA} of its candidates on the validation records' "
