@@ -9,7 +9,7 @@ gets the command line's model.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -18,7 +18,7 @@ from canonid.profiles import DEFAULT_PROFILE, train_options
 
 if TYPE_CHECKING:
     from canonid.kernel.dataset import Trajectory
-    from canonid.learning.training import FitResult, TrainOptions
+    from canonid.learning.training import EpochReport, FitResult, TrainOptions
 
 __all__ = ["fit"]
 
@@ -33,7 +33,11 @@ def fit(
     max_window: int | None = None,
     options: TrainOptions | None = None,
     profile: str = DEFAULT_PROFILE,
-    **kwargs: Any,
+    net_options: Mapping[str, Any] | None = None,
+    run_dir: str | Path | None = None,
+    resume: bool = False,
+    callback: Callable[[EpochReport], None] | None = None,
+    info: Mapping[str, Any] | None = None,
 ) -> FitResult:
     """Train ``model`` by output error, choosing what is not given as ``canonid train`` does.
 
@@ -48,9 +52,11 @@ def fit(
     again with the same arguments continues an interrupted search.
 
     ``options`` default to the ``train`` stage of ``profile`` (the command line's default,
-    ``quick``); ``canonid.train_options(profile, epochs=…)`` changes one value of it. The other
-    keyword arguments (``net_options``, ``run_dir``, ``resume``, ``callback``, ``info``) go to
-    :func:`canonid.learning.fit` unchanged.
+    ``quick``); ``canonid.train_options(profile, epochs=…)`` changes one value of it.
+    ``net_options`` (the network's sizes, ``activation``, ``residual``, ``feedthrough``,
+    ``linear``, ``cubic``), ``run_dir``, ``resume``, ``callback`` (called after every epoch) and
+    ``info`` (recorded in the model) are :func:`canonid.learning.fit`'s; a search takes
+    ``net_options``, ``run_dir`` and ``resume`` alone.
     """
     from canonid.kernel.dataset import Trajectory as Record
     from canonid.learning.search import adopt, candidate_table, fitting_windows, search
@@ -61,19 +67,22 @@ def fit(
         options = train_options(profile)
     if max_window is not None and window != "auto":
         raise OptionError("max_window caps the searched windows: give it with window='auto'")
-    windows, cubics = search_axes(model, window, cubic, max_window, kwargs.get("net_options"))
+    windows, cubics = search_axes(model, window, cubic, max_window, net_options)
     if len(windows) == 1 and len(cubics) == 1:
-        net_options = dict(kwargs.pop("net_options", None) or {})
-        if model == "mlp" or "cubic" in net_options:
-            net_options["cubic"] = cubics[0]
+        network = dict(net_options or {})
+        if model == "mlp" or "cubic" in network:
+            network["cubic"] = cubics[0]
         return fit_library(
             train,
             val,
             model=model,
             window=windows[0],
             options=options,
-            net_options=net_options,
-            **kwargs,
+            net_options=network,
+            run_dir=run_dir,
+            resume=resume,
+            callback=callback,
+            info=info,
         )
     if val is None or not len(val):
         raise OptionError(
@@ -88,19 +97,19 @@ def fit(
             f"{min(len(t.y) for t in [*train, *val])} samples, longest validation record "
             f"{max(len(t.y) for t in val)}; training rollouts {options.horizon}); give window=L"
         )
-    unknown = set(kwargs) - {"net_options", "run_dir", "resume"}
+    unknown = [name for name, value in (("callback", callback), ("info", info)) if value]
     if unknown:
-        raise OptionError(f"canonid.fit: {sorted(unknown)} do not apply to a search")
-    run_dir = None if kwargs.get("run_dir") is None else Path(kwargs["run_dir"])
+        raise OptionError(f"canonid.fit: {unknown} do not apply to a search")
+    folder_in = None if run_dir is None else Path(run_dir)
     _, result, folder = search(
         train,
         val,
         model=model,
         table=candidate_table(fits, cubics),
         options=options,
-        net_options=kwargs.get("net_options"),
-        run_dir=run_dir,
+        net_options=net_options,
+        run_dir=folder_in,
     )
-    if folder is not None and run_dir is not None:  # the chosen model, continued by a resume
-        adopt(folder, run_dir)
+    if folder is not None and folder_in is not None:  # the chosen model, continued by a resume
+        adopt(folder, folder_in)
     return result

@@ -21,8 +21,9 @@ as a canonid dataset and the data the run trained on (split ``train``: the first
 ``test``: the official test parts in order); ``benchmark.json``, the scores
 (:class:`BenchmarkReport`) and the published baselines shown; and ``benchmark-PART.png`` (or
 ``.pdf``, ``.svg``), the simulation of each test part. Training is ``canonid train``'s, every
-default included; an interrupted benchmark is finished by the same call again, or by ``resume``
-(``canonid train --resume``'s rule: only what a resumed run may change is given).
+default included; an interrupted benchmark is finished by ``resume`` (``canonid train
+--resume``'s rule: only what a resumed run may change is given), or, for one release, by the same
+call again, with a deprecation warning.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import dataclasses
 import math
 import os
 import shlex
+import sys
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -80,6 +82,11 @@ __all__ = [
 REPORT_FILE = "benchmark.json"
 #: the benchmark as a canonid dataset, the data the run trains on
 DATA_FILE = "benchmark-data.npz"
+#: the one-line warning of an interrupted run continued without --resume (a former behaviour)
+CONTINUED = (
+    "canonid benchmark: warning: continuing the run in {run_dir} without --resume is "
+    "deprecated, use --resume --out {run_dir}"
+)
 #: samples shown in the zoomed panel of a test part's figure
 ZOOM_SAMPLES = 500
 
@@ -473,7 +480,8 @@ def run_benchmark(request: BenchmarkRequest) -> tuple[BenchmarkReport, Path]:
     checksum = _checksum(split)
     with run_folder_lock(run_dir, new=True):
         todo = _continue_or_start(wanted, run_dir, checksum)
-        if todo.resume is not None:
+        if todo.resume is not None:  # --resume says so; the same command alone, for one release
+            print(CONTINUED.format(run_dir=run_dir), file=sys.stderr)
             return _train_and_score(todo, run_dir, bench)
         check_request(todo)  # every training option, before the data are written
         data = run_dir / DATA_FILE

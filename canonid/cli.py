@@ -45,7 +45,7 @@ class HelpFormatter(argparse.HelpFormatter):
     default shown is the one the parser holds, never a copy typed beside it."""
 
     def _format_args(self, action: argparse.Action, default_metavar: str) -> str:
-        if hasattr(action, "former_bare"):  # a value, which a former release did not need
+        if getattr(action, "shows_one_value", False):  # the spelling of this release alone
             return str(self._metavar_formatter(action, default_metavar)(1)[0])
         return super()._format_args(action, default_metavar)
 

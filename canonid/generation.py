@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from canonid.kernel.catalog import parse_list
 from canonid.kernel.errors import OptionError
 from canonid.kernel.io import atomic_write_figure, figure_name
 
@@ -74,10 +75,13 @@ class GenerateRequest:
 
 
 def _numbers(text: str, option: str) -> tuple[float, ...]:
+    """``text`` in the one list syntax (:func:`canonid.kernel.catalog.parse_list`) of numbers."""
     try:
-        return tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise OptionError(f"{option} must be numbers separated by commas, got {text!r}") from None
+        return tuple(parse_list(text, float, "X"))
+    except OptionError:
+        raise OptionError(
+            f"{option} must be a number or numbers separated by commas, got {text!r}"
+        ) from None
 
 
 def _design(request: GenerateRequest) -> InputDesign | None:
@@ -107,12 +111,7 @@ def _design(request: GenerateRequest) -> InputDesign | None:
 def _noise(text: str | None) -> float | tuple[float, ...] | None:
     if text is None:
         return None
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise OptionError(
-            f"--noise must be a number or numbers separated by commas, got {text!r}"
-        ) from None
+    values = _numbers(text, "--noise")
     return values[0] if len(values) == 1 else values
 
 
@@ -122,9 +121,15 @@ def _tally(result: FlightResult) -> int:
 
 def generate(request: GenerateRequest) -> str:
     """Generate the dataset of ``request``; the lines that say what was written."""
-    from canonid.datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
+    from canonid.datagen.generate import (
+        DATASET_FILE,
+        FLIGHTS_PER_TASK,
+        PARTS,
+        GenerationConfig,
+        generate_dataset,
+    )
     from canonid.datagen.scenarios import get_scenario
-    from canonid.jobs import check_folder
+    from canonid.jobs import check_run_folder
     from canonid.kernel.dataset import Dataset
     from canonid.runner import run_jobs
 
@@ -143,7 +148,9 @@ def generate(request: GenerateRequest) -> str:
     if request.workers < 0:
         raise OptionError(f"--workers must be >= 0, got {request.workers}")
     figure = figure_name("flights", request.figure_format)  # an unknown format, before any work
-    out = check_folder(request.out or Path("runs") / "data" / f"{system}-s{request.seed}")
+    out = request.out or Path("runs") / "data" / f"{system}-s{request.seed}"
+    written = (DATASET_FILE, str(Path(DATASET_FILE).with_suffix(".json")), PARTS)
+    check_run_folder(out, own=written)  # a folder of other files: refused before any flight
     runner = functools.partial(
         run_jobs,
         workers=request.workers,

@@ -345,16 +345,17 @@ def is_canonid_folder(folder: Path) -> bool:
     return False
 
 
-def check_run_folder(folder: Path, *, flag: str = "--out") -> Path:
+def check_run_folder(folder: Path, *, flag: str = "--out", own: tuple[str, ...] = ()) -> Path:
     """``folder`` if a new run may be written there: a new or empty folder, or one canonid
-    wrote (:func:`is_canonid_folder`); a folder holding other files is refused in one line,
+    wrote (:func:`is_canonid_folder`, or holding one of ``own``: the names the command writes
+    there, e.g. ``dataset.json``); a folder holding other files is refused in one line,
     as the run's files would replace the user's files of the same names."""
     check_folder(folder, flag=flag)
     try:
         names = sorted(p.name for p in folder.iterdir()) if folder.is_dir() else []
     except OSError as exc:
         raise OutputError(f"{flag} {folder}: cannot read the folder ({exc.strerror})") from exc
-    if names and not is_canonid_folder(folder):
+    if names and not set(own) & set(names) and not is_canonid_folder(folder):
         shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
         raise OutputError(
             f"{flag} {folder} is a folder with files canonid did not write ({shown}); a run "

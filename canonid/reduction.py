@@ -42,7 +42,7 @@ import numpy as np
 from matplotlib.colors import LogNorm
 from matplotlib.figure import Figure
 
-from canonid.jobs import Job, check_folder, run_folder_lock
+from canonid.jobs import Job, check_folder, check_run_folder, run_folder_lock
 from canonid.kernel.catalog import COMPRESSION_RATES, EVAL_HORIZON
 from canonid.kernel.dataset import as_trajectories
 from canonid.kernel.errors import CheckpointError, DataError, OptionError
@@ -552,7 +552,7 @@ def compression_sweep(
     ``scheduler``, ``progress`` are its options) and write ``sweep.json`` and the two figures
     into ``plan.out`` (see the module docstring)."""
     jobs = plan.jobs()
-    folder = check_folder(Path(plan.out))
+    folder = check_run_folder(Path(plan.out), own=(SWEEP_FILE, *(Path(j.out).name for j in jobs)))
     heatmap, reduced_mse = (folder / figure_file(n, plan.figure_format) for n in FIGURES)
     folder.mkdir(parents=True, exist_ok=True)
     results = run_jobs(

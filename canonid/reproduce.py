@@ -64,7 +64,7 @@ from canonid import learned
 from canonid.analysis.report import AnalysisReport
 from canonid.datagen.generate import FLIGHTS_PER_TASK, GenerationConfig, generate_dataset
 from canonid.datagen.scenarios import scenario_names
-from canonid.jobs import check_folder
+from canonid.jobs import check_run_folder
 from canonid.kernel.dataset import Dataset
 from canonid.kernel.errors import CheckpointError, DataError, OptionError
 from canonid.kernel.io import atomic_write_json, figure_name, jsonable, read_json
@@ -533,7 +533,7 @@ class Reproduction:
 
 
 def _check_out(settings: ReproduceSettings) -> None:
-    check_folder(settings.out)
+    check_run_folder(settings.out, own=(SUMMARY_FILE, "runs", "analysis", "data", "figures"))
     started = [settings.out / name for name in (SUMMARY_FILE, "runs", "analysis")]
     if not settings.resume and any(path.exists() for path in started):
         raise CheckpointError(

@@ -371,18 +371,9 @@ def metrics_table(metrics: Mapping[str, Any]) -> str:
     """A short text table of the main scores (measured and, if any, noise-free targets) of a
     ``metrics.json`` body (:meth:`canonid.runfolder.RunEvaluation.to_json`); with several
     outputs, each target's row (scores over all outputs) is followed by one row per output."""
-    rows: list[tuple[str, ...]] = [("target", "rollout_mse", "rmse", "nrmse", "fit %")]
-    names = metrics.get("output_names") or []
-    for label, scores in (("y (measured)", metrics), ("y_clean", metrics.get("clean"))):
-        if scores:
-            rows.append((label, *_scores(scores, "")))
-            if len(names) > 1:  # a MIMO run: each output's own scores
-                rows.extend(
-                    (f"  {name}", *_scores(scores, "_per_output", i))
-                    for i, name in enumerate(names)
-                )
-    widths = [max(len(r[i]) for r in rows) for i in range(5)]
-    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths)) for r in rows]
+    from canonid.learning.evaluate import score_rows  # numpy and torch, when scores are shown
+
+    lines = score_rows(metrics)
     head = (
         f"{metrics['model']} (ℓ = {metrics['window']}) on {metrics['data']['path']} "
         f"[{metrics['data']['split']}]: {metrics['n_rollouts']} rollouts of "
@@ -398,20 +389,6 @@ def metrics_table(metrics: Mapping[str, Any]) -> str:
         ]
     )
     return "\n".join([head, *lines, *diverged, *_worst_records(metrics), *_outside(metrics)])
-
-
-def _scores(scores: Mapping[str, Any], suffix: str, index: int | None = None) -> tuple[str, ...]:
-    """The table's four scores of ``scores`` (``suffix`` ``"_per_output"``: output ``index``)."""
-    keys = (("rollout_mse", ".4g"), ("rmse", ".4g"), ("nrmse", ".4g"), ("fit_percent", ".2f"))
-    values = [scores[key + suffix] for key, _ in keys]
-    if index is not None:
-        values = [None if v is None else v[index] for v in values]
-    return tuple(_number(v, spec) for v, (_, spec) in zip(values, keys))
-
-
-def _number(value: float | None, spec: str) -> str:
-    """``value`` formatted, or ``not finite`` for a score written ``null``."""
-    return "not finite" if value is None else format(value, spec)
 
 
 def _outside(metrics: Mapping[str, Any]) -> list[str]:

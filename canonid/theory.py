@@ -16,11 +16,12 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from canonid.kernel.catalog import parse_list
 from canonid.kernel.errors import CanonidError, DataError, OptionError, SetError
 
 log = logging.getLogger(__name__)
@@ -42,6 +43,8 @@ __all__ = [
 #: the largest ``--budget``, in seconds (one day): a stage's wall-clock limit must be one a user
 #: can wait for
 MAX_BUDGET = 86_400.0
+#: the files an analysis writes into --out: a folder holding one is an analysis folder
+WRITTEN = ("analysis.json", "learned_analysis.json")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -50,7 +53,8 @@ class AnalyzeRequest:
 
     Attributes:
         system: a registered system, or ``None`` to analyse the model of ``run`` alone.
-        window, windows: one window ℓ, or a range ``"A-B"`` / list ``"2,5,10"``.
+        window, windows: one window ℓ, or several: a list, or its text in the one list syntax
+            (``"2,5,10"``, ``"1-10"``: :func:`canonid.kernel.catalog.parse_list`).
         trials, budget, boxes, tol, seed: Monte-Carlo trials per window; each certified search's
             limits in seconds and boxes; the γ searches' relative tolerance; the random seed.
         X, U, W: the sets as ``lo:hi`` per component (default: the system's).
@@ -62,7 +66,7 @@ class AnalyzeRequest:
 
     system: str | None = None
     window: int | None = None
-    windows: str | None = None
+    windows: str | Sequence[int] | None = None
     trials: int = 1000
     budget: float = 20.0
     boxes: int | None = None
@@ -132,7 +136,7 @@ def run_analysis(request: AnalyzeRequest) -> AnalysisOutcome:
         model, dataset, split, source = _learned_source(request.run, request.data, system)
         windows = sorted({*windows, int(model.window)})
     # a folder of the user's own files is refused, as train --out refuses it
-    out = check_run_folder(request.out or Path("runs") / f"analyze-{system.name}")
+    out = check_run_folder(request.out or Path("runs") / f"analyze-{system.name}", own=WRITTEN)
     bar, progress = _progress_bar(request.progress)
     try:
         report = analyze(
@@ -306,7 +310,7 @@ def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
         )
     if request.out is None:  # RUN/analysis: no link there is followed
         check_inside(request.run, request.run / "analysis")
-    out = check_run_folder(request.out or request.run / "analysis")
+    out = check_run_folder(request.out or request.run / "analysis", own=WRITTEN)
     record = _learned_gamma_record(model, request, budget)
     if not record["available"]:
         raise OptionError(f"--run {request.run}: {record['why']}")
@@ -327,20 +331,15 @@ def _learned_only(request: AnalyzeRequest) -> AnalysisOutcome:
     )
 
 
-def parse_windows(text: str) -> list[int]:
-    """``"1-10"`` → 1…10, ``"2,5,10"`` → [2, 5, 10]."""
+def parse_windows(text: str | Sequence[int]) -> list[int]:
+    """``"1-10"`` → 1…10, ``"2,5,10"`` → [2, 5, 10] (the one list syntax), or a list as given;
+    every window an integer >= 1."""
     try:
-        if "-" in text:
-            lo, hi = (int(v) for v in text.split("-", 1))
-            values = list(range(lo, hi + 1))
-        else:
-            values = [int(v) for v in text.split(",")]
-    except ValueError:
-        raise OptionError(
-            f"--windows: expected A-B or a comma list of integers, got {text!r}"
-        ) from None
+        values = parse_list(text, int, "L") if isinstance(text, str) else list(text)
+    except OptionError as exc:
+        raise OptionError(f"--windows: {exc}") from None
     if not values or min(values) < 1:
-        raise OptionError(f"--windows: windows must be integers >= 1 (A <= B), got {text!r}")
+        raise OptionError(f"--windows: windows must be integers >= 1, got {text!r}")
     return values
 
 

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from canonid.coverage import recorded_unvalidated, unvalidated_line
 from canonid.horizon_check import ALTERNATIVES as HORIZON_ALTERNATIVES
 from canonid.horizon_check import HORIZON_CHECK_FILE
+from canonid.kernel.catalog import parse_list
 from canonid.kernel.errors import CheckpointError, OptionError, OutputError
 from canonid.learning.search import CUBIC_UNITS, ETA, SEARCH_FILE, WINDOWS, Search, cubic_axis
 from canonid.members import check_members
@@ -268,19 +269,25 @@ def parse_cubic(text: str | None) -> int | Literal["auto"] | None:
 
 
 def parse_window(text: str | None) -> int | Literal["auto"] | tuple[int, ...] | None:
-    """``--window``: ``"10"`` → 10, ``"5,10,20"`` → ``(5, 10, 20)``, ``"auto"``, ``None`` (not
+    """``--window``: ``"10"`` → 10, ``"5,10,20"`` → ``(5, 10, 20)``, ``"5-7"`` → ``(5, 6, 7)``
+    (the one list syntax, :func:`canonid.kernel.catalog.parse_list`), ``"auto"``, ``None`` (not
     given); else :class:`OptionError` naming ``--window``."""
     if text is None or text == AUTO:
         return text  # type: ignore[return-value]
-    parts = text.split(",")
-    # '²'.isdigit() is true and int('²') fails: ASCII digits only
-    if not all(p.isascii() and p.isdigit() and int(p) >= 1 for p in parts):
+    # '²'.isdigit() is true and int('²') fails: ASCII digits (and the ranges' dash) only
+    try:
+        if not text.isascii() or not set(text) <= set("0123456789,-"):
+            raise OptionError(text)
+        values = parse_list(text, int, "L")
+    except OptionError:
+        values = []
+    if not values or min(values) < 1:
         raise OptionError(
-            f"--window: expected an integer >= 1, a comma list of them (e.g. 5,10,20) or auto, "
-            f"got {text!r}"
+            f"--window: expected an integer >= 1, a comma list of them (e.g. 5,10,20), a range "
+            f"A-B or auto, got {text!r}"
         )
-    windows = tuple(dict.fromkeys(int(p) for p in parts))
-    return windows[0] if len(parts) == 1 else windows
+    windows = tuple(dict.fromkeys(values))
+    return windows[0] if len(values) == 1 and "-" not in text else windows
 
 
 def request_fields(

@@ -21,8 +21,8 @@ from __future__ import annotations
 import copy
 import itertools
 import os
-from collections.abc import Mapping, Sequence
-from typing import Any
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any, TypeVar
 
 from canonid.kernel.errors import OptionError
 
@@ -48,6 +48,7 @@ __all__ = [
     "help_value",
     "model_label",
     "net_options",
+    "parse_list",
     "preset_word",
 ]
 
@@ -196,3 +197,31 @@ def check_network_memory(
             f"parameters as float32 weights and Adam's two moments), above the ceiling of "
             f"{ceiling:g} GB; give smaller sizes, or raise the ceiling with {MAX_NETWORK_ENV}=GB"
         )
+
+
+_Item = TypeVar("_Item")
+
+
+def parse_list(text: str, item: Callable[[str], _Item], what: str) -> list[_Item]:
+    """The one list syntax of the command line: items separated by commas, ``"2,5,10"`` →
+    ``[2, 5, 10]``; where ``item`` is ``int``, also ranges ``A-B`` (both ends in), ``"1-3,8"``
+    → ``[1, 2, 3, 8]``. ``what``: how one item is written, for the :class:`OptionError`."""
+    words = [word.strip() for word in text.split(",")]
+    ranges = item is int
+    expected = f"expected {what}[,{what}...]{' or a range A-B' if ranges else ''}, got {text!r}"
+    values: list[Any] = []
+    try:
+        for word in words:
+            lo, dash, hi = word.partition("-") if ranges else (word, "", "")
+            if dash and lo:  # A-B (a leading minus is a sign, not a range)
+                first, last = int(lo), int(hi)
+                if first > last:  # a range that runs backwards
+                    raise ValueError(word)
+                values += range(first, last + 1)
+            else:
+                values.append(item(word))
+    except (ValueError, TypeError):
+        raise OptionError(expected) from None
+    if not values or "" in words:
+        raise OptionError(expected)
+    return values

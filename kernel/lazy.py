@@ -31,7 +31,9 @@ def lazy_exports(
     package: str, exports: Mapping[str, str]
 ) -> tuple[Callable[[str], Any], Callable[[], list[str]]]:
     """The module-level ``__getattr__`` and ``__dir__`` of ``package`` that import each name of
-    ``exports`` (name → module defining it) the first time it is used, and keep it."""
+    ``exports`` (name → module defining it) the first time it is used, and keep it; ``dir()``
+    lists the package's ``__all__``, ``exports``, the subpackages imported so far and the dunder
+    names."""
     module = sys.modules[package]
     module.__class__ = _LazyPackage
     cast(_LazyPackage, module)._lazy_exports = dict(exports)
@@ -46,6 +48,11 @@ def lazy_exports(
         return value
 
     def __dir__() -> list[str]:
-        return sorted(set(vars(module)) | set(exports))
+        # the public names and the loaded subpackages: no helper imported (TYPE_CHECKING)
+        public = {*getattr(module, "__all__", ()), *exports}
+        for name, value in vars(module).items():
+            if name.startswith("__") or (isinstance(value, ModuleType) and name[:1] != "_"):
+                public.add(name)
+        return sorted(public)
 
     return __getattr__, __dir__

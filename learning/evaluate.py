@@ -28,7 +28,7 @@ for data that name their own ``n`` (a benchmark's official rule, ``metadata["n_i
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -45,6 +45,7 @@ __all__ = [
     "default_n_init",
     "evaluate",
     "kstep_residuals",
+    "score_rows",
     "simulate_records",
 ]
 
@@ -79,6 +80,15 @@ class Scores:
 
     def to_dict(self) -> dict[str, Any]:
         return dict(self.__dict__)
+
+    def __str__(self) -> str:
+        """A short table: the scores over all outputs, then (several outputs) each one's."""
+        names = [f"y[{i}]" for i in range(len(self.rmse_per_output))]
+        return "\n".join(score_rows({**self.to_dict(), "output_names": names}, clean=False))
+
+    def __repr__(self) -> str:
+        main = ", ".join(f"{k}={_number(getattr(self, k), s)}" for k, s in _TABLE_SCORES)
+        return f"Scores({main}, outputs={len(self.rmse_per_output)})"
 
 
 @dataclass(frozen=True)
@@ -116,6 +126,22 @@ class Evaluation:
             for v in _numbers(scores.to_dict().values())
         )
 
+    def __str__(self) -> str:
+        """A short table of the main scores (measured and, if any, noise-free targets)."""
+        head = (
+            f"{self.model} (ℓ = {self.window}) on {self.n_records} records: {self.n_rollouts} "
+            f"rollouts of {self.rollout_horizon} steps; simulation scores after n_init = "
+            f"{self.n_init}"
+        )
+        return "\n".join([head, *score_rows(self.to_json())])
+
+    def __repr__(self) -> str:
+        main = ", ".join(f"{k}={_number(getattr(self.measured, k), s)}" for k, s in _TABLE_SCORES)
+        return (
+            f"Evaluation(model={self.model!r}, window={self.window}, {main}, "
+            f"n_records={self.n_records}, clean={self.clean is not None})"
+        )
+
     def to_json(self) -> dict[str, Any]:
         """The ``metrics.json`` body: top-level scores are against the measured ``y``; the
         same keys against ``y_clean`` sit under ``"clean"`` (``null`` without it). JSON has no
@@ -141,6 +167,40 @@ class Evaluation:
                 "finite": self.finite,
             }
         )
+
+
+#: the scores of the short tables (``print(evaluation)``, ``canonid evaluate``) and their format
+_TABLE_SCORES = (("rollout_mse", ".4g"), ("rmse", ".4g"), ("nrmse", ".4g"), ("fit_percent", ".2f"))
+
+
+def score_rows(metrics: Mapping[str, Any], *, clean: bool = True) -> list[str]:
+    """The rows of a short text table of the main scores of a ``metrics.json`` body
+    (:meth:`Evaluation.to_json`): measured and (``clean``, where present) noise-free targets;
+    with several outputs each target's row (over all outputs) is followed by one per output."""
+    rows: list[tuple[str, ...]] = [("target", "rollout_mse", "rmse", "nrmse", "fit %")]
+    names = metrics.get("output_names") or []
+    targets = [("y (measured)", metrics), ("y_clean", metrics.get("clean") if clean else None)]
+    for label, scores in targets:
+        if scores:
+            rows.append((label, *_row(scores, "")))
+            if len(names) > 1:  # a MIMO model: each output's own scores
+                for i, name in enumerate(names):
+                    rows.append((f"  {name}", *_row(scores, "_per_output", i)))
+    widths = [max(len(r[i]) for r in rows) for i in range(5)]
+    return ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+
+
+def _row(scores: Mapping[str, Any], suffix: str, index: int | None = None) -> tuple[str, ...]:
+    """The table's four scores of ``scores`` (``suffix`` ``"_per_output"``: output ``index``)."""
+    values = [scores[key + suffix] for key, _ in _TABLE_SCORES]
+    if index is not None:
+        values = [None if v is None else v[index] for v in values]
+    return tuple(_number(v, spec) for v, (_, spec) in zip(values, _TABLE_SCORES, strict=True))
+
+
+def _number(value: float | None, spec: str) -> str:
+    """``value`` formatted, or ``not finite`` for a score that is none (written ``null``)."""
+    return "not finite" if value is None or not math.isfinite(value) else format(value, spec)
 
 
 def _numbers(values: Any) -> list[float | None]:

@@ -104,6 +104,62 @@ def test_public_names_are_listed_once():
         _ = canonid.fitt
 
 
+def test_dir_lists_only_the_public_names():
+    names = {n for n in dir(canonid) if not n.startswith("__")}
+    assert names >= set(canonid._EXPORTS)
+    assert not names & {"TYPE_CHECKING", "annotations", "lazy_exports", "_EXPORTS"}
+    modules = {n for n in names - set(canonid._EXPORTS) if not callable(getattr(canonid, n))}
+    assert all(getattr(canonid, n).__name__ == f"canonid.{n}" for n in modules)  # subpackages
+
+
+def test_fit_shows_every_setting_in_its_signature():
+    """In the manner of python-control's kwargs_test: no ``**kwargs``, and every keyword of the
+    library's trainer that a user sets is a keyword of ``canonid.fit`` too."""
+    import inspect
+
+    from canonid.learning import training
+
+    ours = inspect.signature(canonid.fit).parameters
+    assert not [p for p in ours.values() if p.kind is p.VAR_KEYWORD]
+    library = set(inspect.signature(training.fit).parameters) - {"until"}  # the search's own
+    assert library <= set(ours), library - set(ours)
+    for name in ("model", "window", "cubic", "max_window", "options", "profile", "net_options"):
+        assert ours[name].kind is ours[name].KEYWORD_ONLY, name
+    doc = canonid.fit.__doc__ or ""
+    assert all(f"``{name}``" in doc for name in ours if name not in ("train", "val")), doc
+
+
+def test_scores_print_as_a_short_table():
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+
+    def record(length=60):
+        u, y = rng.normal(size=(length, 1)), np.zeros((length, 2))
+        for t in range(1, length):
+            y[t] = 0.8 * y[t - 1] + 0.2 * u[t - 1]
+        return canonid.Trajectory(u=u, y=y)
+
+    data = [record() for _ in range(3)]
+    tiny = canonid.train_options("tiny", epochs=1)
+    result = canonid.fit(data[:2], data[2:], window=3, cubic=0, options=tiny)
+    scores = canonid.evaluate(result.model, [record(), record()], horizon=10)
+    table = str(scores).splitlines()
+    assert len(table) == 5 and table[1].split() == [
+        "target",
+        "rollout_mse",
+        "rmse",
+        "nrmse",
+        "fit",
+        "%",
+    ]
+    assert table[2].startswith("y (measured)") and [r.split()[0] for r in table[3:]] == ["y1", "y2"]
+    assert str(scores.measured).splitlines()[0] == table[1]
+    for text in (repr(scores), repr(scores.measured)):
+        assert "\n" not in text and len(text) < 200, text
+    assert repr(scores).startswith("Evaluation(model='mlp', window=3, rollout_mse=")
+
+
 def test_the_command_table_names_every_command_module():
     modules = {
         p.stem for p in (ROOT / "canonid" / "commands").glob("*.py") if not p.stem.startswith("_")

@@ -458,7 +458,7 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
     argv += ["--window", "5", "--no-progress", "--threads", "1"]
     # a narrow network started from the ARX fit (the data are linear): its simulation of the
     # 94,000 test samples stays finite and costs a fraction of the default 3 × 256's
-    assert main([*argv, "--out", str(run), "--train-args=--hidden 16 --linear arx"]) == 0
+    assert main([*argv, "--out", str(run), "--hidden", "16", "--linear", "arx"]) == 0
     out = capsys.readouterr().out
     # canonid's row above the published ones (three decimals, three significant digits below
     # 0.1: these linear data leave an error of about 1e-6 mV), the GRU's figures as published
@@ -506,7 +506,7 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
     # a normal run: canonid evaluate reads its recipe and data
     recipe = json.loads((run / "run.json").read_text())
     assert recipe["data"] == str(run / "benchmark-data.npz") and recipe["window"] == 5
-    net = recipe["net_options"]  # --train-args reached canonid train
+    net = recipe["net_options"]  # the options reached canonid train
     assert (net["hidden"], net["linear"]) == ([16], "arx")
     assert Dataset.load(recipe["data"]).counts() == {"train": 1, "val": 1, "test": 3}
     assert (
@@ -515,20 +515,48 @@ def test_benchmark_silverbox_end_to_end_is_a_normal_run(tmp_path, capsys):
     )
 
 
-def test_train_args_reach_canonid_train_and_cannot_override_the_benchmark(tmp_path, capsys):
-    from canonid.benchmark import train_args
+def test_train_options_reach_canonid_train_and_cannot_override_the_benchmark(tmp_path, capsys):
+    from canonid.cli import build_parser
     from canonid.commands.benchmark import train_request
 
-    extra = train_args("--epochs 7 --batch-size 64")
-    request = train_request(["data.npz", "--model", "mlp", "--window", "3", *extra])
+    given = build_parser("benchmark").parse_args(
+        ["benchmark", "ced", "--epochs", "7", "--batch-size", "64", "--hidden", "16"]
+    )
+    request = train_request(["data.npz", "--model", "mlp", "--window", "3"], given)
     assert (request.epochs, request.batch_size, request.profile) == (7, 64, None)  # default
+    assert request.hidden == (16,)
+    write_benchmark("ced", tmp_path)
+    argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(tmp_path / "r")]
+    for data_option in ("--val", "--inputs", "--time-column"):  # the benchmark's own data
+        with pytest.raises(SystemExit):
+            main([*argv, data_option, "x"])
+        assert "unrecognized argument" in capsys.readouterr().err
+    assert not (tmp_path / "r").exists()  # refused before anything was written
+
+
+#: the one-line warning of the former --train-args
+FORMER = "canonid benchmark: warning: --train-args is deprecated, use canonid train's options"
+
+
+def test_the_former_train_args_still_reach_canonid_train_with_a_warning(tmp_path, capsys):
+    from canonid.benchmark import train_args
+    from canonid.cli import build_parser
+    from canonid.commands.benchmark import train_request
+
+    given = build_parser("benchmark").parse_args(
+        ["benchmark", "ced", "--train-args=--epochs 7 --batch-size 64", "--epochs", "9"]
+    )
+    assert capsys.readouterr().err.startswith(FORMER)
+    request = train_request(train_args(given.train_args), given)
+    assert (request.epochs, request.batch_size) == (9, 64)  # the option given directly wins
     write_benchmark("ced", tmp_path)
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(tmp_path / "r")]
     assert main([*argv, "--train-args=--out elsewhere"]) == 1
     assert "--out set by canonid benchmark itself" in capsys.readouterr().err
     assert main([*argv, "--train-args", "--epochs x"]) == 1
-    err = capsys.readouterr().err.strip()
-    assert "canonid train rejected the options" in err and "'x'" in err and "\n" not in err
+    warning, err = capsys.readouterr().err.strip().split("\n")
+    assert warning.startswith(FORMER)
+    assert "canonid train rejected the options" in err and "'x'" in err
     assert not (tmp_path / "r").exists()  # refused before anything was written
 
 
@@ -541,7 +569,7 @@ def test_ced_with_the_default_profile_validates_on_its_short_tails_simulated(tmp
     run = tmp_path / "run"
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run), "--no-progress"]
     with caplog.at_level(logging.WARNING, logger="canonid.learning.training"):
-        assert main([*argv, "--threads", "1", "--train-args=--epochs 2"]) == 0
+        assert main([*argv, "--threads", "1", "--epochs", "2"]) == 0
     assert not [r for r in caplog.records if "cut" in r.getMessage()]
     options = json.loads((run / "config.json").read_text())["info"]["training"]["options"]
     assert (options["val_measure"], options["val_n_init"]) == ("simulation", 10)
@@ -555,6 +583,9 @@ def _folder_after(tmp_path: Path, argv: list[str], capsys, *needles: str) -> Non
     and leaves no folder."""
     code = main([*argv, "--out", str(tmp_path / "r")])
     err = capsys.readouterr().err.strip()
+    if any(a.startswith("--train-args") for a in argv):  # the former spelling's warning first
+        warning, _, err = err.partition("\n")
+        assert warning.startswith(FORMER), warning
     assert code == 1 and "\n" not in err and "Traceback" not in err, err
     assert all(needle in err for needle in needles), err
     assert not (tmp_path / "r").exists()
@@ -563,8 +594,8 @@ def _folder_after(tmp_path: Path, argv: list[str], capsys, *needles: str) -> Non
 def test_training_options_are_checked_before_the_data_are_written(tmp_path, capsys):
     write_benchmark("cascaded-tanks", tmp_path)
     argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path), "--model", "gru"]
-    _folder_after(tmp_path, [*argv, "--train-args=--activation tanh"], capsys, "--activation")
-    _folder_after(tmp_path, [*argv, "--train-args=--threads 0"], capsys, "--threads")
+    _folder_after(tmp_path, [*argv, "--activation", "tanh"], capsys, "--activation")
+    _folder_after(tmp_path, [*argv, "--threads", "0"], capsys, "--threads")
 
 
 @pytest.mark.parametrize("given", ["--mod gru", "--model=gru", "--prof tiny", "--se 3", "-h"])
@@ -596,7 +627,7 @@ def test_the_default_searches_only_windows_within_n_init(tmp_path, capsys):
     write_benchmark("ced", tmp_path)  # n_init = 10: the candidates ℓ ≥ 20 cannot be scored
     run = tmp_path / "r"
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--out", str(run)]
-    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
+    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--epochs", "1"]
     assert main(argv) == 0, capsys.readouterr().err
     search = Search.read(run)
     assert {c.window for c in search.candidates} == {10}  # ℓ = 10 alone, with or without cubic
@@ -612,7 +643,7 @@ def test_a_window_list_tries_only_windows_within_n_init(tmp_path, capsys):
     _folder_after(tmp_path, argv, capsys, "window ℓ = 20 exceeds ced's n_init = 10")
     run = tmp_path / "r"
     argv = ["benchmark", "ced", "--dir", str(tmp_path), "--window", "2,5", "--out", str(run)]
-    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
+    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--epochs", "1"]
     assert main(argv) == 0, capsys.readouterr().err
     assert sorted(p.name for p in (run / "search").iterdir()) == ["l2", "l2-c16", "l5", "l5-c16"]
 
@@ -624,22 +655,17 @@ def test_a_finished_benchmark_run_again_gives_the_same_report_and_other_options_
     run = tmp_path / "run"
     argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path / "files"), "--out", str(run)]
     argv += ["--profile", "tiny", "--threads", "1", "--no-progress"]
-    assert main([*argv, "--train-args=--epochs 2"]) == 0
+    assert main([*argv, "--epochs", "2"]) == 0
     report = (run / "benchmark.json").read_bytes()
-    assert main([*argv, "--train-args=--epochs 2"]) == 0  # continues: nothing left to train
+    assert main([*argv, "--epochs", "2"]) == 0  # continues: nothing left to train
     assert (run / "benchmark.json").read_bytes() == report
     capsys.readouterr()
-    code = main([*argv, "--train-args=--epochs 3"])
+    code = main([*argv, "--epochs", "3"])
     err = capsys.readouterr().err.strip()
     assert code == 1 and "\n" not in err and "train_options.epochs: 2 there, 3 here" in err
     assert f"--resume --out {run}" in err
     # --resume: canonid train's rule (more epochs may be asked for), then the scores
-    assert (
-        main(
-            ["benchmark", "--resume", "--out", str(run), "--no-progress", "--train-args=--epochs 3"]
-        )
-        == 0
-    )
+    assert main(["benchmark", "--resume", "--out", str(run), "--no-progress", "--epochs", "3"]) == 0
     assert json.loads((run / "run.json").read_text())["train_options"]["epochs"] == 3
     assert json.loads((run / "benchmark.json").read_text())["scores"]
     assert main(["benchmark", "--resume", "--out", str(run), "--model", "gru"]) == 1
@@ -729,7 +755,7 @@ def test_a_benchmark_killed_at_random_points_finishes_with_the_same_report(tmp_p
 
     write_benchmark("cascaded-tanks", tmp_path / "files")
     argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path / "files"), "--profile", "tiny"]
-    argv += ["--threads", "1", "--no-progress", "--train-args=--epochs 3 --device cpu"]
+    argv += ["--threads", "1", "--no-progress", "--epochs", "3", "--device", "cpu"]
     whole, events = tmp_path / "whole", []
     undo = _count_events(events.append)
     try:

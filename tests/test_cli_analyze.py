@@ -75,7 +75,7 @@ def test_analyze_tank_writes_json_table_and_figure(tmp_path, capsys):
     ("argv", "message"),
     [
         (["--window", "0"], "--window must be an integer >= 1"),
-        (["--windows", "3-1"], "windows must be integers >= 1"),
+        (["--windows", "0-2"], "windows must be integers >= 1"),
         (["--window", "2", "--X", "5:0.05,0.05:5"], "lower > upper"),
         (["--window", "2", "--X", "0.05:5"], None),  # one pair broadcasts: accepted
         (["--window", "1", "--X", "0:5,0.05:5", "--trials", "0"], "unbounded"),

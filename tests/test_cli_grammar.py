@@ -40,7 +40,7 @@ MEANINGS = {
     "--windows": "windows ℓ, e.g. ",
 }
 #: former names: still read, in no command's --help
-FORMER = ("--horizon", "--quiet")
+FORMER = ("--horizon",)
 
 
 #: the shortest command line each command parses (its required arguments), to which a test adds
@@ -92,6 +92,8 @@ def test_every_option_has_help_that_states_its_default(case):
     name, action = case
     assert action.help and action.help.strip(), f"canonid {name} {_label(case)}: no help"
     text = _help(name, action)  # as --help prints it: the parser adds a default it holds
+    if isinstance(action, argparse.BooleanOptionalAction):  # --x / --no-x: which when neither
+        assert _states(text), f"canonid {_label(case)}: the help does not state the default"
     flag = action.nargs == 0 or action.const is True  # on or off: off unless given
     groups = [g for g in parser_groups(name) if action in g._group_actions]
     if flag or action.required or any(g.required for g in groups) or not action.option_strings:
@@ -381,15 +383,60 @@ def _parse(*argv: str) -> argparse.Namespace:
     ("argv", "dest", "value"),
     [
         (["reduce", "r", "--sweep", "--rates", "0.3,0.6"], "rates", [0.3, 0.6]),
-        (["reduce", "r", "--sweep", "--rates", "0.3", "0.6"], "rates", [0.3, 0.6]),
-        (["reduce", "r", "--sweep", "--rates", "0.3,0.45", "0.6"], "rates", [0.3, 0.45, 0.6]),
         (["reproduce", "--windows", "5,10,15"], "windows", [5, 10, 15]),
+        (["reproduce", "--windows", "5-7,10"], "windows", [5, 6, 7, 10]),
         (["reproduce", "--systems", "tank, drone2d"], "systems", ["tank", "drone2d"]),
-        (["analyze", "tank", "--windows", "2,5,10"], "windows", "2,5,10"),
+        (["analyze", "tank", "--windows", "2,5,10"], "windows", [2, 5, 10]),
+        (["analyze", "tank", "--windows", "1-4"], "windows", [1, 2, 3, 4]),
     ],
 )
-def test_lists_are_comma_separated(argv, dest, value):
+def test_lists_are_comma_separated(argv, dest, value, capsys):
     assert getattr(_parse(*argv), dest) == value
+    assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize(
+    ("argv", "value"),
+    [
+        (["reduce", "r", "--sweep", "--rates", "0.3", "0.6"], [0.3, 0.6]),
+        (["reduce", "r", "--sweep", "--rates", "0.3,0.45", "0.6"], [0.3, 0.45, 0.6]),
+    ],
+)
+def test_a_list_of_words_is_the_former_spelling(argv, value, capsys):
+    assert _parse(*argv).rates == value
+    use = ",".join(map(str, value))
+    warning = f"canonid reduce: warning: --rates A B is deprecated, use --rates {use}"
+    assert capsys.readouterr().err.strip() == warning
+
+
+#: list options of a fixed length: their metavar names each item
+PAIRS = {"--band", "--hidden"}
+
+
+def _lists() -> list[tuple[str, argparse.Action]]:
+    """Every option that takes a list: its metavar holds a comma, or its type is a list's."""
+    return [
+        (name, a)
+        for name, a in _cases()
+        if a.option_strings and ("," in str(a.metavar) or hasattr(a.type, "list_of"))
+    ]
+
+
+@pytest.mark.parametrize("case", _lists(), ids=_label)
+def test_every_list_option_uses_the_one_syntax(case):
+    """Comma-separated (``X,...`` in --help, one word on the command line: no nargs), integer
+    ranges A-B where the items are integers (canonid.kernel.catalog.parse_list)."""
+    _, action = case
+    option = action.option_strings[0]
+    assert action.nargs is None or isinstance(action, _options.Items), _label(case)
+    assert str(action.metavar).endswith(",...") or option in PAIRS, _label(case)
+    if getattr(action.type, "ranges", False):  # integers
+        assert action.type("1-3,5") == [1, 2, 3, 5], _label(case)
+
+
+def test_no_option_takes_several_words():
+    several = [_label(c) for c in _cases() if c[1].option_strings and c[1].nargs in ("+", "*")]
+    assert several == ["reduce --rates"], several  # the former spelling, with a warning
 
 
 @pytest.mark.parametrize(
@@ -409,7 +456,6 @@ def test_a_bad_list_is_one_line_naming_the_option(argv, capsys):
         (["evaluate", "RUN", "--horizon", "20"], "--horizon", "--eval-horizon", "horizon", 20),
         (["train", "d.csv", "--horizon", "20"], "--horizon", "--train-horizon", "horizon", 20),
         (["generate", "drone2d", "--horizon", "10"], "--horizon", "--mpc-horizon", "horizon", 10),
-        (["analyze", "tank", "--quiet"], "--quiet", "--no-progress", "no_progress", True),
     ],
 )
 def test_former_names_still_work_with_a_warning(argv, old, new, dest, value, capsys):
@@ -457,3 +503,61 @@ def test_the_docs_command_line_page_lists_every_command_with_a_summary():
     assert list(rows) == [c.name for c in COMMANDS]
     for name, summary in rows.items():
         assert summary.strip() and "%%" not in summary, f"{name}: {summary!r}"
+
+
+def test_train_help_is_grouped_data_model_training_search_output(capsys):
+    parser = _subcommands()["train"]
+    titles = [g.title for g in parser._action_groups]
+    assert titles == ["options", "data", "model", "training", "search", "output"], titles
+    grouped = {a for g in parser._action_groups[1:] for a in g._group_actions}
+    loose = [a.dest for a in _shown(parser) if a not in grouped]
+    assert not loose, f"canonid train options in no section: {loose}"
+    with pytest.raises(SystemExit):
+        build_parser("train").parse_args(["train", "--help"])
+    out = capsys.readouterr().out
+    heads = [line[:-1] for line in out.splitlines() if line.endswith(":") and line[:1].isalpha()]
+    assert heads[-5:] == ["data", "model", "training", "search", "output"], heads
+
+
+#: the commands that write nothing and show no progress
+SILENT = {"systems"}
+
+
+def test_quiet_is_no_progress_in_every_command(capsys):
+    for name, sub in _subcommands().items():
+        if name in SILENT:
+            continue
+        action = sub._option_string_actions.get("--quiet")
+        assert action is not None, f"canonid {name} has no --quiet"
+        assert action.option_strings == ["--no-progress", "--quiet"], name
+        assert _parse(name, *MINIMAL[name], "--quiet").no_progress is True
+        assert _parse(name, *MINIMAL[name]).no_progress is False
+    assert capsys.readouterr().err == ""  # an alias, not a former name: no warning
+
+
+#: commands without --out, and why
+NO_OUT = {
+    "systems": "writes nothing",
+    "evaluate": "writes into RUN/evaluations/, a folder named by the data and the options",
+    "export": "writes one file, --casadi FILE",
+}
+#: commands without --resume: they write nothing, or nothing they could continue
+NO_RESUME = {"systems", "evaluate", "export", "analyze"}
+
+
+def test_out_resume_and_quiet_are_present_with_one_meaning():
+    """--out DIR in every command that writes a folder; --resume where a command can continue
+    an interrupted run, always a flag continuing the run in --out (train's and benchmark's former
+    --resume RUN aside); --quiet, alias of --no-progress, in every command but systems."""
+    for name, sub in _subcommands().items():
+        options = sub._option_string_actions
+        out, resume = options.get("--out"), options.get("--resume")
+        assert (out is None) == (name in NO_OUT), name
+        if out is not None:
+            assert out.metavar == "DIR" and out.nargs is None, name
+        assert (resume is None) == (name in NO_RESUME), name
+        if resume is not None:
+            assert resume.help and resume.help.startswith("continue the interrupted "), name
+            assert " in --out" in resume.help, name
+            assert resume.nargs == 0 or (name, "--resume") in OPTIONAL_VALUES, name
+        assert ("--quiet" in options) == (name not in SILENT), name

@@ -66,6 +66,14 @@ def test_request_fields_parse_the_text_options():
     )
 
 
+def test_a_window_list_is_in_the_one_list_syntax():
+    assert _fields(window="5-7,10")["window"] == (5, 6, 7, 10)
+    assert _fields(window="5-5")["window"] == (5,)  # a range is a list, even of one
+    for bad in ("7-5", "5,,6", "-3", "²"):
+        with pytest.raises(OptionError, match="--window: expected an integer >= 1"):
+            _fields(window=bad)
+
+
 def test_request_fields_read_resume_and_refuse_a_cap_without_a_screen():
     assert _fields(resume=True, out=Path("run")) == {**_fields(), "resume": Path("run")}
     with pytest.raises(OptionError, match="--max-window caps the searched windows"):

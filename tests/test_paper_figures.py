@@ -249,7 +249,7 @@ def test_benchmark_writes_its_figures_in_the_format_asked_and_keeps_the_option(t
     write_benchmark("cascaded-tanks", tmp_path / "files")
     run = tmp_path / "run"
     argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path / "files"), "--out", str(run)]
-    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--train-args=--epochs 1"]
+    argv += ["--profile", "tiny", "--threads", "1", "--no-progress", "--epochs", "1"]
     assert main([*argv, "--figure-format", "pdf"]) == 0
     parts = json.loads((run / "benchmark.json").read_text())["scores"]
     names = ["training_curve", "rollouts", *(f"benchmark-{p['test']}" for p in parts)]

@@ -176,7 +176,7 @@ def test_benchmark_appends_one_line_per_scoring_and_refuses_a_symlinked_ledger(t
     write_benchmark("cascaded-tanks", tmp_path / "files")
     run = tmp_path / "run"
     argv = ["benchmark", "cascaded-tanks", "--dir", str(tmp_path / "files"), "--out", str(run)]
-    argv += [*BENCH_ARGS, "--train-args=--epochs 1"]
+    argv += [*BENCH_ARGS, "--epochs", "1"]
     assert main(argv) == 0
     recipe = json.loads((run / "run.json").read_text())
     (entry,) = _ledger(run)
@@ -195,7 +195,7 @@ def test_benchmark_appends_one_line_per_scoring_and_refuses_a_symlinked_ledger(t
     (run / TEST_LEDGER_FILE).symlink_to(tmp_path / "elsewhere")
     weights = (run / "weights.pt").read_bytes()
     more = ["benchmark", "--resume", "--out", str(run), "--no-progress", "--threads", "1"]
-    code = main([*more, "--train-args=--epochs 2"])
+    code = main([*more, "--epochs", "2"])
     one_line_error(capsys, code, str(run / TEST_LEDGER_FILE), "symbolic link")
     assert (run / "weights.pt").read_bytes() == weights
     assert json.loads((run / "run.json").read_text())["train_options"]["epochs"] == 1

@@ -15,13 +15,14 @@ from typing import Any, TypeVar
 
 from canonid.data_options import DATA_FLAGS, DATA_OPTIONS
 from canonid.jobs import resume_target
-from canonid.kernel.catalog import DEVICE_NAMES
+from canonid.kernel.catalog import DEVICE_NAMES, parse_list
 from canonid.kernel.errors import OptionError
 from canonid.kernel.io import FIGURE_FORMATS
 from canonid.profiles import DEFAULT_PROFILE, profile_names, profile_values
 
 __all__ = [
     "Bare",
+    "Former",
     "Items",
     "add_data_options",
     "add_device",
@@ -37,6 +38,7 @@ __all__ = [
     "add_where",
     "argument",
     "comma_list",
+    "group_options",
     "request",
     "resumed",
 ]
@@ -120,8 +122,9 @@ def add_threads(parser: Any, *, per: str = "", default: str = "torch's, one per 
 
 
 def add_no_progress(parser: Any, *, bars: str = "bar") -> None:
-    """``--no-progress``: no progress bar(s) on stderr."""
-    parser.add_argument("--no-progress", action="store_true", help=f"no progress {bars}")
+    """``--no-progress``, alias ``--quiet``: no progress bar(s) on stderr (one meaning in every
+    command; nothing else is silenced)."""
+    parser.add_argument("--no-progress", "--quiet", action="store_true", help=f"no progress {bars}")
 
 
 def add_resume(parser: Any, *, what: str, path: bool = False) -> None:
@@ -188,7 +191,7 @@ def add_out(
     )
 
 
-class _Former(argparse.Action):
+class Former(argparse.Action):
     """A former option name: read into the new option's ``dest``, hidden from ``--help``, with a
     warning on stderr naming the new one."""
 
@@ -205,8 +208,10 @@ class Bare(argparse.Action):
     """An option that takes a value and that a former release also took alone (meaning
     ``bare``): still read so for one release, with a warning; ``--help`` shows it with a value."""
 
+    shows_one_value = True  # canonid.cli.HelpFormatter shows no [ ] around the value
+
     def __init__(self, *args: Any, bare: str, **kwargs: Any) -> None:
-        self.former_bare = bare  # canonid.cli.HelpFormatter shows no [ ] around the value
+        self.former_bare = bare
         super().__init__(*args, **{**kwargs, "nargs": "?"})
 
     def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
@@ -222,7 +227,7 @@ def add_former(parser: Any, old: str, new: str) -> None:
     action = next(a for a in parser._actions if new in a.option_strings)
     parser.add_argument(
         old,
-        action=_Former,
+        action=Former,
         new=new,
         dest=action.dest,
         nargs=action.nargs,
@@ -247,26 +252,38 @@ def argument(parse: Callable[[str], Any]) -> Callable[[str], Any]:
 
 
 def comma_list(item: Callable[[str], Any], what: str) -> Callable[[str], list[Any]]:
-    """argparse type of a comma-separated list of ``item`` (``what``: how one is written)."""
+    """argparse type of a list in the one list syntax (:func:`canonid.kernel.catalog.parse_list`:
+    comma-separated, integer ranges ``A-B``) of ``item`` (``what``: how one is written)."""
+
+    def one(word: str) -> Any:
+        try:
+            return item(word)
+        except argparse.ArgumentTypeError as exc:  # an item's own check, e.g. a rate in (0, 1)
+            raise ValueError(str(exc)) from None
 
     def parse(text: str) -> list[Any]:
         try:
-            values = [item(t.strip()) for t in text.split(",") if t.strip()]
-        except (ValueError, argparse.ArgumentTypeError):
-            values = []
-        if not values:
-            raise argparse.ArgumentTypeError(f"expected {what}[,{what}...], got {text!r}")
-        return values
+            return parse_list(text, int if item is int else one, what)
+        except OptionError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
 
+    parse.list_of = what  # type: ignore[attr-defined]  # the meta-tests find every list option
+    parse.ranges = item is int  # type: ignore[attr-defined]  # A-B is read
     return parse
 
 
 class Items(argparse.Action):
     """``nargs="+"`` of :func:`comma_list` words: ``0.3,0.6`` and the former ``0.3 0.6`` give
-    one flat list."""
+    one flat list; the former spelling, several words, with a warning naming the one syntax."""
+
+    shows_one_value = True  # canonid.cli.HelpFormatter shows R,... and no [R,... ...]
 
     def __call__(self, parser: Any, namespace: Any, values: Any, option: Any = None) -> None:
-        setattr(namespace, self.dest, [v for word in values for v in word])
+        flat = [v for word in values for v in word]
+        if len(values) > 1:  # --rates 0.3 0.6
+            use = f"use {option} {','.join(map(str, flat))}"
+            print(f"{parser.prog}: warning: {option} A B is deprecated, {use}", file=sys.stderr)
+        setattr(namespace, self.dest, flat)
 
 
 def request(kind: type[_Request], args: argparse.Namespace, **given: Any) -> _Request:
@@ -298,3 +315,26 @@ def add_data_options(parser: argparse.ArgumentParser, *, recorded: bool = False)
         given = "the run's" if recorded else default
         tail = f" (default: {given})" if given else " (required for CSV data)"
         g.add_argument(flag, type=argument(parse), metavar=metavar, help=what + tail)
+
+
+def group_options(
+    parser: argparse.ArgumentParser, groups: dict[str, tuple[str | None, tuple[str, ...]]]
+) -> None:
+    """Sort the registered arguments of ``parser`` into argument groups, in ``--help`` in the
+    order of ``groups``: title → (description, the ``dest`` of each argument); an argument in
+    none keeps its place, a group left empty (e.g. ``CSV data``) is dropped. One table after
+    registration, so the options themselves are written once, where they are registered."""
+    made = []
+    for title, (description, dests) in groups.items():
+        group = parser.add_argument_group(title, description)
+        for action in parser._actions:
+            if action.dest in dests:
+                for old in parser._action_groups:
+                    if action in old._group_actions:
+                        old._group_actions.remove(action)
+                group._group_actions.append(action)
+        made.append(group)
+    first = [parser._positionals, parser._optionals]  # argparse's own two groups, then ours
+    rest = [g for g in parser._action_groups if g not in made and g not in first]
+    order = [*first, *made, *rest]
+    parser._action_groups[:] = [g for g in order if g._group_actions]

@@ -36,6 +36,7 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     win.add_argument(
         "--windows",
+        type=_options.comma_list(int, "L"),
         metavar="L,...",
         help="windows ℓ, e.g. 2,5,10, or a range A-B, e.g. 1-10 (see --window)",
     )
@@ -65,8 +66,9 @@ def register(p: argparse.ArgumentParser) -> None:
         p.add_argument(
             f"--{name}",
             dest=name,
-            metavar="BOX",
-            help=f"{what} set of SYSTEM, e.g. {example} (default: the system's {name})",
+            metavar="LO:HI,...",
+            help=f"{what} set of SYSTEM: an interval LO:HI per component, comma-separated, or one "
+            f"for all, e.g. {example} (default: the system's {name})",
         )
     p.add_argument("--tol", type=float, default=0.05, help="relative tolerance of γ searches")
     p.add_argument("--seed", type=int, default=0, help="seed of the sampled bounds and trials")
@@ -92,7 +94,6 @@ def register(p: argparse.ArgumentParser) -> None:
     _options.add_out(p, "runs/analyze-SYSTEM, or RUN/analysis without SYSTEM")
     _options.add_figure_format(p)
     _options.add_no_progress(p)
-    _options.add_former(p, "--quiet", "--no-progress")
 
 
 def run(args: argparse.Namespace) -> int:

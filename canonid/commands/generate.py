@@ -33,7 +33,7 @@ def register(p: argparse.ArgumentParser) -> None:
         )
     p.add_argument(
         "--noise",
-        metavar="LEVEL",
+        metavar="W,...",
         help="measurement-noise half-width, one number or one per output separated by commas "
         "(default: the system's W; a level outside W is refused)",
     )
@@ -58,7 +58,7 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     design.add_argument(
         "--amplitude",
-        metavar="RMS",
+        metavar="RMS,...",
         help="its RMS per input, one number or one per input (required with --excitation)",
     )
     design.add_argument(

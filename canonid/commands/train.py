@@ -6,6 +6,7 @@ from __future__ import annotations
 import argparse
 
 from canonid.commands import _options
+from canonid.data_options import DATA_FLAGS
 from canonid.kernel.catalog import (
     ACTIVATION_NAMES,
     DEFAULT_MODEL,
@@ -51,8 +52,8 @@ def register(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--window",
         metavar="L",
-        help="window ℓ: L fixes it; a list, e.g. 5,10,20, is the search's window axis; default "
-        "auto (a resumed run keeps its own): the search's axis ℓ = "
+        help="window ℓ: L fixes it; a list, e.g. 5,10,20 or 5-8, is the search's window axis; "
+        "default auto (a resumed run keeps its own): the search's axis ℓ = "
         f"{', '.join(str(w) for w in WINDOW_CANDIDATES)} (those the data allow) beside the cubic "
         f"branch ({' or '.join(map(str, SEARCH_CUBIC_UNITS))} units): successive halving, each "
         f"rung keeping the best 1/{SEARCH_ETA} of its candidates on the validation records' "
@@ -169,6 +170,36 @@ def register(p: argparse.ArgumentParser) -> None:
     )
     _options.add_no_progress(p)
     _options.add_data_options(p)
+    _options.group_options(p, GROUPS)
+
+
+#: ``canonid train --help``'s sections: title → (description, the options' dest)
+GROUPS = {
+    "data": (
+        "DATA and --val: a canonid dataset, an .npz of arrays, or a .csv file or a folder of "
+        "them (one experiment each), read with the CSV options.",
+        ("data", "val", "val_fraction", *DATA_FLAGS),
+    ),
+    "model": (
+        None,
+        (
+            *("model", "hidden", "activation", "residual", "feedthrough", "linear", "cubic"),
+            *("paper_options", "members"),
+        ),
+    ),
+    "training": (
+        None,
+        (
+            *("profile", "epochs", "lr", "weight_decay", "batch_size", "horizon"),
+            *("windows_per_epoch", "seed", "device", "threads"),
+        ),
+    ),
+    "search": (
+        "What is not given is chosen on validation; --window L and --cubic K fix those axes.",
+        ("window", "max_window", "workers", "scheduler"),
+    ),
+    "output": (None, ("out", "resume", "eval_horizon", "figure_format", "no_progress")),
+}
 
 
 def request(args: argparse.Namespace) -> TrainRequest:
