@@ -110,3 +110,53 @@ def test_the_tank_defaults_come_from_table_1():
     # the README quotes the make demo record's defaults column, as the Results page does
     assert "<!-- figure: demo/t1/mlp-defaults/10/y -->" in README
     assert "<!-- figure: defaults/tank/0 -->" not in README
+
+
+def test_analyze_help_names_only_files_analyze_writes():
+    import argparse
+
+    from canonid.cli import build_parser
+
+    parser = build_parser("analyze")
+    (sub,) = (a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    text = sub.choices["analyze"].description
+    named = set(re.findall(r"[\w]+\.(?:json|png|pdf|svg)", text))
+    source = (ROOT / "canonid" / "theory.py").read_text(encoding="utf-8")
+    assert named == {"analysis.json", "learned_analysis.json"}, named
+    assert all(f'"{name}"' in source for name in named)
+    assert "bound_vs_window" in text and 'f"bound_vs_window.{request.figure_format}"' in source
+
+
+def test_reduce_sweep_labels_name_the_split_scored(tmp_path):
+    # data without a test split are scored on validation: the sweep's table and figures say so
+    from matplotlib.figure import Figure
+
+    from canonid import reduction
+
+    one = reduction.ReductionResult(
+        **dict.fromkeys(("source", "out", "model", "stopped"), "runs/a"),
+        **dict.fromkeys(("window", "seed", "state_dim", "latent_dim", "rollout_horizon"), 2),
+        **dict.fromkeys(("best_epoch", "epochs_run"), 1),
+        **dict.fromkeys(("compression", "reconstruction_mse", "rollout_mse", "seconds"), 0.5),
+        full_rollout_mse=0.4,
+        rollout_mse_clean=None,
+        full_rollout_mse_clean=None,
+        recipe={},
+        split="val",
+    )
+    labels: list[str] = []
+
+    def save(fig: Figure, path):
+        ax = fig.axes[0]
+        labels.extend([ax.get_title(), ax.get_ylabel()])
+        return path
+
+    import pytest
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(reduction, "_save", save)
+        reduction.plot_heatmap([one], tmp_path / "h.png")
+        reduction.plot_reduced_mse([one], tmp_path / "m.png")
+    assert reduction.scored_on([one]) == "val"
+    assert "(val, normalised" in labels[0] and "(val, physical" in labels[3]
+    assert not any("test" in label for label in labels)
