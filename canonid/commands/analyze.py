@@ -16,10 +16,9 @@ def register(p: argparse.ArgumentParser) -> None:
         "Estimate the Lipschitz constant γ_f and the observability constant α_ℓ of a "
         "registered system (certified bounds by interval branch-and-bound, sampled bounds "
         "by optimisation), evaluate Proposition 2's bound 2 γ_f^ℓ α_ℓ^-1 ‖w̄‖ and check it "
-        "by Monte-Carlo trials of the output-error estimator. Writes analysis.json to --out "
-        "and, where trials ran, the figure bound_vs_window in the --figure-format. Without "
-        "SYSTEM, --run RUN bounds γ_f of the learned model alone (for data that no registered "
-        "system produced) and writes learned_analysis.json."
+        "by Monte-Carlo trials of the output-error estimator; writes analysis.json and, where "
+        "trials ran, the figure bound_vs_window (--figure-format) to --out. Without SYSTEM, "
+        "--run RUN bounds γ_f of the learned model alone, into learned_analysis.json."
     )
     p.add_argument(
         "system",
