@@ -17,7 +17,7 @@ MARKER = re.compile(r"<!-- figure: [\w./-]+ -->")
 
 #: words and forms that tell history rather than what canonid does
 HISTORY = re.compile(
-    r"\b(before the|was|were|earlier|instead of|previous(?:ly)?|no longer|used to)\b"
+    r"\b(before the|was|were|earlier|instead of|previously|no longer|used to)\b"
     r"|\b20\d\d-\d\d-\d\d\b",
     re.IGNORECASE,
 )
@@ -37,6 +37,8 @@ HOW_TO = [
     "reproducing.md",
     "casadi-export.md",
     "errors-and-data-checks.md",
+    "data-engine.md",
+    "data-generation.md",
 ]
 
 
