@@ -1,7 +1,10 @@
-"""Write one benchmark's section of ``benchmarks/RESULTS.md``, leaving the others untouched.
+"""Write one benchmark's notes, the Markdown beside its JSON record, leaving the others untouched.
 
-Each script owns the text between ``<!-- BEGIN name -->`` and ``<!-- END name -->``; the
-section starts with the command, the date and a description of the machine. Notes a person added
+Each section ``name`` lives in one file, ``SLUG.md`` beside the record ``SLUG.json`` (in
+``benchmarks/records/`` or a study's folder; a new one in ``benchmarks/records/``; SLUG is the
+name in lower case, runs of other characters as ``-``). Each script owns the text between
+``<!-- BEGIN name -->`` and ``<!-- END name -->``; the section starts with the command, the date
+and a description of the machine. Notes a person added
 to a section (from its first line beginning :data:`HAND_NOTE`) stay, after the new text, when the
 script writes the section again.
 """
@@ -18,7 +21,8 @@ from pathlib import Path
 
 from canonid.kernel.io import atomic_write_text
 
-RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
+#: the folder whose records and notes the scripts write (tests point it elsewhere)
+BENCHMARKS = Path(__file__).resolve().parent
 #: how a note written by a person into a section begins (dated: what run it speaks of)
 HAND_NOTE = "Added by hand"
 
@@ -29,6 +33,7 @@ __all__ = [
     "machine_description",
     "publish",
     "read_rows",
+    "read_section",
     "record",
     "write_section",
 ]
@@ -55,12 +60,27 @@ def machine_description() -> str:
     )
 
 
+def section_file(name: str) -> Path:
+    """The notes file of section ``name``: beside its record where one exists, else new in
+    ``records/``."""
+    slug = re.sub(r"[^a-z0-9]+", "-", name.lower()).strip("-")
+    found = sorted(BENCHMARKS.rglob(f"{slug}.md"))
+    return found[0] if found else BENCHMARKS / "records" / f"{slug}.md"
+
+
+def read_section(name: str) -> str:
+    """The text of section ``name`` (its markers included), or "" when none is written."""
+    path = section_file(name)
+    return path.read_text(encoding="utf-8") if path.exists() else ""
+
+
 def write_section(name: str, body: str, *, command: str | None = None) -> None:
-    """Replace (or append) section ``name`` of RESULTS.md with ``body`` (Markdown), keeping the
-    section's hand notes after it."""
+    """Replace section ``name`` with ``body`` (Markdown), keeping the section's hand notes after
+    it."""
     cmd = command or "python " + " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])
     stamp = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else "# Benchmark results\n"
+    path = section_file(name)
+    text = read_section(name)
     pattern = re.compile(
         rf"<!-- BEGIN {re.escape(name)} -->.*?<!-- END {re.escape(name)} -->", re.S
     )
@@ -72,8 +92,9 @@ def write_section(name: str, body: str, *, command: str | None = None) -> None:
         f"Command: `{cmd}` — {stamp} — {machine_description()}\n\n"
         f"{body.strip()}\n" + (notes.group(0) if notes else "") + f"<!-- END {name} -->"
     )
-    text = pattern.sub(lambda _: block, text) if old else text.rstrip() + "\n\n" + block + "\n"
-    atomic_write_text(RESULTS, text)
+    text = pattern.sub(lambda _: block, text) if old else block + "\n"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, text)
 
 
 def read_rows(path: Path) -> list[dict]:

@@ -16,7 +16,8 @@ and the CPU seconds of its candidates, the cubic test's decision, and the offici
 two runs train their short candidates with one and with all threads, so their numbers agree to
 rounding, not to the bit.
 
-Writes the section "Candidates side by side" of benchmarks/RESULTS.md; ``--record`` writes it
+Writes the section "Candidates side by side" of the records (benchmarks/records/); ``--record``
+writes it
 again from the run folders and ``runs/candidates/times.json`` without training.
 
 Usage: python benchmarks/studies/candidates/bench_candidates.py --dir ../shared/data/silverbox

@@ -10,7 +10,7 @@ the summary printed) is not counted.
 
 ``--baseline REF`` walks the tree of git revision ``REF`` too (exported to a temporary folder,
 run by the same interpreter in a child process). Writes the "Code walk" section of
-``benchmarks/RESULTS.md`` with both lists.
+its notes (``benchmarks/records/``) with both lists.
 """
 
 from __future__ import annotations
@@ -123,7 +123,9 @@ def _table(steps: list[dict[str, Any]]) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--baseline", metavar="REF", help="also walk git revision REF")
-    parser.add_argument("--no-write", action="store_true", help="print, do not write RESULTS.md")
+    parser.add_argument(
+        "--no-write", action="store_true", help="print, do not write the record's notes"
+    )
     args = parser.parse_args()
     cpu0 = time.process_time()
     with tempfile.TemporaryDirectory() as tmp:

@@ -5,7 +5,8 @@ Each call trains Ours (MLP), ℓ = 10, with canonid's default network options up
 ``--net`` overrides (``linear=off``: no affine path) and the ``quick`` profile updated by the
 ``--set`` overrides (none: the profile as it is; ``grad_clip=null`` switches the clipping off),
 one torch thread, and appends one JSON row to ``--rows``; ``table`` turns the rows into the
-section "Defaults study" of ``benchmarks/RESULTS.md``, the variants side by side per system and
+section "Defaults study" of its notes (``benchmarks/records/``), the variants side by side per
+system and
 seed::
 
     python benchmarks/studies/defaults/defaults_study.py run tank --seed 0 --label "now"

@@ -10,7 +10,8 @@ stopping at the first validation past the budget or when its epochs are done. Th
 compared is the one both contestants of ``bench_deepsi.py`` are kept on, the normalised MSE of
 100-step rollouts from every 5th start of the validation flights; the test split is not read.
 Prints, and writes to the section "Ours (MLP) on the planar drone: settings" of
-benchmarks/RESULTS.md (``--add``: beside the rows of an earlier run with the same data and
+the records (benchmarks/records/) (``--add``: beside the rows of an earlier run with the same
+data and
 budget), one row per variant: the best validation MSE after a third, two thirds
 and all of the budget, how it stopped and its training CPU time. Not a speed benchmark
 (``run_all.py`` skips it): each variant takes up to the budget in CPU seconds.
@@ -31,7 +32,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from _data import ensure_dataset  # noqa: E402
-from _results import RESULTS, write_section  # noqa: E402
+from _results import read_section, write_section  # noqa: E402
 from bench_deepsi import WARM_UP, Curve, run_turns, train_ours  # noqa: E402
 
 from canonid.kernel.dataset import Dataset  # noqa: E402
@@ -65,9 +66,9 @@ SECTION = "Ours (MLP) on the planar drone: settings"
 
 
 def earlier(intro: str) -> tuple[str, list[str]]:
-    """The command and the variant rows of this script's section of RESULTS.md, if it was
-    written for the same data and budget (``intro``); else ``("", [])``."""
-    text = RESULTS.read_text(encoding="utf-8") if RESULTS.exists() else ""
+    """The command and the variant rows of this script's section, if it was written for the
+    same data and budget (``intro``); else ``("", [])``."""
+    text = read_section(SECTION)
     found = re.search(rf"<!-- BEGIN {re.escape(SECTION)} -->(.*?)<!-- END", text, re.S)
     if found is None or intro not in found.group(1):
         return "", []
@@ -94,7 +95,7 @@ def main() -> int:
     parser.add_argument(
         "--add",
         action="store_true",
-        help="keep the rows of an earlier run with the same data and budget in RESULTS.md",
+        help="keep the rows of an earlier run with the same data and budget in the records",
     )
     args = parser.parse_args()
     unknown = sorted(set(args.only or ()) - set(VARIANTS))

@@ -1,7 +1,7 @@
 """Residuals against the excitation: a data-only check of a learned model's input response.
 
 On the informative drone data (`drone2d-id`) the models whose NMPC loops fail move px the wrong
-way after a rotor difference, and validation losses do not rank them for control (RESULTS.md,
+way after a rotor difference, and validation losses do not rank them for control (the records,
 "Training horizon on validation"). Closed-loop identification theory (Ljung, ch. 13) offers a
 check that needs no true system: the only part of the input known to be independent of the noise
 is the external excitation added to the controller's command, ``u = clip(c + e + d, U)``; the
@@ -151,7 +151,7 @@ def main() -> int:
     parser.add_argument("--run", action="append", help="a run folder (repeat; default: five)")
     parser.add_argument("--loop", action="append", type=Path, help="a learned_mpc.py --json file")
     parser.add_argument("--json", type=Path, help="also write every test here")
-    parser.add_argument("--no-write", action="store_true", help="do not touch RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not touch the record's notes")
     args = parser.parse_args()
 
     import torch

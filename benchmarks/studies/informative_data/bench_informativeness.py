@@ -5,7 +5,8 @@ For each scenario: generate the training flights serially, then report the faile
 regenerated flights, the flights whose true state leaves the system's box X (and how many of
 those are loose flights), the 99th percentile of |θ|, and the informativeness measures of
 :func:`canonid.datagen.informativeness.dataset_informativeness` at window ℓ = 10 (the learned
-drone model's window). Writes the "Informative drone data" section of ``benchmarks/RESULTS.md``.
+drone model's window). Writes the "Informative drone data" section of its notes
+(``benchmarks/records/``).
 """
 
 from __future__ import annotations

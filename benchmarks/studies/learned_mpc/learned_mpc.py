@@ -41,7 +41,8 @@ set beside it the measured ``‖w̄‖`` and the learned model's one-step output
 The step responses of ``Case.judged`` (drone: px and θ after a rotor difference) are also run from
 rest (hover) and judged: learned / true change in [0.7, 1.3] is the true sign within 30 %.
 
-Writes the section "NMPC on a learned model" of benchmarks/RESULTS.md (``--section`` names
+Writes the section "NMPC on a learned model" of the records (benchmarks/records/) (``--section``
+names
 another, so that a run on other data keeps the earlier one).
 """
 
@@ -873,11 +874,11 @@ def main() -> int:
         "(0: no theory beside the drone loops, nor the learned γ_f on them)",
     )
     parser.add_argument("--json", type=Path, help="also write the numbers here")
-    parser.add_argument("--no-write", action="store_true", help="do not touch RESULTS.md")
+    parser.add_argument("--no-write", action="store_true", help="do not touch the record's notes")
     parser.add_argument(
         "--section",
         default=SECTION,
-        help=f"the RESULTS.md section to write (default {SECTION!r}; another keeps that one)",
+        help=f"the section to write (default {SECTION!r}; another keeps that one)",
     )
     parser.add_argument(
         "--candidates",

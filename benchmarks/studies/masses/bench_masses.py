@@ -3,7 +3,8 @@
 Generates ``canonid generate masses-id --n-train 10 --n-val 3 --n-test 3 --seed 1`` into
 ``runs/data/masses-id`` when missing, trains ``canonid train DATA --window L --threads 1`` for
 each ``--windows`` L (the defaults otherwise: feedthrough decided on validation), and writes the
-section "Chain of masses" of benchmarks/RESULTS.md: per window the best validation loss (what
+section "Chain of masses" of the records (benchmarks/records/): per window the best validation
+loss (what
 chooses the window), the feedthrough decision, and the test fit % per output (read after the
 choice), with the training's CPU time. ``--record DATA RUN [RUN ...]`` writes the section from
 runs already made (their CPU times given by ``--cpu-seconds``, one per run).

@@ -1,7 +1,7 @@
 """CPU time of simulating a mean of K members (``canonid train --members K``) block by block
 against the same weights multiplied densely, and against the K members one after another.
 
-Writes the section "Members: simulation cost" of benchmarks/RESULTS.md.
+Writes the section "Members: simulation cost" of the records (benchmarks/records/).
 
 A mean of K Ours (MLP) members (:func:`canonid.learning.members.average_members`) stores its
 hidden layers dense and block-diagonal; it applies them block by block (``OursMLP(groups=K)``).
@@ -98,7 +98,9 @@ def main() -> int:
     parser.add_argument("--horizon", type=int, default=100, help="evaluation: steps per rollout")
     parser.add_argument("--steps", type=int, default=5000, help="simulation: steps of one record")
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--no-write", action="store_true", help="print, do not write RESULTS.md")
+    parser.add_argument(
+        "--no-write", action="store_true", help="print, do not write the record's notes"
+    )
     args = parser.parse_args()
     torch.set_num_threads(1)
     unit = {"u_mean": [0.0], "u_std": [1.0], "y_mean": [0.0], "y_std": [1.0], "dy_std": [1.0]}

@@ -16,7 +16,7 @@ the test parts scored, for the defaults' model and each choice: the official Sil
 (``canonid.benchmark.score_parts``, RMSE in mV after n_init = 50) for the cuts of Silverbox's
 training part, the test record for the overflow tanks (simulation after n_init = 50, RMSE in V).
 
-``record`` writes the section "Members on small records" of benchmarks/RESULTS.md and
+``record`` writes the section "Members on small records" of the records (benchmarks/records/) and
 ``benchmarks/studies/members/members_study.json`` (every loss and score).
 
 Usage: python benchmarks/studies/members/members_study.py train NAME SEED

@@ -13,7 +13,7 @@ Measures, in one run on this machine:
   on 2 local Dask worker processes (``--size full``); ``--size quick`` measures 20 flights both
   ways and extrapolates only the serial time linearly to 176 flights (said so in the table).
 
-Writes the section "Quadrotor stand-in" of ``benchmarks/RESULTS.md``.
+Writes the section "Quadrotor stand-in" of its notes (``benchmarks/records/``).
 """
 
 from __future__ import annotations

@@ -14,7 +14,8 @@ Needs the identification layer (``learning``, issue 4). Usage::
     python -m canonid generate quadrotor --out DATA --n-train 20 --n-val 4 --n-test 4
     python benchmarks/studies/quadrotor/quadrotor_mlp.py DATA --window 10 --epochs 40
 
-Writes the section "Quadrotor Ours (MLP), simulated stand-in" of ``benchmarks/RESULTS.md``.
+Writes the section "Quadrotor Ours (MLP), simulated stand-in" of its notes
+(``benchmarks/records/``).
 """
 
 from __future__ import annotations

@@ -2,7 +2,8 @@
 samples, canonid's defaults beside deepSI's SUBNET with its defaults, scored by the official
 Silverbox rule on the official test parts.
 
-Writes the section "Small data" of benchmarks/RESULTS.md (issue 27, "Must show: Small data").
+Writes the section "Small data" of the records (benchmarks/records/) (issue 27, "Must show:
+Small data").
 
 * Data: ``canonid.datagen.benchmarks.load_benchmark("silverbox", DIR)``; its training part
   ("multisine-train", samples 40,650 … 105,711 of the record) is cut to its first N samples
