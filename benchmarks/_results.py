@@ -16,8 +16,10 @@ import json
 import os
 import platform
 import re
+import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 from canonid.kernel.io import atomic_write_text
 
@@ -29,12 +31,15 @@ HAND_NOTE = "Added by hand"
 __all__ = [
     "HAND_NOTE",
     "append_row",
+    "cell_value",
     "load_line",
     "machine_description",
     "publish",
     "read_rows",
     "read_section",
     "record",
+    "tables_of",
+    "update_record",
     "write_section",
 ]
 
@@ -95,6 +100,86 @@ def write_section(name: str, body: str, *, command: str | None = None) -> None:
     text = pattern.sub(lambda _: block, text) if old else block + "\n"
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_text(path, text)
+    update_record(name, block, command=cmd, date=stamp)
+
+
+def tables_of(text: str) -> list[dict[str, list]]:
+    """The Markdown tables of ``text``: ``{"columns": [...], "rows": [[...], ...]}`` each."""
+    tables, lines = [], text.splitlines()
+    for i, line in enumerate(lines):
+        if i + 1 < len(lines) and line.startswith("|") and re.match(r"^\|[-:| ]+\|$", lines[i + 1]):
+            rows = []
+            for row in lines[i + 2 :]:
+                if not row.startswith("|"):
+                    break
+                rows.append(_cells(row))
+            tables.append({"columns": _cells(line), "rows": rows})
+    return tables
+
+
+def _cells(line: str) -> list[str]:
+    return [c.strip() for c in line.strip().strip("|").split("|")]
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word.replace("−", "-").replace(",", "").rstrip(".;:"))
+    except ValueError:
+        return False
+    return True
+
+
+def cell_value(tables: list[dict[str, list]], figure: dict[str, Any]) -> str:
+    """The figure a record's ``figures`` entry points at: in table ``table``, the row whose cells
+    match ``row``, column ``column``: its first word (``pick``: the number at that place among
+    the cell's numbers; ``whole``: the whole cell), bold and the best-published mark dropped."""
+    table = tables[figure["table"]]
+    for cells in table["rows"]:
+        found = dict(zip(table["columns"], cells))
+        if all(found.get(k) == v for k, v in figure["row"].items()):
+            text = found[figure["column"]].replace("**", "").strip().rstrip("*")
+            if figure.get("whole"):
+                return text
+            numbers = [w for w in (w.strip("();") for w in text.split()) if _is_number(w)]
+            return numbers[figure["pick"]] if figure.get("pick") else text.split()[0]
+    raise KeyError(f"no row {figure['row']} with a column {figure['column']!r}")
+
+
+def _commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=BENCHMARKS, capture_output=True, text=True
+        )
+    except OSError:
+        return "unknown"
+    return out.stdout.strip() or "unknown"
+
+
+def update_record(name: str, block: str, *, command: str, date: str) -> Path:
+    """Write section ``name``'s JSON record beside its notes: the command, commit, date, machine
+    and load of this run, every table of ``block`` cell by cell, and each figure the docs quote
+    from a table read again from its cell (a figure typed as text stays as it is)."""
+    path = section_file(name).with_suffix(".json")
+    old = json.loads(path.read_text(encoding="utf-8")) if path.exists() else {}
+    tables = tables_of(block)
+    figures = {
+        key: {**f, "value": cell_value(tables, f)} if isinstance(f, dict) else f
+        for key, f in old.get("figures", {}).items()
+    }
+    load = re.search(r"[Ll]oad average.*?(?=\.\s|\.$|\n|$)", block)  # its sentence
+    record = {
+        "study": name,
+        "source": f"written by the script, section notes in {path.with_suffix('.md').name}",
+        "command": command,
+        "commit": _commit(),
+        "date": date,
+        "machine": machine_description(),
+        "load": load.group(0) if load else None,
+        "figures": figures,
+        "tables": tables,
+    }
+    atomic_write_text(path, json.dumps(record, indent=1, ensure_ascii=False) + "\n")
+    return path
 
 
 def read_rows(path: Path) -> list[dict]:

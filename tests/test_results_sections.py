@@ -48,3 +48,44 @@ def test_a_section_without_notes_is_the_new_text_alone(tmp_path, monkeypatch):
     _results.write_section("A", "second", command="python a.py")
     text = (tmp_path / "records" / "a.md").read_text()
     assert "first" not in text and text.rstrip().endswith("second\n<!-- END A -->")
+
+
+def test_every_quoted_cell_figure_is_its_cell_in_the_record():
+    import json
+
+    root = Path(__file__).resolve().parents[1] / "benchmarks"
+    checked = 0
+    for path in root.rglob("*.json"):
+        record = json.loads(path.read_text(encoding="utf-8"))
+        if not isinstance(record, dict):
+            continue
+        for key, figure in record.get("figures", {}).items():
+            if isinstance(figure, dict):
+                assert _results.cell_value(record["tables"], figure) == figure["value"], key
+                checked += 1
+    assert checked > 300
+
+
+def test_a_script_run_rewrites_its_record_and_the_figures_follow_their_cells(tmp_path, monkeypatch):
+    import json
+
+    monkeypatch.setattr(_results, "BENCHMARKS", tmp_path)
+    (tmp_path / "records").mkdir()
+    figure = {"value": "1.5", "table": 0, "row": {"model": "mlp"}, "column": "MSE"}
+    old = {"study": "T", "figures": {"t/mlp": figure, "t/typed": "7"}, "tables": []}
+    (tmp_path / "records" / "t.json").write_text(json.dumps(old))
+    table = "| model | MSE |\n|---|---:|\n| arx | 9.0 |\n| mlp | **2.25** |\n"
+    body = f"Load average 0.5 at the start.\n\n{table}"
+    _results.write_section("T", body, command="python t.py")
+    record = json.loads((tmp_path / "records" / "t.json").read_text())
+    assert record["figures"]["t/mlp"]["value"] == "2.25"  # read again from its cell
+    assert record["figures"]["t/typed"] == "7"
+    assert record["command"] == "python t.py" and record["load"].startswith("Load average 0.5")
+    assert record["tables"] == [
+        {"columns": ["model", "MSE"], "rows": [["arx", "9.0"], ["mlp", "**2.25**"]]}
+    ]
+    assert {"commit", "date", "machine"} <= set(record)
+    _results.write_section("New", "| a |\n|---|\n| 1 |\n", command="python n.py")
+    assert json.loads((tmp_path / "records" / "new.json").read_text())["tables"][0]["rows"] == [
+        ["1"]
+    ]

@@ -79,13 +79,13 @@ def records() -> dict[str, dict[str, Any]]:
 
 @cache
 def _figures() -> dict[str, tuple[str, str]]:
-    """key -> (its value, the record that holds it); a key held twice is an error."""
+    """key -> (its value: a table cell's, kept by the writer, or text; its record), once."""
     held: dict[str, tuple[str, str]] = {}
     for name, record in records().items():
         for key, value in record.get("figures", {}).items():
             if key in held:
                 raise ValueError(f"figure {key!r} in both {held[key][1]} and {name}")
-            held[key] = (str(value), name)
+            held[key] = (str(value["value"] if isinstance(value, dict) else value), name)
     return held
 
 
