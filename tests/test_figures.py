@@ -84,9 +84,19 @@ def test_a_suite_record_renders_its_contestants_and_means(tmp_path, monkeypatch)
         "commit": "abc1234",
         "machine": {"processor": "x86_64", "cores": 2},
         "load": {"before": 0.1, "after": 0.2},
-        "records": {"tank": {"character": "c", "a": cell, "b": {**cell, "finite": False}}},
+        "records": {
+            "tank": {"character": "c", "a": cell, "b": {**cell, "finite": False}},
+            "drone": {
+                "character": "d",
+                "a": cell,
+                "b": {"rmse": None, "cpu_seconds": None, "finite": False},
+            },
+        },
         "contestants": {"a": {}, "b": {}},
-        "means": {w: {"rmse_geomean": 0.5, "cpu_seconds": 12.3, "all_finite": True} for w in "ab"},
+        "means": {
+            "a": {"rmse_geomean": 0.5, "cpu_seconds": 24.6, "all_finite": True},
+            "b": {"rmse_geomean": None, "cpu_seconds": 12.3, "all_finite": False},
+        },
     }
     (tmp_path / "suite.json").write_text(json.dumps(suite))
     monkeypatch.setattr(figures, "BENCHMARKS", tmp_path)
@@ -95,7 +105,8 @@ def test_a_suite_record_renders_its_contestants_and_means(tmp_path, monkeypatch)
         columns, rows = _parse(figures.render("suite"))
         assert columns == ["record", "a RMSE", "a CPU s", "b RMSE", "b CPU s"]
         assert rows[0] == ["tank", "0.5", "12", "not finite", "12"]
-        assert rows[1][1:] == ["0.5", "12", "0.5", "12"]
+        assert rows[1] == ["drone", "0.5", "12", "not finite", "—"]  # a failed training
+        assert rows[2][1:] == ["0.5", "25", "—", "12"]
     finally:
         figures.records.cache_clear()
 

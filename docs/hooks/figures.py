@@ -98,25 +98,23 @@ def value(key: str) -> str:
     return _figures()[key][0]
 
 
-MEANS = (("rmse_geomean", ".4g"), ("cpu_seconds", ".0f"))
+def _pair(rmse: float | None, cpu: float | None, finite: bool = True) -> list[str]:
+    """A suite cell: RMSE (or "not finite") and CPU seconds; "—" where a run has none."""
+    fmt = lambda v, spec: "—" if v is None else format(v, spec)  # noqa: E731
+    return [fmt(rmse, ".4g") if finite else "not finite", fmt(cpu, ".0f")]
 
 
 def _suite_table(record: dict[str, Any]) -> tuple[list[str], list[list[str]]]:
     """A suite record as one table: a row per record and the means, RMSE and CPU s per
-    contestant (a training that was not finite says so instead of its RMSE)."""
-    who = list(record["contestants"])
+    contestant."""
+    who, means = list(record["contestants"]), record["means"]
     columns = ["record", *(f"{w} {what}" for w in who for what in ("RMSE", "CPU s"))]
-    rows = []
-    for name, cells in record["records"].items():
-        row = [name]
-        for w in who:
-            c = cells[w]
-            row += [f"{c['rmse']:.4g}" if c["finite"] else "not finite", f"{c['cpu_seconds']:.0f}"]
-        rows.append(row)
-    means = record["means"]
-    total = [f"{means[w][k]:{f}}" for w in who for k, f in MEANS]
-    rows.append(["geometric mean RMSE, total CPU s", *total])
-    return columns, rows
+    rows = [
+        [name, *(x for w in who for x in _pair(c[w]["rmse"], c[w]["cpu_seconds"], c[w]["finite"]))]
+        for name, c in record["records"].items()
+    ]
+    total = (x for w in who for x in _pair(means[w]["rmse_geomean"], means[w]["cpu_seconds"]))
+    return columns, [*rows, ["geometric mean RMSE, total CPU s", *total]]
 
 
 def table(name: str, nth: int = 0) -> tuple[list[str], list[list[str]]]:
