@@ -18,7 +18,7 @@ DATASETS = {
     "drone2d-id-small": ["drone2d-id", "--n-train", "40", "--n-val", "10", "--n-test", "10"],
 }
 
-#: system → (data source, the window ℓ the defaults chose there: RESULTS.md's sections) for the
+#: system → (data source, the window ℓ the defaults chose there: the records) for the
 #: validation studies (extrapolation_study.py, weight_decay_study.py); a source is a dataset
 #: folder under the repository root, or "silverbox" (the benchmark, loaded from ``--dir``)
 STUDY_SYSTEMS = {

@@ -10,7 +10,7 @@ Measures, in one run:
    1 start as the baseline;
 4. growth with ℓ = 1…10: seconds for the reachable hull, γ_f, α_ℓ (sampled) and 1000 trials.
 
-Writes the section "Analysis cost" of benchmarks/RESULTS.md. ``--size full`` gives the
+Writes the section "Analysis cost" of the records (benchmarks/records/). ``--size full`` gives the
 searches longer budgets.
 """
 

@@ -7,7 +7,8 @@ resident set size (``resource.getrusage(RUSAGE_SELF).ru_maxrss``) after the impo
 interpreter, numpy and canonid alone: the floor) and after the load, and the seconds the load
 took. ``--baseline REF`` loads the same file with git revision ``REF`` too (exported to a
 temporary folder, laid out as the installed package), the two trees taking turns run by run so
-both see the same machine load. Writes the "CSV memory" section of ``benchmarks/RESULTS.md``.
+both see the same machine load. Writes the "CSV memory" section of its notes
+(``benchmarks/records/``).
 
 Usage: python benchmarks/bench_csv_memory.py [--size quick|full] [--rows N] [--repeats R]
 [--baseline REF] (quick: 200,000 rows; full: 2 million)

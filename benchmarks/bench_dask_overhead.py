@@ -1,5 +1,6 @@
 """What a local Dask cluster costs besides the jobs (the "Dask overhead" section of
-``benchmarks/RESULTS.md``): Dask's default settings against the ones canonid's runner gives its
+its notes (``benchmarks/records/``)): Dask's default settings against the ones canonid's runner
+gives its
 local clusters (:data:`canonid.runner.LOCAL_CLUSTER_CONFIG`).
 
 Run::

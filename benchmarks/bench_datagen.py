@@ -1,4 +1,4 @@
-"""Data-engine benchmark (the "Data engine" section of ``benchmarks/RESULTS.md``).
+"""Data-engine benchmark (the "Data engine" section of its notes (``benchmarks/records/``)).
 
 Run on an idle machine for the recorded figures::
 

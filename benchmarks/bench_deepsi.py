@@ -1,7 +1,7 @@
 """Identification against deepSI: Ours (MLP) and deepSI's SUBNET on the same data, the same
 training budget, scored by the same code.
 
-Writes the section "Identification versus deepSI" of benchmarks/RESULTS.md.
+Writes the section "Identification versus deepSI" of the records (benchmarks/records/).
 
 * Contestants. **Ours (MLP)**: ``learning.fit`` with the ``quick`` profile (what ``canonid train
   --profile quick`` runs), ℓ = 10, with canonid's default options on both systems

@@ -1,6 +1,6 @@
 """Peak memory of dataset generation and of training, each case in a fresh child process.
 
-Writes the section "Memory" of benchmarks/RESULTS.md.
+Writes the section "Memory" of the records (benchmarks/records/).
 
 Every case is one ``canonid`` command run in a child process (``python bench_memory.py --child
 ARGS...`` → ``canonid.cli.main(ARGS)``), which reports its own peak resident set size

@@ -2,7 +2,7 @@
 benchmark): canonid's defaults, the Classic GRU baseline, ARX and deepSI's SUBNET with its
 defaults on the same small record, side by side.
 
-Writes the section "Overflow tanks" of benchmarks/RESULTS.md.
+Writes the section "Overflow tanks" of the records (benchmarks/records/).
 
 * Data: ``canonid generate tanks-overflow --seed 0`` into ``runs/data/tanks-overflow``: one
   training record of 1,024 samples (Ts = 4 s) whose last 20 % (samples 819…1023) validate, one

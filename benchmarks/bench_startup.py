@@ -13,7 +13,7 @@ folder and run with the same interpreter), the two trees taking turns run by run
 the same machine load. Each tree's modules are compiled to bytecode first, as an installed
 wheel's are. Reports the median and minimum wall time and the median CPU time (user +
 system, which depends little on the load) of ``--repeats`` runs, and the load average before
-and after. Writes the "Start-up" section of ``benchmarks/RESULTS.md``.
+and after. Writes the "Start-up" section of its notes (``benchmarks/records/``).
 """
 
 from __future__ import annotations

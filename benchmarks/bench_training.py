@@ -1,7 +1,7 @@
 """Training throughput of the four models on CPU, the effect of the accelerations tried, and the
 time the quick profile takes to reach a target on the tank.
 
-Writes the section "Training throughput" of benchmarks/RESULTS.md.
+Writes the section "Training throughput" of the records (benchmarks/records/).
 
 * Throughput: the training step of each model (loss of an open-loop rollout + backward + Adam)
   on sub-windows of the tank dataset, ℓ = 10, H = 50, batch 16, one thread: batches/s, windows/s

@@ -2,7 +2,7 @@
 
 `make demo` (`canonid reproduce --profile quick --systems tank`) writes its numbers to
 ``OUT/reproduction.json`` (``OUT`` = ``runs/demo``, or the ``DEMO_OUT`` given to make). This
-script reads that file and writes one system's numbers into a section of RESULTS.md — the tank's
+script reads that file and writes one system's numbers into a section of the records — the tank's
 into "make demo: Table 1 and compression", another system's into "Reproduce, quick profile:
 SYSTEM" — with the run's software versions, so that the Results page quotes a measurement rather
 than typed numbers. The section "make demo" keeps the timings.

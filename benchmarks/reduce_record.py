@@ -2,7 +2,7 @@
 
 ``canonid reduce RUN --compression R`` writes ``reduction.json`` and ``metrics.json`` into its run
 folder; ``canonid reduce RUN RUN … --sweep`` writes ``sweep.json``. This script reads one of each
-and writes the section "Reduction: tank" of RESULTS.md, so that the page quotes a measurement:
+and writes the section "Reduction: tank" of the records, so that the page quotes a measurement:
 
     python reduce_record.py --single runs/tank-mlp-l10-r60 --sweep runs/sweep-main/sweep.json
 """

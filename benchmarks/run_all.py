@@ -1,5 +1,6 @@
 """Run every benchmark script (``benchmarks/bench_*.py``) in turn; each writes its own section
-of ``benchmarks/RESULTS.md``. ``--size quick`` (default) or ``--size full`` (paper sizes)."""
+of its notes (``benchmarks/records/``). ``--size quick`` (default) or ``--size full`` (paper
+sizes)."""
 
 from __future__ import annotations
 

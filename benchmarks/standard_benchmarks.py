@@ -1,4 +1,5 @@
-"""canonid's scores on the field's standard benchmarks → a section of ``benchmarks/RESULTS.md``.
+"""canonid's scores on the field's standard benchmarks → a section of its notes
+(``benchmarks/records/``).
 
 Runs ``canonid benchmark NAME ...`` (every argument after NAME is passed on), measures its wall
 and CPU time and the load average, and writes the scores beside the published baselines::

@@ -47,12 +47,10 @@ VALIDATION_KEY = INFO_UNVALIDATED
 #: ``canonid train`` names a signal whose training samples leave the validation span by more
 #: than :data:`NOTED_BEYOND` of it on at least this share of them: a few extreme samples do not
 #: make a validation part unrepresentative, a level held for a hundredth of the record does
-#: (RESULTS.md, "Test parts outside the training range")
 UNVALIDATED_SHARE = 0.01
 #: the printed tables name a signal that goes more than this share of its training span beyond
 #: it (``metrics.json`` keeps every one): a record drawn like the training data leaves a finite
-#: span a little at its tails, a part made to extrapolate by much more (RESULTS.md, "Test parts
-#: outside the training range")
+#: span a little at its tails, a part made to extrapolate by much more
 NOTED_BEYOND = 0.05
 
 Kind = Literal["input", "output"]

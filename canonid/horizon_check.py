@@ -5,10 +5,8 @@ reads the state from the recorded inputs — the controller's answer to the true
 predicting it from its window; the longer the rollouts, the more that pays (an integrating plant
 carries the window's state error along them), and validation rollouts from the same loop reward it
 too. Such a model's input response is wrong and a controller built on it fails, while its
-validation loss is low (benchmarks/RESULTS.md, "Training horizon on validation", "Residuals
-against the excitation" and "NMPC on a learned model: the training horizon chosen by the input
-response"). The k-step residuals against the excitation that was added to the commands tell the
-models apart on validation data alone (:mod:`canonid.residual_check`).
+validation loss is low. The k-step residuals against the excitation that was added to the
+commands tell the models apart on validation data alone (:mod:`canonid.residual_check`).
 
 So ``canonid train``, on a ``canonid generate`` dataset recorded in closed loop whose flights
 carry an excitation, for a network trained on rollouts whose horizon the user did not set
@@ -31,8 +29,7 @@ Where an alternative was kept and ``--members`` was not given, the run then trai
 :data:`MEMBERS` members of the kept recipe (:mod:`canonid.members`), each candidate held to the
 kept model's input response (:func:`response_count`): a single network trained on short rollouts
 can still stray where NMPC on it leaves the training data, and the mean of members that answer
-the excitation as well as it does smooths that (benchmarks/RESULTS.md, "NMPC on a learned model:
-the defaults on informative data").
+the excitation as well as it does smooths that.
 
 ``RUN/horizon-check.json`` (:class:`HorizonChoice`) records every check and the choice; a resumed
 run that has it decides nothing again. Every count is an estimate (sample correlations against an
@@ -75,10 +72,8 @@ __all__ = [
     "response_count",
 ]
 
-#: the alternatives' training rollouts, tried in this order after the profile's 50: 10 is the
-#: length the horizon study compared with 50 (benchmarks/RESULTS.md, "Training horizon on
-#: validation"), 20 the NMPC's horizon there, tried first where 50 is flagged (records, "NMPC on a
-#: learned model: the defaults on informative data")
+#: the alternatives' training rollouts, tried in this order after the profile's 50: 20, the
+#: NMPC's horizon, first, then 10
 ALTERNATIVES = (20, 10)
 #: the residuals' horizon whose correlations decide (the residual check's default K)
 CHECK_K = 10

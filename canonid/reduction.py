@@ -188,7 +188,7 @@ class ReductionJob(Job["ReductionResult"]):
 
 @dataclass(frozen=True)
 class ReductionResult:
-    """The figures of one reduction (see the module docstring; MSEs on the test split).
+    """The figures of one reduction (see the module docstring; MSEs on the split ``split``).
 
     Attributes:
         reconstruction_mse: auto-encoder error, normalised units.
@@ -456,8 +456,8 @@ class SweepResult:
     def table(self) -> str:
         """A Markdown table of :meth:`rows`."""
         lines = [
-            "| run | ℓ | r | n̄ / dim z | reconstruction MSE (normalised) | 100-step MSE "
-            "reduced | full | seeds |",
+            f"| run | ℓ | r | n̄ / dim z | reconstruction MSE (normalised, "
+            f"{scored_on(self.results)}) | 100-step MSE reduced | full | seeds |",
             "|---|---|---|---|---|---|---|---|",
         ]
         for row in self.rows():
@@ -664,6 +664,12 @@ def _save(fig: Figure, path: str | os.PathLike[str]) -> Path:
     return atomic_write_figure(path, fig, dpi=120)
 
 
+def scored_on(results: Sequence[ReductionResult]) -> str:
+    """The split the results were scored on, for a label: ``test``, or ``val`` where the data
+    hold no test split (both, joined by "/", when the runs differ)."""
+    return "/".join(sorted({r.split for r in results}))
+
+
 def _run_label(results: Sequence[ReductionResult], source: str) -> str:
     first = next(r for r in results if r.source == source)
     windows = [r.window for r in results if r.source != source]
@@ -710,7 +716,8 @@ def plot_heatmap(results: Sequence[ReductionResult], path: str | os.PathLike[str
     ax.set_xlabel("compression rate r")
     seeds = len({r.seed for r in results})
     spread = "one seed" if seeds == 1 else f"mean of {seeds} seeds"
-    ax.set_title(f"auto-encoder reconstruction MSE (test, normalised; {spread})", fontsize=9)
+    split = scored_on(results)
+    ax.set_title(f"auto-encoder reconstruction MSE ({split}, normalised; {spread})", fontsize=9)
     fig.colorbar(image, ax=ax)
     return _save(fig, path)
 
@@ -739,7 +746,7 @@ def plot_reduced_mse(results: Sequence[ReductionResult], path: str | os.PathLike
         ax.axhline(mine[0].full_rollout_mse, color=colour, ls="--", lw=0.9)
     ax.set_yscale("log")
     ax.set_xlabel("reduced state size n̄")
-    ax.set_ylabel("100-step rollout MSE (test, physical units)")
+    ax.set_ylabel(f"100-step rollout MSE ({scored_on(results)}, physical units)")
     seeds = len({r.seed for r in results})
     spread = "one seed" if seeds == 1 else f"mean ± std over {seeds} seeds"
     ax.set_title(f"reduced model vs state size ({spread}; dashed: full model)", fontsize=9)

@@ -16,7 +16,8 @@ response, the k-step-ahead residuals against the excitation (Ljung, ch. 13 and 1
 Either is prewhitened by AR(:data:`PREWHITEN`) per channel; the band is :data:`CONFIDENCE` per
 correlation and admits residual autocorrelation over ``M = k + ℓ − 1 + p`` lags (a window-ℓ
 predictor's k-step residuals share window noise over ``k + ℓ − 1`` lags, the order-``p`` filter
-adds ``p``). These settings are those of ``benchmarks/excitation_check.py``, fixed before its
+adds ``p``). These settings are those of ``benchmarks/studies/excitation/excitation_check.py``,
+fixed before its
 numbers were seen. Every number is an estimate (:class:`CorrelationTest`).
 
 The module imports no torch; the check loads it.

@@ -5,8 +5,9 @@ evaluates Proposition 2's bound and checks it by Monte-Carlo trials
 (:func:`canonid.analysis.report.analyze`); with a trained run it adds the learned model's checks
 (:func:`canonid.learned.learned_checks`, shared with ``canonid reproduce``) and, if asked, γ_f of
 the learned model on its training hull. Without a system it bounds γ_f of the learned model alone.
-It writes ``analysis.json`` and ``bound_vs_window.png`` (``.pdf``, ``.svg``: ``--figure-format``; or
-``learned_analysis.json``) and returns an :class:`AnalysisOutcome` whose text the command prints.
+With a system it writes ``analysis.json`` and, where trials ran, ``bound_vs_window.png``
+(``.pdf``, ``.svg``: ``--figure-format``); without one, ``learned_analysis.json``. It returns an
+:class:`AnalysisOutcome` whose text the command prints.
 
 The module imports neither torch nor CasADi; the analysis loads them.
 """

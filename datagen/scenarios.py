@@ -288,8 +288,7 @@ _DRONE2D = Scenario(
 )
 
 #: the informative design: a multisine on each rotor, on top of the paper's references,
-#: excitation and loose flights (RMS 10 rad/s or ±2 m steps leave the flight box in every flight:
-#: benchmarks/RESULTS.md, "Informative drone data")
+#: excitation and loose flights (RMS 10 rad/s or ±2 m steps leave the flight box in every flight)
 DRONE2D_ID_DESIGN = Multisine(band=(0.1, 5.0), lines=20, amplitude=5.0)
 
 _DRONE2D_ID = replace(

@@ -109,7 +109,7 @@ def initialise_linear(
 
 #: ``feedthrough="auto"`` gives the output map ``u_t`` when, in the least-squares (ARX) fit of
 #: order ℓ, ``u_t`` brings the one-step error on validation below this fraction of the error
-#: without it (benchmarks/RESULTS.md, section "Feedthrough on validation")
+#: without it
 FEEDTHROUGH_GAIN = 0.8
 #: the test fits and scores at most about this many rows of each split (every k-th sample), so
 #: that a long record with a long window stays within a few hundred MB and seconds

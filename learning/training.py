@@ -316,8 +316,8 @@ class FitResult:
 
 
 #: ``device="auto"`` trains on CUDA only when one rollout step of the job takes at least this
-#: many multiply-adds (:func:`network_work`): below it one GPU was slower than the CPU, above it
-#: faster than 1, 4 or 16 CPU threads (benchmarks/RESULTS.md, section "Device")
+#: many multiply-adds (:func:`network_work`): below it one GPU is slower than the CPU, above it
+#: faster than 1, 4 or 16 CPU threads
 AUTO_CUDA_WORK = 4_900_000
 
 
@@ -473,9 +473,9 @@ def flushed_subnormals(
     run, ``always``) trains.
 
     Weight decay pulls many weights into the subnormal range, where a CPU computes several times
-    slower (benchmarks/studies/defaults_study_notes.md); without it the defaults' runs hold none,
-    so they are left exactly as they were. A reduction's auto-encoder falls there without weight
-    decay (benchmarks/RESULTS.md, "Reduction: tank"): its training flushes ``always``.
+    slower; without it the defaults' runs hold none,
+    so they are left exactly as they are. A reduction's auto-encoder falls there without weight
+    decay: its training flushes ``always``.
     Afterwards flushing is off again (torch's default).
     """
     wanted = always or bool(weight_decay)

@@ -24,7 +24,7 @@ Ensembles. Canonical models of the same window and signals (e.g. trained from se
 be one system whose ``Ĥ`` is the mean of theirs (``members``): the state is the same window
 ``z_t``, each member applies its own normalisation, and ``f`` shifts in the mean output. A
 controller that plans with the mean cannot exploit one member's error where the others disagree
-with it (benchmarks/RESULTS.md, "NMPC on a learned model: ensembles").
+with it.
 
 Sets (:meth:`LearnedSystem.from_data`): X is the box hull of the states of the training windows
 (every ``z_t`` of every training trajectory, or its encoding ``x̄``), U the hull of the training

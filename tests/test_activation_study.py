@@ -1,4 +1,5 @@
-"""benchmarks/activation_study.py: what it trains (the overflow benchmark's defaults, tanh
+"""benchmarks/studies/one_record/activation_study.py: what it trains (the overflow benchmark's
+defaults, tanh
 units) and where."""
 
 from __future__ import annotations
@@ -7,7 +8,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(
+    0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "studies" / "one_record")
+)
 
 import activation_study as study
 import validation_block_study as block

@@ -783,11 +783,14 @@ def test_a_benchmark_killed_at_random_points_finishes_with_the_same_report(tmp_p
 
 
 def test_range_of_parts_tables_every_test_part_against_the_training_span(tmp_path):
-    """benchmarks/range_of_parts.py: rows for every test part of the benchmarks whose files are
+    """benchmarks/studies/range_of_parts/range_of_parts.py: rows for every test part of the
+    benchmarks whose files are
     found, in the package's layout or in a folder of the benchmark's name."""
     import sys
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    sys.path.insert(
+        0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "studies" / "range_of_parts")
+    )
     import range_of_parts
 
     cache, flat = tmp_path / "cache", tmp_path / "flat"

@@ -3,7 +3,8 @@
 The rule (:func:`canonid.learning.training.auto_device`) reads the work of one rollout step;
 ``benchmarks/device/*.json`` holds the GPU run that measured where a GPU starts to pay off. The
 rule must reproduce every verdict of that run (GPU against the fastest measured CPU thread
-count, at each stack size and width), and RESULTS.md must quote the threshold the code holds.
+count, at each stack size and width), and the Device record's notes must quote the threshold
+the code holds.
 """
 
 from __future__ import annotations
@@ -77,8 +78,8 @@ def test_network_work_counts_weight_matrices_once_per_candidate_and_row() -> Non
 
 
 def test_results_quote_the_threshold_the_code_holds() -> None:
-    text = (ROOT / "benchmarks" / "RESULTS.md").read_text(encoding="utf-8")
+    text = (ROOT / "benchmarks" / "records" / "device.md").read_text(encoding="utf-8")
     section = text.split("<!-- BEGIN Device -->", 1)[1].split("<!-- END Device -->", 1)[0]
     quoted = re.search(r"beat one CPU thread from \*\*([\d.]+) M\*\*", section)
-    assert quoted, "RESULTS.md, section Device: no threshold sentence"
+    assert quoted, "benchmarks/records/device.md: no threshold sentence"
     assert float(quoted.group(1)) == round(AUTO_CUDA_WORK / 1e6, 1)

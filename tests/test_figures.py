@@ -1,4 +1,5 @@
-"""Every figure README.md and docs/ quote agrees with the record that measured it, the site's
+"""Every figure README.md and docs/ quote agrees with the JSON record that measured it, each
+rendered table matches its record, the site's
 formulas are MathML written at build time, and its header names canonid's version."""
 
 from __future__ import annotations
@@ -32,33 +33,82 @@ def test_every_quoted_figure_agrees_with_its_source():
 
 def test_the_headline_figures_are_checked():
     readme = (ROOT / "README.md").read_text("utf-8")
-    for key in ("defaults/tank/0", "defaults/silverbox/2", "demo/wall", "quick/train/epochs"):
+    for key in ("demo/t1/mlp-defaults/10/y", "demo/t1/mlp-paper/10/y", "paper/t1/tank/mlp/10"):
         assert f"<!-- figure: {key} -->" in readme, key
 
 
-def test_a_figure_that_disagrees_with_its_source_fails():
-    tank = figures.value("defaults/tank/0")  # 7.52e-05 in the defaults study
+def test_a_figure_that_disagrees_with_its_record_fails():
+    tank = figures.value("defaults/tank/0")  # 7.52e-05 in the defaults study's record
     assert figures.check(f"tank {float(tank):.2e}<!-- figure: defaults/tank/0 -->", "p") == []
     wrong = figures.check("tank 1.12e-4<!-- figure: defaults/tank/0 -->", "p.md")
-    assert wrong == [f"p.md:1: '1.12e-4' quotes defaults/tank/0, whose source says {tank}"]
+    assert wrong == [f"p.md:1: '1.12e-4' quotes defaults/tank/0, its record: {tank}"]
     unknown = figures.check("x 3<!-- figure: no/such/key -->", "p.md")
     assert unknown and "no figure 'no/such/key'" in unknown[0]
     demo = figures.value("demo/wall")
     assert figures.check(f"takes {demo}<!-- figure: demo/wall -->", "p") == []
     assert figures.check("takes about 8 min<!-- figure: demo/wall -->", "p")
+    assert figures.check("<!-- table: records/no-such-record 0 -->", "p")
 
 
-def test_figures_from_prose_and_from_inside_a_cell():
-    import pytest
+def test_every_record_names_what_measured_it():
+    for name, record in figures.records().items():
+        if "figures" in record:
+            assert {"command", "commit", "machine", "load", "figures"} <= set(record), name
+            assert record.get("source") or record.get("commit"), name
 
-    # the screen lines of the overflow tanks state where the full run ended only in their text
-    ended, budget = (figures.value(f"overflow/full/l10/{k}") for k in ("ended", "budget"))
-    assert ended.isdigit() and budget.isdigit() and int(ended) <= int(budget)
-    with pytest.raises(KeyError, match="no text matching"):
-        figures.Prose("Overflow tanks", r"no such figure (\d+)").value()
-    # "0.04527 (0.1376; 243 s)": score, best validation loss, CPU seconds
-    cell = figures.FIGURES["arx-start/drone2d/0"]
-    assert [cell._replace(pick=i).value() for i in (0, 1)] == ["0.04527", "0.1376"]
+
+def _parse(markdown: str) -> tuple[list[str], list[list[str]]]:
+    """A rendered table back into (columns, rows)."""
+    lines = [line for line in markdown.splitlines() if line.startswith("| ")]
+    cells = [[c.strip().replace("\\|", "|") for c in line[2:-2].split(" | ")] for line in lines]
+    return cells[0], cells[2:]
+
+
+def test_each_rendered_table_matches_its_record():
+    pages = [page.read_text("utf-8") for page in PAGES]
+    used = [(m["name"], int(m["nth"])) for text in pages for m in figures.TABLE.finditer(text)]
+    assert used, "no page renders a table from a record"
+    for name, nth in used:
+        columns, rows = _parse(figures.render(name, nth))
+        record = figures.records()[name]["tables"][nth]
+        assert columns == record["columns"] and rows == record["rows"], (name, nth)
+        assert figures.records()[name]["command"] in figures.render(name, nth).replace("`", "")
+
+
+def test_a_suite_record_renders_its_contestants_and_means(tmp_path, monkeypatch):
+    import json
+
+    cell = {"rmse": 0.5, "cpu_seconds": 12.3, "finite": True}
+    suite = {
+        "command": "python benchmarks/suite.py",
+        "commit": "abc1234",
+        "machine": {"processor": "x86_64", "cores": 2},
+        "load": {"before": 0.1, "after": 0.2},
+        "records": {
+            "tank": {"character": "c", "a": cell, "b": {**cell, "finite": False}},
+            "drone": {
+                "character": "d",
+                "a": cell,
+                "b": {"rmse": None, "cpu_seconds": None, "finite": False},
+            },
+        },
+        "contestants": {"a": {}, "b": {}},
+        "means": {
+            "a": {"rmse_geomean": 0.5, "cpu_seconds": 24.6, "all_finite": True},
+            "b": {"rmse_geomean": None, "cpu_seconds": 12.3, "all_finite": False},
+        },
+    }
+    (tmp_path / "suite.json").write_text(json.dumps(suite))
+    monkeypatch.setattr(figures, "BENCHMARKS", tmp_path)
+    figures.records.cache_clear()
+    try:
+        columns, rows = _parse(figures.render("suite"))
+        assert columns == ["record", "a RMSE", "a CPU s", "b RMSE", "b CPU s"]
+        assert rows[0] == ["tank", "0.5", "12", "not finite", "12"]
+        assert rows[1] == ["drone", "0.5", "12", "not finite", "—"]  # a failed training
+        assert rows[2][1:] == ["0.5", "25", "—", "12"]
+    finally:
+        figures.records.cache_clear()
 
 
 def test_rounding_to_the_quoted_digits():

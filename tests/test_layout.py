@@ -131,7 +131,7 @@ def test_no_folder_is_imported_as_a_top_level_package():
         for path in [
             *MODULES.values(),
             *sorted((ROOT / "tests").glob("*.py")),
-            *sorted((ROOT / "benchmarks").glob("*.py")),
+            *sorted((ROOT / "benchmarks").rglob("*.py")),
             *sorted((ROOT / "docs" / "hooks").glob("*.py")),
         ]
         for m in sorted(_imported_modules(path))

@@ -1,4 +1,5 @@
-"""The model checks of benchmarks/learned_mpc.py on a learned model that is the true system.
+"""The model checks of benchmarks/studies/learned_mpc/learned_mpc.py on a learned model that is
+the true system.
 
 The canonical model ŷ_t = a y_{t−1} + b u_{t−1} (ℓ = 1, one linear layer) is exactly
 x⁺ = a x + b u, y = x: its open-loop predictions along any loop are the true outputs and its
@@ -25,7 +26,9 @@ A, B = 0.9, 0.5
 
 @pytest.fixture
 def bench(monkeypatch):
-    monkeypatch.syspath_prepend(str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    monkeypatch.syspath_prepend(
+        str(Path(__file__).resolve().parents[1] / "benchmarks" / "studies" / "learned_mpc")
+    )
     return importlib.import_module("learned_mpc")
 
 

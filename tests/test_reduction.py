@@ -325,7 +325,7 @@ def test_gru_regressor_is_reduced_too(data):
 
 def test_a_reduction_trains_with_subnormals_flushed_and_restores_the_default_after(data, full):
     """A reduction's auto-encoder falls into float32's subnormals without weight decay, where a
-    CPU computes hundreds of times slower (RESULTS.md, "Reduction: tank"): its training flushes
+    CPU computes hundreds of times slower (the records, "Reduction: tank"): its training flushes
     them whatever the weight decay, and torch's default is back afterwards."""
     tiny = torch.finfo(torch.float32).tiny
 

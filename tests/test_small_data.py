@@ -1,4 +1,5 @@
-"""benchmarks/small_data.py's cut of Silverbox's training part: the first N samples of the
+"""benchmarks/studies/small_data/small_data.py's cut of Silverbox's training part: the first N
+samples of the
 official training part, their last 20 % validating, the official test parts untouched."""
 
 from __future__ import annotations
@@ -11,7 +12,9 @@ from test_benchmarks import write_benchmark
 
 from canonid.datagen.benchmarks import load_benchmark
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(
+    0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "studies" / "small_data")
+)
 
 import small_data
 

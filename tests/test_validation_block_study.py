@@ -1,4 +1,5 @@
-"""benchmarks/validation_block_study.py: where it puts the validation block, and the pieces."""
+"""benchmarks/studies/one_record/validation_block_study.py: where it puts the validation block,
+and the pieces."""
 
 from __future__ import annotations
 
@@ -7,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+sys.path.insert(
+    0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "studies" / "one_record")
+)
 
 import validation_block_study as study
 

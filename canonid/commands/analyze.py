@@ -16,9 +16,9 @@ def register(p: argparse.ArgumentParser) -> None:
         "Estimate the Lipschitz constant γ_f and the observability constant α_ℓ of a "
         "registered system (certified bounds by interval branch-and-bound, sampled bounds "
         "by optimisation), evaluate Proposition 2's bound 2 γ_f^ℓ α_ℓ^-1 ‖w̄‖ and check it "
-        "by Monte-Carlo trials of the output-error estimator. Writes analysis.json and the "
-        "figure bound_vs_window.png to --out. Without SYSTEM, --run RUN bounds γ_f of the "
-        "learned model alone (for data that no registered system produced)."
+        "by Monte-Carlo trials of the output-error estimator; writes analysis.json and, where "
+        "trials ran, the figure bound_vs_window (--figure-format) to --out. Without SYSTEM, "
+        "--run RUN bounds γ_f of the learned model alone, into learned_analysis.json."
     )
     p.add_argument(
         "system",
