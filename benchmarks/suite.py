@@ -181,7 +181,7 @@ def _commit() -> str:
 
 def _checkout(python: str) -> str:
     """The commit of the checkout whose ``.venv`` holds ``python`` (``unknown`` elsewhere)."""
-    folder = Path(python).resolve().parent.parent.parent
+    folder = Path(python).absolute().parent.parent.parent  # CHECKOUT/.venv/bin/python, unresolved
     try:
         return subprocess.run(
             ["git", "-C", str(folder), "rev-parse", "HEAD"],
