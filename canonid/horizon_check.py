@@ -17,7 +17,7 @@ carry an excitation, for a network trained on rollouts whose horizon the user di
    split;
 2. when more lie outside than chance allows (:func:`chance_limit`: the binomial count of the
    null at the band's confidence), trains the same request with the shorter rollouts of
-   :data:`ALTERNATIVES` in turn, each in ``RUN/horizon-H`` (its own window screen), and checks
+   :data:`ALTERNATIVES` in turn, each in ``RUN/horizon-H`` (its own search), and checks
    each; the first whose count chance allows ends the ladder (the longest rollouts that do not
    read the state from the feedback fit best);
 3. keeps the model with the fewest correlations outside the band, the longer rollouts on a tie

@@ -173,7 +173,7 @@ def candidate_pool(
     threads: int | None, *, steps: int, candidates: int, device: str = "cpu"
 ) -> Iterator[Executor | None]:
     """Worker processes of one torch thread each, for independent short trainings that train
-    side by side (the window screen's candidates, the cubic test's arms): one per thread the run
+    side by side (the candidates of a search's rung, the members): one per thread the run
     may use (``threads``; default every core), at most ``candidates``; ``None`` — train them one
     after the other in this process — with one thread or when each trains for fewer than
     :data:`POOL_MIN_STEPS` optimiser steps (``steps``), or when they may train on a GPU

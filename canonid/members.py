@@ -1,14 +1,14 @@
 """``canonid train --members K``: the run's recipe trained from K seeds, and the model chosen on
 validation among the members and the averages of the best of them.
 
-After the run's own training (its window screened and its near ties followed up), K − 1 more
+After the run's own training (its search, where one ran), K − 1 more
 trainings of the same recipe start from the seeds that follow the run's (``--seed S``: S + 1, …,
 S + K − 1), each in ``RUN/members/sS``, a run folder of its own (resumed from its checkpoint when
 it was interrupted); ``canonid train`` trains them side by side, one thread each, when the run
-may use several cores. They train the network the run's own training settled on (the window, and
-what the feedthrough and cubic tests decided), so every member has the same architecture. The
-candidates are each member alone and, for j = 2 … K, the mean of the j members of lowest
-validation loss (their regressors averaged at every step:
+may use several cores. They train the network the run's own training settled on (the window and
+cubic branch the search kept, what the feedthrough test decided), so every member has the same
+architecture. The candidates are each member alone and, for j = 2 … K, the mean of the j
+members of lowest validation loss (their regressors averaged at every step:
 :func:`canonid.learning.members.average_members`); one routine scores all of them on the run's
 validation windows (:func:`canonid.learning.members.validation_losses`), and the lowest becomes
 the run folder's model, scored on the test split as the run was. ``members.json`` records the
@@ -229,7 +229,7 @@ class MemberJob:
 
 def member_recipe(recipe: RunRecipe, model: Model, seed: int) -> RunRecipe:
     """``recipe`` from ``seed``, training the network ``model`` (the run's first member) has:
-    the feedthrough and cubic tests' decisions taken over, not made again."""
+    the search's and the feedthrough test's decisions taken over, not made again."""
     config = model.net.config()
     net_options = dict(recipe.net_options)
     net_options["feedthrough"] = bool(config["feedthrough"])

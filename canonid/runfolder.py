@@ -1247,7 +1247,7 @@ def _table(
     recipe: RunRecipe, run_dir: Path, table: Sequence[Candidate] | None, *, resume: bool
 ) -> list[Candidate]:
     """The candidates to choose among: those a resumed search recorded, ``table``, or the
-    recipe's own model (both cubic arms where its ``cubic`` is ``"auto"``)."""
+    recipe's own model (with and without the cubic branch where its ``cubic`` is ``"auto"``)."""
     if resume and (run_dir / SEARCH_FILE).is_file():
         recorded = Search.read(run_dir)
         if recorded.chosen is not None and (run_dir / CHECKPOINT_FILE).is_file():
