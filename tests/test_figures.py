@@ -70,9 +70,18 @@ def test_each_rendered_table_matches_its_record():
     assert used, "no page renders a table from a record"
     for name, nth in used:
         columns, rows = _parse(figures.render(name, nth))
-        record = figures.records()[name]["tables"][nth]
+        body = figures.records()[name]
+        assert body["command"] in figures.render(name, nth).replace("`", "")
+        if "tables" not in body:  # a suite record: one row per record, RMSE and CPU per contestant
+            for row, (record, cells) in zip(rows, body["records"].items(), strict=False):
+                assert row[0] == record
+                for i, who in enumerate(body["contestants"]):
+                    assert row[1 + 2 * i] == format(cells[who]["rmse"], ".4g"), (name, record)
+                    assert row[2 + 2 * i] == format(cells[who]["cpu_seconds"], ".0f")
+            assert len(rows) == len(body["records"]) + 1, name  # and the means
+            continue
+        record = body["tables"][nth]
         assert columns == record["columns"] and rows == record["rows"], (name, nth)
-        assert figures.records()[name]["command"] in figures.render(name, nth).replace("`", "")
 
 
 def test_a_suite_record_renders_its_contestants_and_means(tmp_path, monkeypatch):
