@@ -6,6 +6,7 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "runs" / "data"
@@ -43,3 +44,28 @@ def ensure_dataset(name: str, path: Path | None = None) -> Path:
         cmd = [sys.executable, "-m", "canonid", "generate", *DATASETS[name]]
         subprocess.run([*cmd, "--no-progress", "--out", str(folder)], check=True, cwd=ROOT)
     return folder
+
+
+#: the share of a cut training record that validates (its last samples)
+VAL_FRACTION = 0.2
+
+
+def cut(dataset: Any, samples: int) -> Any:
+    """``dataset`` with its one training record cut to its first ``samples`` samples, then the
+    validation tail (its last 20 %) split off as ``canonid benchmark`` does; the test parts are kept
+    (the small-data study's and the development suite's Silverbox cuts)."""
+    from canonid.datagen.loaders import split_train_val
+    from canonid.kernel.dataset import Dataset
+
+    (record,) = dataset.split("train")
+    start = record.info["samples"][0]
+    head = record.part(0, samples, samples=[start, start + samples])
+    short = Dataset(
+        splits={**dataset.splits, "train": (head,)},
+        dt=dataset.dt,
+        input_names=dataset.input_names,
+        output_names=dataset.output_names,
+        state_names=dataset.state_names,
+        metadata={**dataset.metadata, "cut": f"first {samples} samples of the training part"},
+    )
+    return split_train_val(short, val_fraction=VAL_FRACTION, record_tails=True)

@@ -101,7 +101,7 @@ def prepare(record: Record, out: Path) -> Path:
         dataset = load_benchmark("silverbox", SILVERBOX)
         if record.samples is not None:
             sys.path.insert(0, str(ROOT / "benchmarks"))
-            from small_data import cut
+            from _data import cut
 
             split = cut(dataset, record.samples)
         else:
@@ -167,21 +167,8 @@ def geometric_mean(values: list[float]) -> float | None:
     return math.exp(sum(math.log(v) for v in good) / len(good))
 
 
-def _commit() -> str:
-    try:
-        return subprocess.run(
-            ["git", "-C", str(ROOT), "rev-parse", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
-
-
-def _checkout(python: str) -> str:
-    """The commit of the checkout whose ``.venv`` holds ``python`` (``unknown`` elsewhere)."""
-    folder = Path(python).absolute().parent.parent.parent  # CHECKOUT/.venv/bin/python, unresolved
+def _head(folder: Path) -> str:
+    """The commit checked out in ``folder`` (``unknown`` outside a git checkout)."""
     try:
         return subprocess.run(
             ["git", "-C", str(folder), "rev-parse", "HEAD"],
@@ -191,6 +178,11 @@ def _checkout(python: str) -> str:
         ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
+
+
+def _checkout(python: str) -> str:
+    """The commit of the checkout whose ``.venv`` holds ``python``."""
+    return _head(Path(python).absolute().parent.parent.parent)  # CHECKOUT/.venv/bin/python
 
 
 def _write(
@@ -213,7 +205,7 @@ def _write(
     }
     record = {
         "command": " ".join(sys.argv),
-        "commit": _commit(),
+        "commit": _head(ROOT),
         "machine": {
             "processor": platform.processor() or platform.machine(),
             "cores": os.cpu_count(),

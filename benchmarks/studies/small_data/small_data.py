@@ -55,6 +55,7 @@ from typing import Any
 ROOT = Path(__file__).resolve().parents[3]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from _data import VAL_FRACTION, cut  # noqa: E402
 from _results import load_line, publish  # noqa: E402
 from bench_overflow_tanks import DEEPSI_ITERATIONS, Validation, child_cpu, validation  # noqa: E402
 
@@ -65,7 +66,6 @@ BENCHMARK = "silverbox"
 DEFAULT_DIR = ROOT.parent / "shared" / "data" / "silverbox"
 RUNS = ROOT / "runs" / "small-data"
 SIZES = (1000, 3000, 10000)
-VAL_FRACTION = 0.2
 #: the issue's targets: multisine test RMSE [mV] per size
 TARGETS = {1000: 0.80, 3000: 0.45, 10000: 0.35}
 TESTS = ("multisine", "arrow-no-extrapolation", "arrow-full")
@@ -80,26 +80,6 @@ VARIANTS = {
 #: deepSI's iterations at about the CPU time of canonid's defaults (an extra job: the runs of
 #: DEEPSI_ITERATIONS found their best model at or near their last validation on 10,000 samples)
 DEEPSI_LONG = 12500
-
-
-def cut(dataset: Any, samples: int) -> Any:
-    """``dataset`` with its one training record cut to its first ``samples`` samples, then the
-    validation tail split off as ``canonid benchmark`` does; the test parts are kept."""
-    from canonid.datagen.loaders import split_train_val
-    from canonid.kernel.dataset import Dataset
-
-    (record,) = dataset.split("train")
-    start = record.info["samples"][0]
-    head = record.part(0, samples, samples=[start, start + samples])
-    short = Dataset(
-        splits={**dataset.splits, "train": (head,)},
-        dt=dataset.dt,
-        input_names=dataset.input_names,
-        output_names=dataset.output_names,
-        state_names=dataset.state_names,
-        metadata={**dataset.metadata, "cut": f"first {samples} samples of the training part"},
-    )
-    return split_train_val(short, val_fraction=VAL_FRACTION, record_tails=True)
 
 
 def data_path(samples: int) -> Path:
