@@ -55,7 +55,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/
 
 import numpy as np  # noqa: E402
 from _results import write_section  # noqa: E402
-from horizon_study import loop_figures  # noqa: E402
 
 from canonid.analysis.residuals import CorrelationTest  # noqa: E402
 from canonid.kernel.dataset import Dataset  # noqa: E402
@@ -89,6 +88,17 @@ INSTRUMENTS = {
     "excitation e + d, raw": ("excitation", 0),
     "inputs u, AR(10)": ("inputs", ORDER),
 }
+
+
+def loop_figures(res: dict) -> tuple[float, int, int, float]:
+    """What one drone entry of ``learned_mpc.py --json`` measured: the learned / true tracking
+    RMSE, the learned loops that left X, the loops run, and the learned / true px change after
+    the first judged step (the rotor difference) from rest."""
+    rows = res["rows"]
+    ratio = rows["learned model"]["rmse"] / rows["true model"]["rmse"]
+    left = len(rows["learned model"]["left_X"])
+    px = next(iter(res["responses"].values()))["rest"]["ratios"][0]
+    return ratio, left, len(rows["learned model"]["rmses"]), px
 
 
 def replay_check(data: Dataset) -> str:

@@ -59,6 +59,7 @@ from typing import Any
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[3]))  # this checkout's packages
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # benchmarks/: _results
 
 import numpy as np
 from _results import write_section

@@ -12,6 +12,7 @@ Usage: python range_of_parts.py [--dir ../../shared/data]
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from canonid.kernel.dataset import Dataset
@@ -138,6 +139,7 @@ def validation_table(directory: Path) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    sys.path.insert(0, str(ROOT / "benchmarks"))  # _results
     from _results import record
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
